@@ -1,0 +1,249 @@
+//! The user-facing scene model: every object, camera and light is an entity with these
+//! components. Spawn them into the renderer's world; change detection does the rest.
+
+use std::sync::Arc;
+
+use bevy_ecs::prelude::Component;
+use glam::{Affine3A, Quat, Vec3};
+
+/// Placement of an entity: scale, then rotation, then translation.
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+pub struct Transform {
+    /// Position in world space.
+    pub translation: Vec3,
+    /// Orientation.
+    pub rotation: Quat,
+    /// Per-axis scale.
+    pub scale: Vec3,
+}
+
+impl Default for Transform {
+    fn default() -> Self {
+        Transform::IDENTITY
+    }
+}
+
+impl Transform {
+    /// No translation, rotation or scale.
+    pub const IDENTITY: Transform =
+        Transform { translation: Vec3::ZERO, rotation: Quat::IDENTITY, scale: Vec3::ONE };
+
+    /// A pure translation.
+    pub fn from_xyz(x: f32, y: f32, z: f32) -> Self {
+        Transform { translation: Vec3::new(x, y, z), ..Transform::IDENTITY }
+    }
+
+    /// A pure translation.
+    pub fn from_translation(translation: Vec3) -> Self {
+        Transform { translation, ..Transform::IDENTITY }
+    }
+
+    /// This transform with its rotation replaced.
+    pub fn with_rotation(self, rotation: Quat) -> Self {
+        Transform { rotation, ..self }
+    }
+
+    /// This transform with a uniform scale.
+    pub fn with_scale(self, scale: f32) -> Self {
+        Transform { scale: Vec3::splat(scale), ..self }
+    }
+
+    /// The affine matrix, or `None` if it holds NaN/Inf or is singular.
+    pub fn to_affine(&self) -> Option<Affine3A> {
+        let m = Affine3A::from_scale_rotation_translation(self.scale, self.rotation, self.translation);
+        let det = m.matrix3.determinant();
+        (m.is_finite() && det != 0.0 && det.is_finite()).then_some(m)
+    }
+}
+
+/// A sphere of the given radius centred at the entity's translation (uniform scale only).
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+#[require(Transform, Matte)]
+pub struct Sphere {
+    /// Radius before scaling.
+    pub radius: f32,
+}
+
+/// An infinite plane through the entity's translation. Kept outside the BVH.
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+#[require(Transform, Matte)]
+pub struct Plane {
+    /// Normal in the entity's local frame (rotated by its transform); +Y by default.
+    pub normal: Vec3,
+}
+
+impl Default for Plane {
+    fn default() -> Self {
+        Plane { normal: Vec3::Y }
+    }
+}
+
+/// An axis-aligned box in the entity's local frame, centred at its origin.
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+#[require(Transform, Matte)]
+pub struct Cuboid {
+    /// Half the box's size along each local axis.
+    pub half_extents: Vec3,
+}
+
+/// Triangle data shared by any number of [`TriangleMesh`] entities.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Mesh {
+    /// Vertex positions in the mesh's local frame.
+    pub positions: Vec<Vec3>,
+    /// Vertex indices, three per triangle, counter-clockwise seen from outside.
+    pub indices: Vec<[u32; 3]>,
+}
+
+impl Mesh {
+    /// Number of triangles.
+    pub fn triangle_count(&self) -> usize {
+        self.indices.len()
+    }
+
+    /// First problem that makes this mesh unusable: a non-finite position or an index past
+    /// the end of `positions`.
+    pub fn validate(&self) -> Result<(), String> {
+        if let Some(i) = self.positions.iter().position(|p| !p.is_finite()) {
+            return Err(format!("vertex {i} has a non-finite position {}", self.positions[i]));
+        }
+        let n = self.positions.len() as u32;
+        if let Some(t) = self.indices.iter().position(|tri| tri.iter().any(|&i| i >= n)) {
+            return Err(format!(
+                "triangle {t} indexes vertex {:?} but the mesh has {n} vertices",
+                self.indices[t]
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// An instance of shared triangle data, placed by the entity's transform.
+#[derive(Component, Clone, Debug)]
+#[require(Transform, Matte)]
+pub struct TriangleMesh(pub Arc<Mesh>);
+
+/// RTGU's matte material: ambient reflectance `ka·cd`, Lambertian diffuse `kd·cd/π`.
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+pub struct Matte {
+    /// Ambient coefficient.
+    pub ka: f32,
+    /// Diffuse coefficient.
+    pub kd: f32,
+    /// Diffuse colour (linear RGB).
+    pub cd: Vec3,
+}
+
+impl Default for Matte {
+    fn default() -> Self {
+        Matte { ka: 1.0, kd: 1.0, cd: Vec3::splat(0.8) }
+    }
+}
+
+impl Matte {
+    /// A matte material of colour `cd` with ka = kd = 1.
+    pub fn new(cd: Vec3) -> Self {
+        Matte { ka: 1.0, kd: 1.0, cd }
+    }
+}
+
+/// A pinhole camera looking from `eye` at `target`; image size comes from the render settings.
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    /// Centre of projection.
+    pub eye: Vec3,
+    /// Point the camera looks at.
+    pub target: Vec3,
+    /// Approximate up direction.
+    pub up: Vec3,
+    /// Vertical field of view in degrees, in (0, 180).
+    pub vfov_degrees: f32,
+}
+
+impl Camera {
+    /// A camera at `eye` looking at `target` with +Y up.
+    pub fn look_at(eye: Vec3, target: Vec3, vfov_degrees: f32) -> Self {
+        Camera { eye, target, up: Vec3::Y, vfov_degrees }
+    }
+
+    /// A camera placed by a transform: it looks down the transform's −Z with its +Y up.
+    pub fn from_transform(t: &Transform, vfov_degrees: f32) -> Self {
+        let forward = t.rotation * Vec3::NEG_Z;
+        Camera { eye: t.translation, target: t.translation + forward, up: t.rotation * Vec3::Y, vfov_degrees }
+    }
+}
+
+/// RTGU's ambient occluder (Suffern ch. 17) as a light: it adds
+/// `ka·cd·ls·color·(min_amount + (1 − min_amount)·AO)` with AO = (1/π)∫V(ω) cos θ dω.
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+pub struct AmbientOccluder {
+    /// Radiance scale.
+    pub ls: f32,
+    /// Light colour (linear RGB).
+    pub color: Vec3,
+    /// Fraction of light still received from occluded directions, in [0, 1].
+    pub min_amount: f32,
+    /// Occluders farther than this do not count (∞ for classic AO).
+    pub max_distance: f32,
+    /// Directions are sampled with density ∝ cos^e θ; the estimate is weighted to stay
+    /// unbiased for every e ≥ 0 (e = 1 is cosine sampling, the lowest-variance choice).
+    pub exponent: f32,
+}
+
+impl Default for AmbientOccluder {
+    fn default() -> Self {
+        AmbientOccluder { ls: 1.0, color: Vec3::ONE, min_amount: 0.0, max_distance: f32::INFINITY, exponent: 1.0 }
+    }
+}
+
+/// A point light at the entity's translation.
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+#[require(Transform)]
+pub struct PointLight {
+    /// Intensity scale.
+    pub ls: f32,
+    /// Light colour (linear RGB).
+    pub color: Vec3,
+    /// Trace a shadow ray for every lit point.
+    pub shadows: bool,
+    /// Divide by the squared distance (physical falloff); RTGU's default has none.
+    pub falloff: bool,
+}
+
+impl Default for PointLight {
+    fn default() -> Self {
+        PointLight { ls: 1.0, color: Vec3::ONE, shadows: true, falloff: true }
+    }
+}
+
+impl AmbientOccluder {
+    /// A one-line description of the first unusable parameter.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.ls.is_finite() && self.ls >= 0.0 && self.color.is_finite() && self.color.min_element() >= 0.0) {
+            return Err(format!("ambient occluder ls {} color {} must be finite and non-negative", self.ls, self.color));
+        }
+        if !(0.0..=1.0).contains(&self.min_amount) {
+            return Err(format!("ambient occluder min_amount {} is outside [0, 1]", self.min_amount));
+        }
+        if !(self.max_distance > 0.0) {
+            return Err(format!("ambient occluder max_distance {} must be positive (∞ allowed)", self.max_distance));
+        }
+        if !(self.exponent.is_finite() && self.exponent >= 0.0) {
+            return Err(format!("ambient occluder exponent {} must be finite and non-negative", self.exponent));
+        }
+        Ok(())
+    }
+}
+
+impl PointLight {
+    /// A one-line description of the first unusable parameter, given the light's position.
+    pub fn validate(&self, position: Vec3) -> Result<(), String> {
+        if !(self.ls.is_finite() && self.ls >= 0.0 && self.color.is_finite() && self.color.min_element() >= 0.0) {
+            return Err(format!("point light ls {} color {} must be finite and non-negative", self.ls, self.color));
+        }
+        if !position.is_finite() {
+            return Err(format!("point light position {position} is not finite"));
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,31 @@
+//! Errors hemi reports instead of panicking.
+
+use std::{fmt, path::PathBuf};
+
+/// Everything that can stop a render, each with a one-line message.
+#[derive(Debug)]
+pub enum HemiError {
+    /// The scene holds an entity or setting that cannot be rendered.
+    InvalidScene(String),
+    /// A file could not be read or written.
+    Io {
+        /// The file concerned.
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+    /// A command-line argument is unusable.
+    Usage(String),
+}
+
+impl fmt::Display for HemiError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            HemiError::InvalidScene(m) => write!(f, "invalid scene: {m}"),
+            HemiError::Io { path, message } => write!(f, "{}: {message}", path.display()),
+            HemiError::Usage(m) => write!(f, "{m}"),
+        }
+    }
+}
+
+impl std::error::Error for HemiError {}

@@ -1,0 +1,124 @@
+//! Turning radiance into pixels: sRGB encoding and writing PNG (8-bit sRGB) or EXR (linear f32).
+
+use std::{
+    fs::File,
+    io::{BufWriter, Seek, Write},
+    path::{Path, PathBuf},
+};
+
+use image::{ImageFormat, Rgb32FImage, RgbImage, codecs::png::PngEncoder, ImageEncoder};
+
+use crate::{error::HemiError, resources::Image};
+
+/// sRGB transfer function of a linear value, clamped to [0, 1]; NaN maps to 0.
+#[inline]
+pub fn linear_to_srgb(v: f32) -> f32 {
+    let v = if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) };
+    if v <= 0.003_130_8 { v * 12.92 } else { 1.055 * v.powf(1.0 / 2.4) - 0.055 }
+}
+
+/// 8-bit sRGB code of a linear value (round to nearest).
+#[inline]
+pub fn linear_to_srgb8(v: f32) -> u8 {
+    (linear_to_srgb(v) * 255.0 + 0.5) as u8
+}
+
+/// Image file formats hemi writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OutputFormat {
+    /// 8-bit sRGB PNG.
+    Png,
+    /// Linear 32-bit float OpenEXR, unclamped.
+    Exr,
+}
+
+impl OutputFormat {
+    /// The format named by a path's extension.
+    pub fn from_path(path: &Path) -> Result<Self, HemiError> {
+        let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+        match ext.as_deref() {
+            Some("png") => Ok(OutputFormat::Png),
+            Some("exr") => Ok(OutputFormat::Exr),
+            _ => Err(HemiError::Io {
+                path: path.to_path_buf(),
+                message: "unsupported output format: use a .png or .exr extension".into(),
+            }),
+        }
+    }
+}
+
+/// An output file opened (and so checked to be writable) before any rendering starts.
+pub struct OutputFile {
+    path: PathBuf,
+    format: OutputFormat,
+    file: File,
+}
+
+impl OutputFile {
+    /// Creates `path` for writing; fails early on an unknown extension or unwritable location.
+    pub fn create(path: &Path) -> Result<Self, HemiError> {
+        let format = OutputFormat::from_path(path)?;
+        let file = File::create(path).map_err(|e| io_error(path, "cannot create output file", e))?;
+        Ok(OutputFile { path: path.to_path_buf(), format, file })
+    }
+
+    /// Writes `image` in the file's format.
+    pub fn write(self, image: &Image) -> Result<(), HemiError> {
+        let path = self.path.clone();
+        let mut out = BufWriter::new(self.file);
+        write_image(image, self.format, &mut out).map_err(|e| io_error(&path, "cannot write image", e))?;
+        out.flush().map_err(|e| io_error(&path, "cannot write image", e))
+    }
+}
+
+/// Saves `image` to `path`, in the format its extension names.
+pub fn save(image: &Image, path: &Path) -> Result<(), HemiError> {
+    OutputFile::create(path)?.write(image)
+}
+
+/// Encodes `image` into `out` as PNG or EXR.
+pub fn write_image<W: Write + Seek>(image: &Image, format: OutputFormat, out: &mut W) -> Result<(), image::ImageError> {
+    match format {
+        OutputFormat::Png => {
+            let rgb = RgbImage::from_raw(image.width, image.height, image.srgb.clone()).expect("buffer size matches");
+            PngEncoder::new(out).write_image(&rgb, image.width, image.height, image::ExtendedColorType::Rgb8)
+        }
+        OutputFormat::Exr => {
+            let data: Vec<f32> = image.linear.iter().flat_map(|p| p.to_array()).collect();
+            let rgb = Rgb32FImage::from_raw(image.width, image.height, data).expect("buffer size matches");
+            rgb.write_to(out, ImageFormat::OpenExr)
+        }
+    }
+}
+
+fn io_error(path: &Path, what: &str, e: impl std::fmt::Display) -> HemiError {
+    HemiError::Io { path: path.to_path_buf(), message: format!("{what}: {e}") }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn srgb_encoding_matches_the_standard() {
+        assert_eq!(linear_to_srgb8(0.0), 0);
+        assert_eq!(linear_to_srgb8(1.0), 255);
+        assert_eq!(linear_to_srgb8(0.5), 188); // 0.7354 · 255 = 187.5
+        assert_eq!(linear_to_srgb8(0.2140), 128);
+        assert_eq!(linear_to_srgb8(f32::NAN), 0);
+        assert_eq!(linear_to_srgb8(7.0), 255);
+        assert!((linear_to_srgb(0.002) - 0.02584).abs() < 1e-6);
+    }
+
+    #[test]
+    fn exr_round_trips_linear_values_exactly() {
+        use glam::Vec3;
+        let linear = vec![Vec3::new(0.25, 1.5, 1e-3), Vec3::new(7.0, 0.0, 0.125)];
+        let image = Image { width: 2, height: 1, srgb: vec![0; 6], linear: linear.clone() };
+        let mut buf = std::io::Cursor::new(Vec::new());
+        write_image(&image, OutputFormat::Exr, &mut buf).unwrap();
+        let back = image::load_from_memory_with_format(buf.get_ref(), ImageFormat::OpenExr).unwrap().into_rgb32f();
+        let values: Vec<f32> = back.into_raw();
+        assert_eq!(values, linear.iter().flat_map(|p| p.to_array()).collect::<Vec<_>>());
+    }
+}

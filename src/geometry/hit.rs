@@ -1,0 +1,53 @@
+//! Surface hits with a floating-point error bound, and scale-invariant ray spawning from them.
+
+use glam::Vec3A;
+
+use crate::math::{next_float_down, next_float_up};
+
+/// A ray–surface intersection.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfaceHit {
+    /// Ray parameter of the hit.
+    pub t: f32,
+    /// Hit point.
+    pub p: Vec3A,
+    /// Conservative per-axis bound on the rounding error in `p`.
+    pub p_error: Vec3A,
+    /// Unit geometric normal, facing the side the ray came from.
+    pub normal: Vec3A,
+    /// Index of the scene object that was hit.
+    pub object: u32,
+}
+
+impl SurfaceHit {
+    /// The origin for a ray leaving this surface towards `w`: the hit point pushed along the
+    /// normal just past its own error bound (pbrt-v4's `OffsetRayOrigin`), then rounded away
+    /// from the surface. The offset tracks the real rounding error, so it is as small as the
+    /// arithmetic allows at any scale or distance from the origin.
+    #[inline]
+    pub fn spawn_origin(&self, w: Vec3A) -> Vec3A {
+        offset_ray_origin(self.p, self.p_error, self.normal, w)
+    }
+}
+
+/// Offsets `p` (with error bound `err`) along `n` to the side of `w`, far enough that the
+/// spawned ray cannot re-hit the surface that `p` lies on.
+#[inline]
+pub fn offset_ray_origin(p: Vec3A, err: Vec3A, n: Vec3A, w: Vec3A) -> Vec3A {
+    let d = n.abs().dot(err);
+    let mut offset = n * d;
+    if w.dot(n) < 0.0 {
+        offset = -offset;
+    }
+    let po = p + offset;
+    let round = |v: f32, o: f32| {
+        if o > 0.0 {
+            next_float_up(v)
+        } else if o < 0.0 {
+            next_float_down(v)
+        } else {
+            v
+        }
+    };
+    Vec3A::new(round(po.x, offset.x), round(po.y, offset.y), round(po.z, offset.z))
+}

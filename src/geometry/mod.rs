@@ -1,0 +1,11 @@
+//! Geometry: rays, primitive intersection with error bounds, and the acceleration structure.
+
+pub mod accel;
+pub mod hit;
+pub mod ray;
+pub mod shapes;
+pub mod world_space;
+
+pub use accel::{Object, Prim, SceneGeometry, Shape};
+pub use hit::SurfaceHit;
+pub use ray::Ray;

@@ -1,0 +1,43 @@
+//! # hemi
+//!
+//! Ambient occlusion plus direct point-light illumination by CPU ray tracing, structured as a
+//! bevy_ecs world whose systems run once per frame (see [`systems`]):
+//! scene changes → BVH → sample sets → trace → accumulate → resolve.
+//!
+//! Scene objects, the camera, the ambient occluder and point lights are ECS components
+//! ([`components`]); spawn them into a [`Renderer`]'s world and call
+//! [`Renderer::run_frame`] as often as you like. A static scene converges progressively;
+//! any change to an entity or to the settings restarts accumulation automatically.
+
+pub mod camera;
+pub mod cli;
+pub mod components;
+pub mod error;
+pub mod film;
+pub mod geometry;
+pub mod math;
+pub mod renderer;
+pub mod resources;
+pub mod sampling;
+pub mod scene;
+pub mod shading;
+pub mod stats;
+#[path = "../systems/mod.rs"]
+pub mod systems;
+
+pub use error::HemiError;
+pub use renderer::Renderer;
+
+/// The types most programs need.
+pub mod prelude {
+    pub use crate::{
+        Renderer,
+        components::{AmbientOccluder, Camera, Cuboid, Matte, Mesh, Plane, PointLight, Sphere, Transform, TriangleMesh},
+        error::HemiError,
+        resources::{Image, RenderSettings},
+        sampling::SamplerKind,
+        stats::FrameStats,
+        systems::FrameStage,
+    };
+    pub use glam::{Quat, Vec3};
+}

@@ -1,0 +1,159 @@
+//! The library entry point: a bevy_ecs world holding the scene, and the frame schedule.
+
+use std::path::Path;
+
+use bevy_ecs::prelude::*;
+
+use crate::{
+    error::HemiError,
+    film,
+    geometry::SceneGeometry,
+    resources::{Accumulation, FrameSamples, Image, RenderSettings, SceneProblems},
+    sampling::SampleSets,
+    scene::{DEFAULT_BACKGROUND, spawn_default_scene},
+    stats::FrameStats,
+    systems::frame_schedule,
+};
+
+/// A world plus the schedule that renders it, one frame per [`Renderer::run_frame`].
+///
+/// ```
+/// use hemi::prelude::*;
+/// let mut r = Renderer::new(RenderSettings { width: 32, height: 24, ..Default::default() });
+/// r.world_mut().spawn(Camera::look_at(Vec3::new(0.0, 1.0, 4.0), Vec3::ZERO, 40.0));
+/// r.world_mut().spawn(AmbientOccluder::default());
+/// r.world_mut().spawn((Sphere { radius: 1.0 }, Transform::from_xyz(0.0, 1.0, 0.0)));
+/// r.world_mut().spawn(Plane::default());
+/// r.run_frame().unwrap();
+/// assert_eq!(r.image().linear.len(), 32 * 24);
+/// ```
+pub struct Renderer {
+    world: World,
+    schedule: Schedule,
+    pool: Option<rayon::ThreadPool>,
+    frames: u64,
+}
+
+impl Renderer {
+    /// An empty scene with these settings, traced on rayon's global thread pool.
+    pub fn new(settings: RenderSettings) -> Self {
+        let mut world = World::new();
+        world.insert_resource(SampleSets::generate(settings.sampler, settings.samples_per_set, settings.seed));
+        world.insert_resource(settings);
+        world.init_resource::<SceneGeometry>();
+        world.init_resource::<Accumulation>();
+        world.init_resource::<FrameSamples>();
+        world.init_resource::<Image>();
+        world.init_resource::<SceneProblems>();
+        world.init_resource::<FrameStats>();
+        Renderer { world, schedule: frame_schedule(), pool: None, frames: 0 }
+    }
+
+    /// The built-in default scene with these settings (its sky replaces the background).
+    pub fn with_default_scene(settings: RenderSettings) -> Self {
+        let mut r = Renderer::new(RenderSettings { background: DEFAULT_BACKGROUND, ..settings });
+        spawn_default_scene(r.world_mut());
+        r
+    }
+
+    /// Traces on a dedicated pool of `threads` threads instead of rayon's global pool.
+    pub fn with_threads(mut self, threads: usize) -> Result<Self, HemiError> {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .map_err(|e| HemiError::Usage(format!("cannot start {threads} threads: {e}")))?;
+        self.pool = Some(pool);
+        Ok(self)
+    }
+
+    /// The world: spawn, change and despawn entities here between frames.
+    pub fn world(&self) -> &World {
+        &self.world
+    }
+
+    /// Mutable access to the world.
+    pub fn world_mut(&mut self) -> &mut World {
+        &mut self.world
+    }
+
+    /// The frame schedule, to add systems of your own (e.g. animation before
+    /// [`crate::systems::FrameStage::SceneChanges`]).
+    pub fn schedule_mut(&mut self) -> &mut Schedule {
+        &mut self.schedule
+    }
+
+    /// The render settings, for reading.
+    pub fn settings(&self) -> &RenderSettings {
+        self.world.resource::<RenderSettings>()
+    }
+
+    /// The render settings, for changing (any change restarts accumulation).
+    pub fn settings_mut(&mut self) -> Mut<'_, RenderSettings> {
+        self.world.resource_mut::<RenderSettings>()
+    }
+
+    /// Runs one frame: BVH upkeep, sample sets, tracing, accumulation, resolve.
+    /// Fails, without tracing, while the scene holds something that cannot be rendered.
+    pub fn run_frame(&mut self) -> Result<&FrameStats, HemiError> {
+        *self.world.resource_mut::<FrameStats>() = FrameStats { frame: self.frames, ..Default::default() };
+        match &self.pool {
+            Some(pool) => pool.install(|| self.schedule.run(&mut self.world)),
+            None => self.schedule.run(&mut self.world),
+        }
+        self.world.clear_trackers();
+        self.frames += 1;
+        let buffer_bytes = self.buffer_bytes();
+        self.world.resource_mut::<FrameStats>().buffer_bytes = buffer_bytes;
+        if let Some(problem) = self.world.resource::<SceneProblems>().first() {
+            return Err(HemiError::InvalidScene(problem.clone()));
+        }
+        Ok(self.world.resource::<FrameStats>())
+    }
+
+    fn buffer_bytes(&self) -> usize {
+        let acc = self.world.resource::<Accumulation>();
+        let frame = self.world.resource::<FrameSamples>();
+        let image = self.world.resource::<Image>();
+        let sets = self.world.resource::<SampleSets>();
+        acc.sums.len() * 24 + acc.counts.len() * 4 + frame.sums.len() * 12 + image.linear.len() * 12
+            + image.srgb.len()
+            + sets.memory_bytes()
+    }
+
+    /// Runs frames until every pixel has `spp` samples (sets `max_spp`); returns frames run.
+    pub fn render(&mut self, spp: u32) -> Result<u32, HemiError> {
+        self.settings_mut().max_spp = Some(spp);
+        let mut frames = 0;
+        while !self.converged() || frames == 0 {
+            self.run_frame()?;
+            frames += 1;
+        }
+        Ok(frames)
+    }
+
+    /// Whether the accumulation has reached `max_spp` (never true without a target).
+    pub fn converged(&self) -> bool {
+        let spp = self.world.resource::<Accumulation>().spp;
+        self.settings().max_spp.is_some_and(|max| spp >= max)
+    }
+
+    /// Samples per pixel accumulated so far.
+    pub fn spp(&self) -> u32 {
+        self.world.resource::<Accumulation>().spp
+    }
+
+    /// The resolved image of the last frame.
+    pub fn image(&self) -> &Image {
+        self.world.resource::<Image>()
+    }
+
+    /// Statistics of the last frame.
+    pub fn stats(&self) -> &FrameStats {
+        self.world.resource::<FrameStats>()
+    }
+
+    /// Saves the image as PNG (sRGB 8-bit) or EXR (linear f32), by extension.
+    pub fn save(&self, path: &Path) -> Result<(), HemiError> {
+        film::save(self.image(), path)
+    }
+}

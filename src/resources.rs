@@ -1,0 +1,164 @@
+//! Resources: render settings and the buffers that carry a frame from tracing to the image.
+
+use bevy_ecs::prelude::Resource;
+use glam::{DVec3, Vec3};
+
+use crate::sampling::SamplerKind;
+
+/// What to render and how.
+#[derive(Resource, Clone, Debug, PartialEq)]
+pub struct RenderSettings {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Samples per pixel traced by each frame.
+    pub samples_per_frame: u32,
+    /// Points per sample set: the stratified unit; samples `k·n .. (k+1)·n` of a pixel form one
+    /// whole set. Best equal to the total spp a render aims for.
+    pub samples_per_set: u32,
+    /// Stop tracing a static scene once every pixel has this many samples (`None`: never stop).
+    pub max_spp: Option<u32>,
+    /// Seed of every random decision.
+    pub seed: u64,
+    /// Sample pattern.
+    pub sampler: SamplerKind,
+    /// Edge length of the square tiles traced in parallel.
+    pub tile_size: u32,
+    /// Radiance of rays that hit nothing (linear RGB).
+    pub background: Vec3,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        RenderSettings {
+            width: 640,
+            height: 360,
+            samples_per_frame: 4,
+            samples_per_set: 16,
+            max_spp: None,
+            seed: 0,
+            sampler: SamplerKind::default(),
+            tile_size: 16,
+            background: Vec3::ZERO,
+        }
+    }
+}
+
+impl RenderSettings {
+    /// Largest image hemi accepts, in pixels (8192 × 4096); buffers take about 60 bytes each.
+    pub const MAX_PIXELS: u64 = 1 << 25;
+
+    /// A one-line description of the first unusable setting.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.width == 0 || self.height == 0 {
+            return Err(format!("image size {}x{} is empty", self.width, self.height));
+        }
+        let pixels = self.width as u64 * self.height as u64;
+        if pixels > Self::MAX_PIXELS {
+            return Err(format!(
+                "image size {}x{} has {pixels} pixels; the limit is {}",
+                self.width,
+                self.height,
+                Self::MAX_PIXELS
+            ));
+        }
+        if self.samples_per_frame == 0 {
+            return Err("samples per frame must be at least 1".into());
+        }
+        if self.samples_per_set == 0 {
+            return Err("samples per set must be at least 1".into());
+        }
+        if self.tile_size == 0 {
+            return Err("tile size must be at least 1".into());
+        }
+        if !self.background.is_finite() || self.background.min_element() < 0.0 {
+            return Err(format!("background {} must be finite and non-negative", self.background));
+        }
+        Ok(())
+    }
+
+    /// Number of pixels.
+    pub fn pixel_count(&self) -> usize {
+        self.width as usize * self.height as usize
+    }
+}
+
+/// The samples traced by the current frame, per pixel (written by the trace system).
+#[derive(Resource, Clone, Debug, Default)]
+pub struct FrameSamples {
+    /// Sum of this frame's radiance samples per pixel, row-major.
+    pub sums: Vec<Vec3>,
+    /// Samples per pixel traced this frame (0 when the frame traced nothing).
+    pub samples_per_pixel: u32,
+    /// Sample index of this frame's first sample in every pixel.
+    pub first_index: u32,
+}
+
+/// Running sums over frames; reset whenever the scene or the settings change.
+#[derive(Resource, Clone, Debug, Default)]
+pub struct Accumulation {
+    /// Image width the buffer was sized for.
+    pub width: u32,
+    /// Image height the buffer was sized for.
+    pub height: u32,
+    /// Sum of all radiance samples per pixel (f64 so that long runs do not lose precision).
+    pub sums: Vec<DVec3>,
+    /// Samples accumulated per pixel.
+    pub counts: Vec<u32>,
+    /// Samples per pixel accumulated so far (every pixel has the same count).
+    pub spp: u32,
+    /// How many times the buffer has been reset.
+    pub resets: u64,
+}
+
+impl Accumulation {
+    /// Empties the buffer and sizes it for `width × height`.
+    pub fn reset(&mut self, width: u32, height: u32) {
+        let n = width as usize * height as usize;
+        self.width = width;
+        self.height = height;
+        self.sums.clear();
+        self.sums.resize(n, DVec3::ZERO);
+        self.counts.clear();
+        self.counts.resize(n, 0);
+        self.spp = 0;
+        self.resets += 1;
+    }
+}
+
+/// The resolved image: linear radiance and its 8-bit sRGB encoding.
+#[derive(Resource, Clone, Debug, Default, PartialEq)]
+pub struct Image {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Mean radiance per pixel, linear RGB, row-major, top row first. Always finite.
+    pub linear: Vec<Vec3>,
+    /// The same image clamped to [0,1] and sRGB-encoded, 3 bytes per pixel.
+    pub srgb: Vec<u8>,
+}
+
+impl Image {
+    /// Linear radiance at pixel (x, y).
+    pub fn pixel(&self, x: u32, y: u32) -> Vec3 {
+        self.linear[(y * self.width + x) as usize]
+    }
+}
+
+/// Problems found in the scene; while any is present nothing is traced and `run_frame` fails.
+#[derive(Resource, Clone, Debug, Default)]
+pub struct SceneProblems {
+    /// Found while building geometry (shapes, transforms, meshes, materials).
+    pub geometry: Vec<String>,
+    /// Found in the camera, lights or settings.
+    pub view: Vec<String>,
+}
+
+impl SceneProblems {
+    /// The first problem, if any.
+    pub fn first(&self) -> Option<&String> {
+        self.geometry.first().or(self.view.first())
+    }
+}

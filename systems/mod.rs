@@ -1,0 +1,63 @@
+//! The systems that make a frame, one file per stage, run in this order:
+//!
+//! 1. [`scene_changes`]: detect changed entities/settings, validate them, reset accumulation.
+//! 2. [`bvh`]: rebuild the BVH only when geometry changed.
+//! 3. [`sample_sets`]: regenerate sample sets only when sampler settings changed.
+//! 4. [`trace`]: tile-parallel AO + direct tracing of this frame's samples.
+//! 5. [`accumulate`]: add the frame's samples to the running sums.
+//! 6. [`resolve`]: average into the linear and sRGB images.
+
+pub mod accumulate;
+pub mod bvh;
+pub mod resolve;
+pub mod sample_sets;
+pub mod scene_changes;
+pub mod trace;
+
+use bevy_ecs::prelude::*;
+
+/// The stages of a frame; add your own systems `.before(FrameStage::SceneChanges)` to animate.
+#[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum FrameStage {
+    /// Change detection, validation and accumulation reset.
+    SceneChanges,
+    /// Acceleration structure upkeep.
+    Bvh,
+    /// Sample set upkeep.
+    SampleSets,
+    /// Ray tracing.
+    Trace,
+    /// Accumulation.
+    Accumulate,
+    /// Resolve to images.
+    Resolve,
+}
+
+/// The schedule `Renderer::run_frame` runs once per frame.
+pub fn frame_schedule() -> Schedule {
+    let mut schedule = Schedule::default();
+    schedule.configure_sets(
+        (
+            FrameStage::SceneChanges,
+            FrameStage::Bvh,
+            FrameStage::SampleSets,
+            FrameStage::Trace,
+            FrameStage::Accumulate,
+            FrameStage::Resolve,
+        )
+            .chain(),
+    );
+    schedule.add_systems((
+        scene_changes::detect_scene_changes.in_set(FrameStage::SceneChanges),
+        bvh::update_bvh.in_set(FrameStage::Bvh),
+        sample_sets::update_sample_sets
+            .run_if(resource_changed::<crate::resources::RenderSettings>)
+            .in_set(FrameStage::SampleSets),
+        trace::trace.in_set(FrameStage::Trace),
+        accumulate::accumulate.in_set(FrameStage::Accumulate),
+        resolve::resolve
+            .run_if(resource_changed::<crate::resources::Accumulation>)
+            .in_set(FrameStage::Resolve),
+    ));
+    schedule
+}

@@ -1,0 +1,38 @@
+//! Stage 6: averages the accumulated sums into the linear image and its 8-bit sRGB encoding.
+//! Runs only when the accumulation changed. No NaN or Inf can reach a pixel.
+
+use std::time::Instant;
+
+use bevy_ecs::prelude::*;
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::{
+    film::linear_to_srgb8,
+    resources::{Accumulation, Image},
+    stats::FrameStats,
+};
+
+/// Writes [`Image`] from [`Accumulation`].
+pub fn resolve(accumulation: Res<Accumulation>, mut image: ResMut<Image>, mut stats: ResMut<FrameStats>) {
+    let start = Instant::now();
+    let n = accumulation.sums.len();
+    let image = &mut *image;
+    image.width = accumulation.width;
+    image.height = accumulation.height;
+    image.linear.resize(n, Vec3::ZERO);
+    image.srgb.resize(3 * n, 0);
+    image
+        .linear
+        .par_iter_mut()
+        .zip(image.srgb.par_chunks_mut(3))
+        .zip(accumulation.sums.par_iter().zip(accumulation.counts.par_iter()))
+        .for_each(|((linear, srgb), (sum, &count))| {
+            let mean = if count > 0 { (*sum / count as f64).as_vec3() } else { Vec3::ZERO };
+            *linear = if mean.is_finite() { mean } else { Vec3::ZERO };
+            for (c, v) in srgb.iter_mut().zip(linear.to_array()) {
+                *c = linear_to_srgb8(v);
+            }
+        });
+    stats.record("resolve", start.elapsed(), format!("{} spp", accumulation.spp));
+}

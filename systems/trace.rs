@@ -1,0 +1,141 @@
+//! Stage 4: traces this frame's samples, tile-parallel with rayon. Each pixel sample is a
+//! primary ray, one AO ray per occluder and one shadow ray per point light that can light the
+//! point; every random number comes from (pixel, sample index, dimension), so the image does
+//! not depend on tile order or thread count.
+
+use std::time::Instant;
+
+use bevy_ecs::prelude::*;
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::{
+    camera::PinholeRays,
+    components::{AmbientOccluder, Camera, PointLight, Transform},
+    geometry::SceneGeometry,
+    resources::{Accumulation, FrameSamples, RenderSettings, SceneProblems},
+    sampling::{SampleSets, dims},
+    shading::{LightSample, RayCounts, Scene, Tracer},
+    stats::FrameStats,
+};
+
+/// A rectangle of pixels traced as one task.
+#[derive(Clone, Copy, Debug)]
+struct Tile {
+    x0: u32,
+    y0: u32,
+    x1: u32,
+    y1: u32,
+}
+
+/// What one tile produced.
+struct TileResult {
+    sums: Vec<Vec3>,
+    rays: RayCounts,
+    nonfinite: u64,
+}
+
+/// Traces `samples_per_frame` samples per pixel (fewer once `max_spp` is near) into
+/// [`FrameSamples`]; traces nothing when the scene is invalid or has converged.
+#[allow(clippy::too_many_arguments)]
+pub fn trace(
+    settings: Res<RenderSettings>,
+    geometry: Res<SceneGeometry>,
+    sets: Res<SampleSets>,
+    problems: Res<SceneProblems>,
+    accumulation: Res<Accumulation>,
+    cameras: Query<&Camera>,
+    occluders: Query<(Entity, &AmbientOccluder)>,
+    lights: Query<(Entity, &PointLight, &Transform)>,
+    mut frame: ResMut<FrameSamples>,
+    mut stats: ResMut<FrameStats>,
+) {
+    let start = Instant::now();
+    let remaining = settings.max_spp.map_or(u32::MAX, |max| max.saturating_sub(accumulation.spp));
+    let count = settings.samples_per_frame.min(remaining);
+    let camera = cameras.single().ok().and_then(|c| PinholeRays::new(c, settings.width, settings.height).ok());
+    let (Some(camera), None, true) = (camera, problems.first(), count > 0) else {
+        if frame.samples_per_pixel != 0 {
+            frame.samples_per_pixel = 0;
+        }
+        let why = if count == 0 { "skipped: converged" } else { "skipped: invalid scene" };
+        stats.record("trace", start.elapsed(), why);
+        return;
+    };
+
+    // Entity order fixes which sample dimension each occluder uses.
+    let mut occ: Vec<(Entity, AmbientOccluder)> = occluders.iter().map(|(e, o)| (e, *o)).collect();
+    occ.sort_by_key(|o| o.0);
+    let occ: Vec<AmbientOccluder> = occ.into_iter().map(|o| o.1).collect();
+    let mut lit: Vec<(Entity, LightSample)> =
+        lights.iter().filter_map(|(e, l, t)| LightSample::new(l, t.translation).map(|s| (e, s))).collect();
+    lit.sort_by_key(|l| l.0);
+    let lit: Vec<LightSample> = lit.into_iter().map(|l| l.1).collect();
+    let scene = Scene {
+        geometry: &geometry,
+        occluders: &occ,
+        lights: &lit,
+        sets: &sets,
+        background: settings.background,
+    };
+
+    let first = accumulation.spp;
+    let tiles = tiles(settings.width, settings.height, settings.tile_size);
+    let results: Vec<TileResult> = tiles
+        .par_iter()
+        .map(|tile| trace_tile(&scene, &camera, *tile, settings.width, first, count))
+        .collect();
+
+    let frame = &mut *frame;
+    frame.sums.resize(settings.pixel_count(), Vec3::ZERO);
+    frame.samples_per_pixel = count;
+    frame.first_index = first;
+    let mut rays = RayCounts::default();
+    for (tile, result) in tiles.iter().zip(&results) {
+        let w = (tile.x1 - tile.x0) as usize;
+        for (row, y) in (tile.y0..tile.y1).enumerate() {
+            let dst = (y * settings.width + tile.x0) as usize;
+            frame.sums[dst..dst + w].copy_from_slice(&result.sums[row * w..(row + 1) * w]);
+        }
+        rays.add(&result.rays);
+        stats.nonfinite_samples += result.nonfinite;
+    }
+    stats.rays = rays;
+    stats.samples_traced = count;
+    let note = format!("{} tiles, {count} spp, {} occluders, {} lights", tiles.len(), occ.len(), lit.len());
+    stats.record("trace", start.elapsed(), note);
+}
+
+/// Tiles covering the image in row-major order.
+fn tiles(width: u32, height: u32, size: u32) -> Vec<Tile> {
+    let mut tiles = Vec::new();
+    for y0 in (0..height).step_by(size as usize) {
+        for x0 in (0..width).step_by(size as usize) {
+            tiles.push(Tile { x0, y0, x1: (x0 + size).min(width), y1: (y0 + size).min(height) });
+        }
+    }
+    tiles
+}
+
+fn trace_tile(scene: &Scene, camera: &PinholeRays, tile: Tile, width: u32, first: u32, count: u32) -> TileResult {
+    let mut tracer = Tracer::default();
+    let mut nonfinite = 0;
+    let mut sums = Vec::with_capacity(((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize);
+    for y in tile.y0..tile.y1 {
+        for x in tile.x0..tile.x1 {
+            let pixel = y * width + x;
+            let mut sum = Vec3::ZERO;
+            for index in first..first + count {
+                let ray = camera.ray(x, y, scene.sets.sample(pixel, index, dims::PIXEL));
+                let l = tracer.radiance(scene, &ray, pixel, index);
+                if l.is_finite() {
+                    sum += l;
+                } else {
+                    nonfinite += 1;
+                }
+            }
+            sums.push(sum);
+        }
+    }
+    TileResult { sums, rays: tracer.rays, nonfinite }
+}
