@@ -25,7 +25,9 @@ pub mod stats;
 #[path = "../systems/mod.rs"]
 pub mod systems;
 
+pub use bevy_ecs;
 pub use error::HemiError;
+pub use glam;
 pub use renderer::Renderer;
 
 /// The types most programs need.
@@ -38,6 +40,12 @@ pub mod prelude {
         sampling::SamplerKind,
         stats::FrameStats,
         systems::FrameStage,
+    };
+    pub use bevy_ecs::{
+        entity::Entity,
+        name::Name,
+        query::{With, Without},
+        world::World,
     };
     pub use glam::{Quat, Vec3};
 }

@@ -74,7 +74,11 @@ pub fn detect_scene_changes(
     let dirty = !changed.is_empty() || removed_any || settings.is_changed() || resized;
     if dirty {
         problems.view = validate_view(&settings, &cameras, &occluders, &lights);
-        accumulation.reset(settings.width, settings.height);
+        // Never allocate for settings that were refused (e.g. an absurd image size).
+        match settings.validate() {
+            Ok(()) => accumulation.reset(settings.width, settings.height),
+            Err(_) => accumulation.reset(0, 0),
+        }
     }
     let note = if dirty { "changed: accumulation reset" } else { "unchanged" };
     stats.record("scene_changes", start.elapsed(), note);

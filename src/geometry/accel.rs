@@ -146,11 +146,16 @@ impl SceneGeometry {
     }
 
     /// Entry distance of the ray into `node`'s box, if it enters before `tmax`.
-    /// The far distance is widened by 2γ(3) (Ize 2013) so rounding never culls a true hit.
+    /// A zero direction component gives 0·∞ = NaN exactly when the origin lies on that slab's
+    /// plane; such a bound is replaced by the infinity that leaves the slab unbounded, so rays
+    /// running inside a box face are not culled. The far distance is widened by 2γ(3)
+    /// (Ize 2013) so rounding never culls a true hit.
     #[inline(always)]
     fn enter(node: &Bvh2Node, ray: &Ray, tmax: f32) -> Option<f32> {
         let t1 = (node.aabb.min - ray.origin) * ray.inv_dir;
         let t2 = (node.aabb.max - ray.origin) * ray.inv_dir;
+        let t1 = Vec3A::select(t1.is_nan_mask(), -ray.inv_dir, t1);
+        let t2 = Vec3A::select(t2.is_nan_mask(), ray.inv_dir, t2);
         let near = t1.min(t2).max_element().max(0.0);
         let far = t1.max(t2).min_element() * (1.0 + 2.0 * gamma(3));
         (near <= far.min(tmax)).then_some(near)

@@ -1,4 +1,4 @@
-//! Rays with precomputed reciprocal directions for slab tests.
+//! Rays with the per-ray constants that the slab and watertight triangle tests need.
 
 use glam::Vec3A;
 
@@ -9,22 +9,39 @@ pub struct Ray {
     pub origin: Vec3A,
     /// Direction (any non-zero length; t is measured in units of it).
     pub dir: Vec3A,
-    /// Reciprocal of `dir`, finite in every component.
+    /// Reciprocal of `dir` (±∞ for zero components).
     pub inv_dir: Vec3A,
     /// Far end of the segment.
     pub tmax: f32,
+    /// Axis of the largest |dir| component, then the two others (cyclic order).
+    pub axes: [usize; 3],
+    /// Shear taking `dir` to +z in the permuted frame: (−dx/dz, −dy/dz, 1/dz).
+    pub shear: Vec3A,
 }
 
 impl Ray {
     /// A ray from `origin` along `dir` up to `tmax`.
     #[inline]
     pub fn new(origin: Vec3A, dir: Vec3A, tmax: f32) -> Self {
-        // Zero components get ±MAX instead of ±∞ so that 0·inv never yields NaN in slab tests.
-        let inv = |d: f32| {
-            let r = 1.0 / d;
-            if r.is_finite() { r } else { f32::MAX.copysign(d) }
-        };
-        Ray { origin, dir, inv_dir: Vec3A::new(inv(dir.x), inv(dir.y), inv(dir.z)), tmax }
+        let abs = dir.abs();
+        let kz = if abs.x > abs.y { if abs.x > abs.z { 0 } else { 2 } } else if abs.y > abs.z { 1 } else { 2 };
+        let kx = (kz + 1) % 3;
+        let ky = (kx + 1) % 3;
+        let dz = dir[kz];
+        Ray {
+            origin,
+            dir,
+            inv_dir: dir.recip(),
+            tmax,
+            axes: [kx, ky, kz],
+            shear: Vec3A::new(-dir[kx] / dz, -dir[ky] / dz, 1.0 / dz),
+        }
+    }
+
+    /// The same ray with another far end.
+    #[inline]
+    pub fn with_tmax(self, tmax: f32) -> Self {
+        Ray { tmax, ..self }
     }
 
     /// The point at parameter `t`.

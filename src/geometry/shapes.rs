@@ -6,62 +6,87 @@ use glam::Vec3A;
 use super::{hit::SurfaceHit, ray::Ray};
 use crate::math::gamma;
 
-/// A triangle stored as a vertex and two edges.
+/// A triangle by its three vertices.
 #[derive(Clone, Copy, Debug)]
 pub struct Triangle {
-    /// First vertex.
-    pub p0: Vec3A,
-    /// p1 − p0.
-    pub e1: Vec3A,
-    /// p2 − p0.
-    pub e2: Vec3A,
+    /// Vertices, counter-clockwise seen from the front.
+    pub p: [Vec3A; 3],
 }
 
 impl Triangle {
     /// The triangle (a, b, c), or `None` if it has zero (or non-finite) area.
     pub fn new(a: Vec3A, b: Vec3A, c: Vec3A) -> Option<Self> {
-        let t = Triangle { p0: a, e1: b - a, e2: c - a };
-        let n = t.e1.cross(t.e2);
-        (n.length_squared() > 0.0 && n.is_finite()).then_some(t)
+        let n = (b - a).cross(c - a);
+        (n.length_squared() > 0.0 && n.is_finite()).then_some(Triangle { p: [a, b, c] })
     }
 
-    /// Möller–Trumbore intersection: (t, b1, b2) for 0 < t < tmax.
+    /// Watertight intersection (Woop, Benthin, Wald 2013, as in pbrt-v4): rays through shared
+    /// edges and vertices hit exactly one of the adjacent triangles or more, never none.
+    /// Returns (t, b1, b2) for a hit with 0 < t < tmax, `t` conservatively above zero.
     #[inline(always)]
     pub fn intersect(&self, ray: &Ray) -> Option<(f32, f32, f32)> {
-        let pvec = ray.dir.cross(self.e2);
-        let det = self.e1.dot(pvec);
+        let [kx, ky, kz] = ray.axes;
+        let s = ray.shear;
+        // Translate to the ray origin, permute so the ray runs along +z, shear.
+        let v = self.p.map(|p| {
+            let q = p - ray.origin;
+            Vec3A::new(q[kx] + s.x * q[kz], q[ky] + s.y * q[kz], q[kz])
+        });
+        let mut e0 = v[1].x * v[2].y - v[1].y * v[2].x;
+        let mut e1 = v[2].x * v[0].y - v[2].y * v[0].x;
+        let mut e2 = v[0].x * v[1].y - v[0].y * v[1].x;
+        if e0 == 0.0 || e1 == 0.0 || e2 == 0.0 {
+            // Exactly on an edge in f32: decide in f64.
+            let d = |a: Vec3A, b: Vec3A| (a.x as f64 * b.y as f64 - a.y as f64 * b.x as f64) as f32;
+            e0 = d(v[1], v[2]);
+            e1 = d(v[2], v[0]);
+            e2 = d(v[0], v[1]);
+        }
+        if (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0) {
+            return None;
+        }
+        let det = e0 + e1 + e2;
         if det == 0.0 {
             return None;
         }
+        let z = Vec3A::new(v[0].z, v[1].z, v[2].z) * s.z;
+        let t_scaled = e0 * z.x + e1 * z.y + e2 * z.z;
+        if det < 0.0 && (t_scaled >= 0.0 || t_scaled <= ray.tmax * det) {
+            return None;
+        }
+        if det > 0.0 && (t_scaled <= 0.0 || t_scaled >= ray.tmax * det) {
+            return None;
+        }
         let inv_det = 1.0 / det;
-        let tvec = ray.origin - self.p0;
-        let b1 = tvec.dot(pvec) * inv_det;
-        if !(0.0..=1.0).contains(&b1) {
-            return None;
-        }
-        let qvec = tvec.cross(self.e1);
-        let b2 = ray.dir.dot(qvec) * inv_det;
-        if b2 < 0.0 || b1 + b2 > 1.0 {
-            return None;
-        }
-        let t = self.e2.dot(qvec) * inv_det;
-        (t > 0.0 && t < ray.tmax).then_some((t, b1, b2))
+        let t = t_scaled * inv_det;
+        // Reject t within its own rounding error of zero (pbrt-v4).
+        let max_z = z.abs().max_element();
+        let max_x = Vec3A::new(v[0].x, v[1].x, v[2].x).abs().max_element();
+        let max_y = Vec3A::new(v[0].y, v[1].y, v[2].y).abs().max_element();
+        let delta_z = gamma(3) * max_z;
+        let delta_x = gamma(5) * (max_x + max_z);
+        let delta_y = gamma(5) * (max_y + max_z);
+        let delta_e = 2.0 * (gamma(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
+        let max_e = Vec3A::new(e0, e1, e2).abs().max_element();
+        let delta_t = 3.0 * (gamma(3) * max_e * max_z + delta_e * max_z + delta_z * max_e) * inv_det.abs();
+        (t > delta_t).then_some((t, e1 * inv_det, e2 * inv_det))
     }
 
     /// The hit at barycentrics (b1, b2), with pbrt's error bound on the interpolated point.
     #[inline]
     pub fn surface(&self, ray: &Ray, t: f32, b1: f32, b2: f32, object: u32) -> SurfaceHit {
-        let a = self.e1 * b1;
-        let b = self.e2 * b2;
-        let p = self.p0 + a + b;
-        let p_error = (self.p0.abs() + a.abs() + b.abs()) * gamma(7);
-        SurfaceHit { t, p, p_error, normal: facing(self.e1.cross(self.e2).normalize(), ray.dir), object }
+        let b0 = 1.0 - b1 - b2;
+        let (a, b, c) = (self.p[0] * b0, self.p[1] * b1, self.p[2] * b2);
+        let p = a + b + c;
+        let p_error = (a.abs() + b.abs() + c.abs()) * gamma(7);
+        let n = (self.p[1] - self.p[0]).cross(self.p[2] - self.p[0]).normalize();
+        SurfaceHit { t, p, p_error, normal: facing(n, ray.dir), object }
     }
 
     /// Bounding box corners.
     pub fn bounds(&self) -> (Vec3A, Vec3A) {
-        let (p1, p2) = (self.p0 + self.e1, self.p0 + self.e2);
-        (self.p0.min(p1).min(p2), self.p0.max(p1).max(p2))
+        let [a, b, c] = self.p;
+        (a.min(b).min(c), a.max(b).max(c))
     }
 }
 

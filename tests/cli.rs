@@ -1,0 +1,70 @@
+//! The `hemi` binary: renders to PNG/EXR, refuses bad arguments with one line and a non-zero
+//! exit, never panics.
+
+use std::process::Command;
+
+fn hemi(args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_hemi")).args(args).output().expect("binary runs");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn temp(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("hemi-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+#[test]
+fn renders_png_and_exr() {
+    let png = temp("frame.png");
+    let (code, _, err) = hemi(&["render", "--out", png.to_str().unwrap(), "--size", "32x18", "--spp", "4"]);
+    assert_eq!(code, 0, "{err}");
+    let img = image::open(&png).unwrap().into_rgb8();
+    assert_eq!(img.dimensions(), (32, 18));
+
+    let exr = temp("frame.exr");
+    let (code, _, err) = hemi(&["render", "--out", exr.to_str().unwrap(), "--size", "32x18", "--spp", "2", "--seed", "3"]);
+    assert_eq!(code, 0, "{err}");
+    let img = image::open(&exr).unwrap().into_rgb32f();
+    assert_eq!(img.dimensions(), (32, 18));
+    assert!(img.pixels().all(|p| p.0.iter().all(|v| v.is_finite() && *v >= 0.0)));
+}
+
+#[test]
+fn stats_prints_a_table_per_frame() {
+    let png = temp("stats.png");
+    let (code, out, err) =
+        hemi(&["render", "--out", png.to_str().unwrap(), "--size", "16x16", "--spp", "4", "--spf", "2", "--stats"]);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(out.matches("Mrays/s").count(), 2, "{out}");
+    for system in ["scene_changes", "bvh", "trace", "accumulate", "resolve"] {
+        assert!(out.contains(system), "missing {system} in {out}");
+    }
+    assert!(err.contains("Mrays/s"));
+}
+
+#[test]
+fn bad_arguments_give_one_line_and_a_non_zero_exit() {
+    let unwritable = "/nonexistent-dir/x.png";
+    let cases: [(&[&str], &str); 8] = [
+        (&["render", "--bogus"], "--bogus"),
+        (&["render", "--size", "0x0"], "empty"),
+        (&["render", "--size", "12"], "WIDTHxHEIGHT"),
+        (&["render", "--spp", "many"], "--spp"),
+        (&["render", "--spp", "0"], "--spp"),
+        (&["render", "--sampler", "sobolish"], "sobolish"),
+        (&["render", "--out", unwritable], "nonexistent-dir"),
+        (&["render", "--out", "picture.bmp"], ".png or .exr"),
+    ];
+    for (args, needle) in cases {
+        let (code, _, err) = hemi(args);
+        assert_ne!(code, 0, "{args:?} succeeded");
+        assert_ne!(code, 101, "{args:?} panicked: {err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: not one line: {err}");
+        assert!(err.contains(needle), "{args:?}: '{needle}' not in {err}");
+    }
+}
