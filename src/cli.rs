@@ -6,12 +6,7 @@ use clap::{Parser, Subcommand, error::ErrorKind};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use crate::{
-    Renderer,
-    error::HemiError,
-    film::OutputFile,
-    resources::RenderSettings,
-    sampling::SamplerKind,
-    shading::RayCounts,
+    Renderer, error::HemiError, film::OutputFile, resources::RenderSettings, sampling::SamplerKind, shading::RayCounts,
 };
 
 /// hemi: ambient occlusion + direct lighting by CPU ray tracing on bevy_ecs.

@@ -25,8 +25,7 @@ impl Default for Transform {
 
 impl Transform {
     /// No translation, rotation or scale.
-    pub const IDENTITY: Transform =
-        Transform { translation: Vec3::ZERO, rotation: Quat::IDENTITY, scale: Vec3::ONE };
+    pub const IDENTITY: Transform = Transform { translation: Vec3::ZERO, rotation: Quat::IDENTITY, scale: Vec3::ONE };
 
     /// A pure translation.
     pub fn from_xyz(x: f32, y: f32, z: f32) -> Self {
@@ -109,10 +108,7 @@ impl Mesh {
         }
         let n = self.positions.len() as u32;
         if let Some(t) = self.indices.iter().position(|tri| tri.iter().any(|&i| i >= n)) {
-            return Err(format!(
-                "triangle {t} indexes vertex {:?} but the mesh has {n} vertices",
-                self.indices[t]
-            ));
+            return Err(format!("triangle {t} indexes vertex {:?} but the mesh has {n} vertices", self.indices[t]));
         }
         Ok(())
     }
@@ -220,12 +216,15 @@ impl AmbientOccluder {
     /// A one-line description of the first unusable parameter.
     pub fn validate(&self) -> Result<(), String> {
         if !(self.ls.is_finite() && self.ls >= 0.0 && self.color.is_finite() && self.color.min_element() >= 0.0) {
-            return Err(format!("ambient occluder ls {} color {} must be finite and non-negative", self.ls, self.color));
+            return Err(format!(
+                "ambient occluder ls {} color {} must be finite and non-negative",
+                self.ls, self.color
+            ));
         }
         if !(0.0..=1.0).contains(&self.min_amount) {
             return Err(format!("ambient occluder min_amount {} is outside [0, 1]", self.min_amount));
         }
-        if !(self.max_distance > 0.0) {
+        if self.max_distance.is_nan() || self.max_distance <= 0.0 {
             return Err(format!("ambient occluder max_distance {} must be positive (∞ allowed)", self.max_distance));
         }
         if !(self.exponent.is_finite() && self.exponent >= 0.0) {

@@ -6,7 +6,7 @@ use std::{
     path::{Path, PathBuf},
 };
 
-use image::{ImageFormat, Rgb32FImage, RgbImage, codecs::png::PngEncoder, ImageEncoder};
+use image::{ImageEncoder, ImageFormat, Rgb32FImage, RgbImage, codecs::png::PngEncoder};
 
 use crate::{error::HemiError, resources::Image};
 
@@ -17,10 +17,23 @@ pub fn linear_to_srgb(v: f32) -> f32 {
     if v <= 0.003_130_8 { v * 12.92 } else { 1.055 * v.powf(1.0 / 2.4) - 0.055 }
 }
 
-/// 8-bit sRGB code of a linear value (round to nearest).
+/// Inverse sRGB transfer function (for encoding thresholds).
+fn srgb_to_linear(s: f64) -> f64 {
+    if s <= 0.040_45 { s / 12.92 } else { ((s + 0.055) / 1.055).powf(2.4) }
+}
+
+/// Linear value at which each 8-bit sRGB code starts: code k covers [T[k-1], T[k]).
+static SRGB8_THRESHOLDS: std::sync::LazyLock<[f32; 255]> =
+    std::sync::LazyLock::new(|| std::array::from_fn(|k| srgb_to_linear((k as f64 + 0.5) / 255.0) as f32));
+
+/// 8-bit sRGB code of a linear value (round to nearest), by binary search over the code
+/// thresholds: exact, and several times faster than evaluating `powf` per channel.
 #[inline]
 pub fn linear_to_srgb8(v: f32) -> u8 {
-    (linear_to_srgb(v) * 255.0 + 0.5) as u8
+    if v.is_nan() {
+        return 0;
+    }
+    SRGB8_THRESHOLDS.partition_point(|&t| t <= v) as u8
 }
 
 /// Image file formats hemi writes.
@@ -108,6 +121,20 @@ mod tests {
         assert_eq!(linear_to_srgb8(f32::NAN), 0);
         assert_eq!(linear_to_srgb8(7.0), 255);
         assert!((linear_to_srgb(0.002) - 0.02584).abs() < 1e-6);
+    }
+
+    #[test]
+    fn table_encoding_equals_the_transfer_function() {
+        let mut rng = crate::sampling::hash::SplitMix64::new(9);
+        for i in 0..200_000 {
+            let v = if i % 2 == 0 { rng.next_f32() } else { rng.next_f32() * 0.01 };
+            let exact = linear_to_srgb(v) as f64 * 255.0;
+            let code = linear_to_srgb8(v);
+            // Equal, except within float rounding of a half-code boundary.
+            if (exact - exact.floor() - 0.5).abs() > 1e-3 {
+                assert_eq!(code, exact.round() as u8, "v = {v}");
+            }
+        }
     }
 
     #[test]

@@ -34,7 +34,9 @@ pub use renderer::Renderer;
 pub mod prelude {
     pub use crate::{
         Renderer,
-        components::{AmbientOccluder, Camera, Cuboid, Matte, Mesh, Plane, PointLight, Sphere, Transform, TriangleMesh},
+        components::{
+            AmbientOccluder, Camera, Cuboid, Matte, Mesh, Plane, PointLight, Sphere, Transform, TriangleMesh,
+        },
         error::HemiError,
         resources::{Image, RenderSettings},
         sampling::SamplerKind,

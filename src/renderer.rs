@@ -115,7 +115,10 @@ impl Renderer {
         let frame = self.world.resource::<FrameSamples>();
         let image = self.world.resource::<Image>();
         let sets = self.world.resource::<SampleSets>();
-        acc.sums.len() * 24 + acc.counts.len() * 4 + frame.sums.len() * 12 + image.linear.len() * 12
+        acc.sums.len() * 24
+            + acc.counts.len() * 4
+            + frame.sums.len() * 12
+            + image.linear.len() * 12
             + image.srgb.len()
             + sets.memory_bytes()
     }

@@ -38,8 +38,12 @@ pub struct ShapeRemovals<'w, 's> {
 
 impl ShapeRemovals<'_, '_> {
     fn any(&mut self) -> bool {
-        let counts =
-            [self.sphere.read().count(), self.plane.read().count(), self.cuboid.read().count(), self.mesh.read().count()];
+        let counts = [
+            self.sphere.read().count(),
+            self.plane.read().count(),
+            self.cuboid.read().count(),
+            self.mesh.read().count(),
+        ];
         counts.iter().any(|&c| c > 0)
     }
 }

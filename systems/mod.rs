@@ -55,9 +55,7 @@ pub fn frame_schedule() -> Schedule {
             .in_set(FrameStage::SampleSets),
         trace::trace.in_set(FrameStage::Trace),
         accumulate::accumulate.in_set(FrameStage::Accumulate),
-        resolve::resolve
-            .run_if(resource_changed::<crate::resources::Accumulation>)
-            .in_set(FrameStage::Resolve),
+        resolve::resolve.run_if(resource_changed::<crate::resources::Accumulation>).in_set(FrameStage::Resolve),
     ));
     schedule
 }

@@ -71,20 +71,13 @@ pub fn trace(
         lights.iter().filter_map(|(e, l, t)| LightSample::new(l, t.translation).map(|s| (e, s))).collect();
     lit.sort_by_key(|l| l.0);
     let lit: Vec<LightSample> = lit.into_iter().map(|l| l.1).collect();
-    let scene = Scene {
-        geometry: &geometry,
-        occluders: &occ,
-        lights: &lit,
-        sets: &sets,
-        background: settings.background,
-    };
+    let scene =
+        Scene { geometry: &geometry, occluders: &occ, lights: &lit, sets: &sets, background: settings.background };
 
     let first = accumulation.spp;
     let tiles = tiles(settings.width, settings.height, settings.tile_size);
-    let results: Vec<TileResult> = tiles
-        .par_iter()
-        .map(|tile| trace_tile(&scene, &camera, *tile, settings.width, first, count))
-        .collect();
+    let results: Vec<TileResult> =
+        tiles.par_iter().map(|tile| trace_tile(&scene, &camera, *tile, settings.width, first, count)).collect();
 
     let frame = &mut *frame;
     frame.sums.resize(settings.pixel_count(), Vec3::ZERO);

@@ -116,7 +116,8 @@ fn sphere_over_plane_matches_the_form_factor() {
     let mut renderer = Renderer::new(settings(width, height, spp, SamplerKind::MultiJittered));
     // Look straight down at floor points x ∈ [~1.1, ~4.9] beside the sphere, from high up so
     // no line of sight passes through the sphere.
-    let camera = Camera { eye: Vec3::new(3.0, 30.0, 0.0), target: Vec3::new(3.0, 0.0, 0.0), up: Vec3::NEG_Z, vfov_degrees: 1.8 };
+    let camera =
+        Camera { eye: Vec3::new(3.0, 30.0, 0.0), target: Vec3::new(3.0, 0.0, 0.0), up: Vec3::NEG_Z, vfov_degrees: 1.8 };
     let w = renderer.world_mut();
     w.spawn((Sphere { radius: r }, Transform::from_xyz(0.0, h, 0.0), white()));
     w.spawn((Plane::default(), white()));
@@ -174,7 +175,8 @@ fn ao_with_other_exponents_converges_to_the_same_value() {
 fn point_light_on_a_plane_gives_inverse_square_cosine_irradiance() {
     let (intensity, h) = (20.0f32, 2.0f32);
     let (width, height, spp) = (32, 24, 16);
-    let camera = Camera { eye: Vec3::new(0.5, 6.0, 4.0), target: Vec3::new(0.5, 0.0, 0.0), up: Vec3::Y, vfov_degrees: 45.0 };
+    let camera =
+        Camera { eye: Vec3::new(0.5, 6.0, 4.0), target: Vec3::new(0.5, 0.0, 0.0), up: Vec3::Y, vfov_degrees: 45.0 };
     let mut r = Renderer::new(settings(width, height, spp, SamplerKind::Regular));
     let w = r.world_mut();
     w.spawn((Plane::default(), white()));
@@ -233,7 +235,12 @@ fn point_behind_an_opaque_sphere_is_unlit() {
     w.spawn((Plane::default(), white()));
     w.spawn((Sphere { radius: 0.5 }, Transform::from_xyz(0.0, 2.0, 0.0), white()));
     w.spawn((PointLight { ls: 10.0, ..Default::default() }, Transform::from_xyz(0.0, 4.0, 0.0)));
-    w.spawn(Camera { eye: Vec3::new(3.0, 1.0, 0.0), target: Vec3::new(3.0, 0.0, 0.0), up: Vec3::NEG_Z, vfov_degrees: 0.5 });
+    w.spawn(Camera {
+        eye: Vec3::new(3.0, 1.0, 0.0),
+        target: Vec3::new(3.0, 0.0, 0.0),
+        up: Vec3::NEG_Z,
+        vfov_degrees: 0.5,
+    });
     let lit = render(lit);
     let expected = 10.0 * 4.0 / (16.0f32 + 9.0).powf(1.5) / std::f32::consts::PI;
     let got = lit.image().pixel(2, 2).x;

@@ -27,7 +27,10 @@ fn scene() -> SceneGeometry {
     for i in 0..40u32 {
         let p = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 10.0 - 5.0;
         if i % 3 == 0 {
-            prims.push(Prim { shape: Shape::Sphere(SpherePrim { center: p.into(), radius: 0.2 + rng.next_f32() }), object: i });
+            prims.push(Prim {
+                shape: Shape::Sphere(SpherePrim { center: p.into(), radius: 0.2 + rng.next_f32() }),
+                object: i,
+            });
         } else {
             let t = Transform::from_translation(p);
             prims.extend(world_space::mesh(&meshes[i as usize % 2], &t, i).unwrap().prims);
@@ -86,7 +89,8 @@ fn axis_parallel_rays_and_rays_in_slab_planes_are_handled() {
     // neither produce NaN nor cull real hits.
     let mesh = uv_sphere(1.0, 8, 16);
     let prims = world_space::mesh(&mesh, &Transform::IDENTITY, 0).unwrap().prims;
-    let geometry = SceneGeometry::build(prims, vec![], vec![Object { entity: Entity::PLACEHOLDER, material: Matte::default() }]);
+    let geometry =
+        SceneGeometry::build(prims, vec![], vec![Object { entity: Entity::PLACEHOLDER, material: Matte::default() }]);
     let mut stack = Vec::new();
     for dir in [Vec3A::X, Vec3A::NEG_X, Vec3A::Y, Vec3A::NEG_Y, Vec3A::Z, Vec3A::NEG_Z] {
         for origin in [Vec3A::ZERO, -dir * 3.0, Vec3A::new(1.0, 0.0, 0.0), Vec3A::new(0.0, 1.0, 0.0)] {

@@ -27,7 +27,8 @@ fn renders_png_and_exr() {
     assert_eq!(img.dimensions(), (32, 18));
 
     let exr = temp("frame.exr");
-    let (code, _, err) = hemi(&["render", "--out", exr.to_str().unwrap(), "--size", "32x18", "--spp", "2", "--seed", "3"]);
+    let (code, _, err) =
+        hemi(&["render", "--out", exr.to_str().unwrap(), "--size", "32x18", "--spp", "2", "--seed", "3"]);
     assert_eq!(code, 0, "{err}");
     let img = image::open(&exr).unwrap().into_rgb32f();
     assert_eq!(img.dimensions(), (32, 18));

@@ -6,7 +6,7 @@ mod common;
 use std::sync::Arc;
 
 use common::{occluder, settings};
-use hemi::prelude::*;
+use hemi::{bevy_ecs::bundle::Bundle, prelude::*};
 
 fn base() -> Renderer {
     let mut r = Renderer::new(settings(8, 8, 1, SamplerKind::Jittered));
@@ -25,54 +25,37 @@ fn error_of(mut r: Renderer) -> String {
 #[test]
 fn nan_transform_is_refused_naming_the_entity() {
     let mut r = base();
-    let e = r
-        .world_mut()
-        .spawn((Sphere { radius: 1.0 }, Transform::from_xyz(f32::NAN, 0.0, 0.0), Name::new("ball")))
-        .id();
+    let e =
+        r.world_mut().spawn((Sphere { radius: 1.0 }, Transform::from_xyz(f32::NAN, 0.0, 0.0), Name::new("ball"))).id();
     let msg = error_of(r);
     assert!(msg.contains("ball") && msg.contains(&e.to_string()) && msg.contains("transform"), "{msg}");
 }
 
+/// Spawns one entity into a valid base scene and expects the frame to be refused with a
+/// message containing `expected`.
+fn assert_refused(bundle: impl Bundle, expected: &str) {
+    let mut r = base();
+    r.world_mut().spawn(bundle);
+    let msg = error_of(r);
+    assert!(msg.contains(expected), "expected '{expected}' in: {msg}");
+}
+
 #[test]
 fn degenerate_shapes_are_refused() {
-    let cases: Vec<(Box<dyn Fn(&mut Renderer)>, &str)> = vec![
-        (Box::new(|r| drop(r.world_mut().spawn(Sphere { radius: 0.0 }))), "radius"),
-        (Box::new(|r| drop(r.world_mut().spawn(Sphere { radius: -1.0 }))), "radius"),
-        (
-            Box::new(|r| {
-                drop(r.world_mut().spawn((Sphere { radius: 1.0 }, Transform { scale: Vec3::new(1.0, 2.0, 1.0), ..Default::default() })))
-            }),
-            "non-uniform",
-        ),
-        (Box::new(|r| drop(r.world_mut().spawn(Plane { normal: Vec3::ZERO }))), "normal"),
-        (Box::new(|r| drop(r.world_mut().spawn(Cuboid { half_extents: Vec3::new(1.0, 0.0, 1.0) }))), "half extents"),
-        (Box::new(|r| drop(r.world_mut().spawn((Sphere { radius: 1.0 }, Transform::default().with_scale(0.0))))), "singular"),
-        (
-            Box::new(|r| {
-                let mesh = Mesh { positions: vec![Vec3::ZERO, Vec3::X], indices: vec![[0, 1, 2]] };
-                drop(r.world_mut().spawn(TriangleMesh(Arc::new(mesh))))
-            }),
-            "indexes vertex",
-        ),
-        (
-            Box::new(|r| {
-                let mesh = Mesh { positions: vec![Vec3::ZERO, Vec3::X, Vec3::new(0.0, f32::INFINITY, 0.0)], indices: vec![[0, 1, 2]] };
-                drop(r.world_mut().spawn(TriangleMesh(Arc::new(mesh))))
-            }),
-            "non-finite",
-        ),
-        (
-            Box::new(|r| drop(r.world_mut().spawn((Sphere { radius: 1.0 }, Matte { ka: f32::NAN, kd: 1.0, cd: Vec3::ONE })))),
-            "material",
-        ),
-        (Box::new(|r| drop(r.world_mut().spawn((Sphere { radius: 1.0 }, Plane::default())))), "more than one shape"),
-    ];
-    for (spawn, expected) in cases {
-        let mut r = base();
-        spawn(&mut r);
-        let msg = error_of(r);
-        assert!(msg.contains(expected), "expected '{expected}' in: {msg}");
-    }
+    assert_refused(Sphere { radius: 0.0 }, "radius");
+    assert_refused(Sphere { radius: -1.0 }, "radius");
+    let stretched = Transform { scale: Vec3::new(1.0, 2.0, 1.0), ..Default::default() };
+    assert_refused((Sphere { radius: 1.0 }, stretched), "non-uniform");
+    assert_refused(Plane { normal: Vec3::ZERO }, "normal");
+    assert_refused(Cuboid { half_extents: Vec3::new(1.0, 0.0, 1.0) }, "half extents");
+    assert_refused((Sphere { radius: 1.0 }, Transform::default().with_scale(0.0)), "singular");
+    let bad_index = Mesh { positions: vec![Vec3::ZERO, Vec3::X], indices: vec![[0, 1, 2]] };
+    assert_refused(TriangleMesh(Arc::new(bad_index)), "indexes vertex");
+    let inf =
+        Mesh { positions: vec![Vec3::ZERO, Vec3::X, Vec3::new(0.0, f32::INFINITY, 0.0)], indices: vec![[0, 1, 2]] };
+    assert_refused(TriangleMesh(Arc::new(inf)), "non-finite");
+    assert_refused((Sphere { radius: 1.0 }, Matte { ka: f32::NAN, kd: 1.0, cd: Vec3::ONE }), "material");
+    assert_refused((Sphere { radius: 1.0 }, Plane::default()), "more than one shape");
 }
 
 #[test]

@@ -34,7 +34,8 @@ pub struct Prim {
 }
 
 impl Prim {
-    fn bounds(&self) -> Aabb {
+    /// Axis-aligned bounds.
+    pub fn bounds(&self) -> Aabb {
         match self.shape {
             Shape::Triangle(t) => {
                 let (min, max) = t.bounds();
@@ -128,6 +129,11 @@ impl SceneGeometry {
         self.prims.len()
     }
 
+    /// The bounded primitives, in BVH leaf order.
+    pub fn prims(&self) -> &[Prim] {
+        &self.prims
+    }
+
     /// Number of infinite planes.
     pub fn plane_count(&self) -> usize {
         self.planes.len()
@@ -187,8 +193,9 @@ impl SceneGeometry {
         }
     }
 
+    /// Intersects one primitive: (t, b1, b2).
     #[inline(always)]
-    fn hit_prim(prim: &Prim, ray: &Ray) -> Option<(f32, f32, f32)> {
+    pub fn hit_prim(prim: &Prim, ray: &Ray) -> Option<(f32, f32, f32)> {
         match prim.shape {
             Shape::Triangle(t) => t.intersect(ray),
             Shape::Sphere(s) => s.intersect(ray).map(|t| (t, 0.0, 0.0)),

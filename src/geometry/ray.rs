@@ -24,7 +24,13 @@ impl Ray {
     #[inline]
     pub fn new(origin: Vec3A, dir: Vec3A, tmax: f32) -> Self {
         let abs = dir.abs();
-        let kz = if abs.x > abs.y { if abs.x > abs.z { 0 } else { 2 } } else if abs.y > abs.z { 1 } else { 2 };
+        let kz = if abs.x > abs.y {
+            if abs.x > abs.z { 0 } else { 2 }
+        } else if abs.y > abs.z {
+            1
+        } else {
+            2
+        };
         let kx = (kz + 1) % 3;
         let ky = (kx + 1) % 3;
         let dz = dir[kz];

@@ -71,8 +71,7 @@ pub fn cuboid(c: &Cuboid, t: &Transform, object: u32) -> Result<Converted, Strin
     let corners: Vec<Vec3> =
         (0..8).map(|i| Vec3::new(sign(i & 1) * h.x, sign(i & 2) * h.y, sign(i & 4) * h.z)).collect();
     // Faces as corner quads, counter-clockwise from outside.
-    const QUADS: [[u32; 4]; 6] =
-        [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+    const QUADS: [[u32; 4]; 6] = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
     let indices: Vec<[u32; 3]> = QUADS.iter().flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]).collect();
     mesh(&Mesh { positions: corners, indices }, t, object)
 }

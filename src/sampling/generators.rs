@@ -69,7 +69,7 @@ impl SamplerKind {
 /// Splits `n` into an `m × k` grid (m columns, k rows), m ≤ k, as square as `n` allows.
 pub fn grid_shape(n: u32) -> (u32, u32) {
     let mut m = (n as f64).sqrt() as u32;
-    while m > 1 && n % m != 0 {
+    while m > 1 && !n.is_multiple_of(m) {
         m -= 1;
     }
     let m = m.max(1);

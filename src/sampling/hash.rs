@@ -84,7 +84,7 @@ impl SplitMix64 {
     /// A uniform integer in `0..n` (n > 0), without modulo bias worth measuring at 64 bits.
     #[inline]
     pub fn below(&mut self, n: u32) -> u32 {
-        ((self.next_u64() >> 32) * n as u64 >> 32) as u32
+        (((self.next_u64() >> 32) * n as u64) >> 32) as u32
     }
 }
 

@@ -92,7 +92,7 @@ impl SampleSets {
         }
         let pass = index / n;
         let h = hash_sample(pixel, pass, dim, self.seed);
-        let set = ((h >> 32) * self.num_sets as u64 >> 32) as u32;
+        let set = (((h >> 32) * self.num_sets as u64) >> 32) as u32;
         let k = permute(index % n, n, h as u32);
         self.points[(set * n + k) as usize]
     }

@@ -13,11 +13,8 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
     if a == 0.0 && b == 0.0 {
         return Vec2::ZERO;
     }
-    let (r, phi) = if a.abs() > b.abs() {
-        (a, FRAC_PI_4 * (b / a))
-    } else {
-        (b, 2.0 * FRAC_PI_4 - FRAC_PI_4 * (a / b))
-    };
+    let (r, phi) =
+        if a.abs() > b.abs() { (a, FRAC_PI_4 * (b / a)) } else { (b, 2.0 * FRAC_PI_4 - FRAC_PI_4 * (a / b)) };
     Vec2::new(r * phi.cos(), r * phi.sin())
 }
 
@@ -37,11 +34,7 @@ pub struct HemisphereSample {
 #[inline]
 pub fn cosine_power_hemisphere(u: Vec2, e: f32) -> HemisphereSample {
     let phi = 2.0 * PI * u.x;
-    let cos_theta = if e == 1.0 {
-        (1.0 - u.y).sqrt()
-    } else {
-        (1.0 - u.y).powf(1.0 / (e + 1.0))
-    };
+    let cos_theta = if e == 1.0 { (1.0 - u.y).sqrt() } else { (1.0 - u.y).powf(1.0 / (e + 1.0)) };
     let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
     let dir = Vec3::new(sin_theta * phi.cos(), sin_theta * phi.sin(), cos_theta);
     let weight = if e == 1.0 {

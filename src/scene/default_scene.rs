@@ -7,9 +7,7 @@ use bevy_ecs::prelude::World;
 use glam::{Quat, Vec3};
 
 use super::mesh_gen::torus_knot;
-use crate::components::{
-    AmbientOccluder, Camera, Cuboid, Matte, Plane, PointLight, Sphere, Transform, TriangleMesh,
-};
+use crate::components::{AmbientOccluder, Camera, Cuboid, Matte, Plane, PointLight, Sphere, Transform, TriangleMesh};
 
 /// Sky colour behind the default scene.
 pub const DEFAULT_BACKGROUND: Vec3 = Vec3::new(0.62, 0.72, 0.86);
