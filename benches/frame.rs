@@ -61,7 +61,7 @@ fn system_resolve_640x360(bencher: Bencher) {
 /// Sample-set generation for each sampler kind (256 sets × 64 points).
 #[divan::bench(args = SamplerKind::ALL, sample_count = 20)]
 fn system_sample_sets(bencher: Bencher, kind: SamplerKind) {
-    bencher.bench(|| SampleSets::generate(kind, 64, 1));
+    bencher.bench(|| SampleSets::generate(kind, 64, 1, 640, 360));
 }
 
 /// BVH build over n triangles (copies of a torus knot on a grid).

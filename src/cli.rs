@@ -41,7 +41,7 @@ struct RenderArgs {
     /// Seed of every random decision: the same seed gives the same image bit for bit.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Sample pattern: regular, random, jittered, n-rooks, multi-jittered, hammersley.
+    /// Sample pattern: regular, random, jittered, n-rooks, multi-jittered, hammersley, cmj, zsobol.
     #[arg(long, default_value = "jittered", value_parser = parse_sampler)]
     sampler: SamplerKind,
     /// Worker threads (default: one per core).

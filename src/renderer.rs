@@ -38,7 +38,7 @@ impl Renderer {
     /// An empty scene with these settings, traced on rayon's global thread pool.
     pub fn new(settings: RenderSettings) -> Self {
         let mut world = World::new();
-        world.insert_resource(SampleSets::generate(settings.sampler, settings.samples_per_set, settings.seed));
+        world.insert_resource(SampleSets::for_settings(&settings));
         world.insert_resource(settings);
         world.init_resource::<SceneGeometry>();
         world.init_resource::<Accumulation>();

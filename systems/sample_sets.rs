@@ -9,10 +9,10 @@ use crate::{resources::RenderSettings, sampling::SampleSets, stats::FrameStats};
 /// Regenerates [`SampleSets`] if they no longer match the settings.
 pub fn update_sample_sets(settings: Res<RenderSettings>, mut sets: ResMut<SampleSets>, mut stats: ResMut<FrameStats>) {
     let start = Instant::now();
-    let note = if sets.matches(settings.sampler, settings.samples_per_set, settings.seed) {
+    let note = if sets.matches(&settings) {
         "unchanged".to_string()
     } else {
-        *sets = SampleSets::generate(settings.sampler, settings.samples_per_set, settings.seed);
+        *sets = SampleSets::for_settings(&settings);
         format!("generated {} sets of {} {} samples", sets.num_sets(), sets.set_size(), sets.kind().name())
     };
     stats.record("sample_sets", start.elapsed(), note);

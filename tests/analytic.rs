@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{occluder, settings, white};
+use common::{assert_matches_binomial, check_sphere_over_plane, floor_hit, occluder, settings, white};
 use hemi::{camera::PinholeRays, prelude::*};
 
 /// Renders one frame and returns the renderer.
@@ -86,61 +86,37 @@ fn inside_closed_mesh_is_the_min_amount_floor() {
     }
 }
 
-/// Floor point hit by a camera ray (the floor is y = 0).
-fn floor_hit(cam: &PinholeRays, x: u32, y: u32, u: glam::Vec2) -> Vec3 {
-    let ray = cam.ray(x, y, u);
-    let t = -ray.origin.y / ray.dir.y;
-    (ray.origin + ray.dir * t).into()
-}
-
-/// Mean of `f` over a pixel's footprint on the floor (8 × 8 sub-pixel grid).
-fn pixel_mean(cam: &PinholeRays, x: u32, y: u32, f: impl Fn(Vec3) -> f32) -> f32 {
-    let mut sum = 0.0;
-    for j in 0..8 {
-        for i in 0..8 {
-            let u = glam::Vec2::new((i as f32 + 0.5) / 8.0, (j as f32 + 0.5) / 8.0);
-            sum += f(floor_hit(cam, x, y, u));
-        }
-    }
-    sum / 64.0
-}
-
 /// Sphere of radius r, centre at height h over a plane: AO(x) = 1 − r²h/(h² + x²)^{3/2}
-/// (the sphere's configuration factor). Each pixel is checked within 5 standard errors of a
-/// binomial AO estimate, and the pixels' z-scores must not drift as a whole (bias check).
+/// (the sphere's configuration factor), for every sampler whose AO directions are random.
 #[test]
 fn sphere_over_plane_matches_the_form_factor() {
-    let (r, h) = (1.0f32, 1.5f32);
-    let spp = 256;
-    let (width, height) = (48, 12);
-    let mut renderer = Renderer::new(settings(width, height, spp, SamplerKind::MultiJittered));
-    // Look straight down at floor points x ∈ [~1.1, ~4.9] beside the sphere, from high up so
-    // no line of sight passes through the sphere.
+    for sampler in SamplerKind::ALL.into_iter().filter(|&k| k != SamplerKind::Regular) {
+        check_sphere_over_plane(sampler, 1.0, Vec3::ZERO, 128);
+    }
+}
+
+/// Floor beside a long wall of height H: AO(x) = ½(1 + x/√(x² + H²)).
+#[test]
+fn floor_beside_a_long_wall() {
+    let wall_height = 1.0f32;
+    let (width, height, spp) = (48, 8, 256);
+    // The wall's face is the plane z = 0; floor points at z = x > 0 are viewed from above.
     let camera =
-        Camera { eye: Vec3::new(3.0, 30.0, 0.0), target: Vec3::new(3.0, 0.0, 0.0), up: Vec3::NEG_Z, vfov_degrees: 1.8 };
-    let w = renderer.world_mut();
-    w.spawn((Sphere { radius: r }, Transform::from_xyz(0.0, h, 0.0), white()));
+        Camera { eye: Vec3::new(0.0, 40.0, 1.6), target: Vec3::new(0.0, 0.0, 1.6), up: Vec3::NEG_X, vfov_degrees: 0.6 };
+    let mut r = Renderer::new(settings(width, height, spp, SamplerKind::ZSobol));
+    let w = r.world_mut();
     w.spawn((Plane::default(), white()));
+    w.spawn((
+        Cuboid { half_extents: Vec3::new(2000.0, 0.5 * wall_height, 0.005) },
+        Transform::from_xyz(0.0, 0.5 * wall_height, -0.005),
+        white(),
+    ));
     w.spawn(occluder(0.0));
     w.spawn(camera);
-    let renderer = render(renderer);
+    let r = render(r);
     let cam = PinholeRays::new(&camera, width, height).unwrap();
-    let ao = |p: Vec3| 1.0 - r * r * h / (h * h + p.x * p.x + p.z * p.z).powf(1.5);
-    let (mut z_sum, mut n) = (0.0f64, 0);
-    for y in 0..height {
-        for x in 0..width {
-            let expected = pixel_mean(&cam, x, y, ao);
-            let got = renderer.image().pixel(x, y).x;
-            let sigma = (expected * (1.0 - expected) / spp as f32).sqrt().max(1e-4);
-            let z = (got - expected) / sigma;
-            assert!(z.abs() < 5.0, "pixel ({x},{y}): AO {got} vs analytic {expected} (z = {z:.1})");
-            z_sum += z as f64;
-            n += 1;
-        }
-    }
-    // Stratification makes pixels better than binomial; a bias shows as a drifting mean z.
-    let mean_z = z_sum / n as f64;
-    assert!(mean_z.abs() < 5.0 / (n as f64).sqrt(), "mean z-score {mean_z}: AO is biased");
+    let ao = |p: Vec3| 0.5 * (1.0 + p.z / (p.z * p.z + wall_height * wall_height).sqrt());
+    assert_matches_binomial(&r, &cam, (width, height, spp), 0.0, ao);
 }
 
 /// Unbiased weighting: with cos^e sampling for e ≠ 1 the estimate still converges to the
@@ -191,7 +167,7 @@ fn point_light_on_a_plane_gives_inverse_square_cosine_irradiance() {
             for j in 0..4 {
                 for i in 0..4 {
                     let u = glam::Vec2::new((i as f32 + 0.5) / 4.0, (j as f32 + 0.5) / 4.0);
-                    expected += radiance(floor_hit(&cam, x, y, u)) / 16.0;
+                    expected += radiance(floor_hit(&cam, x, y, u, 0.0)) / 16.0;
                 }
             }
             let got = r.image().pixel(x, y);

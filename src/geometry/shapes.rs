@@ -49,27 +49,23 @@ impl Triangle {
         if det == 0.0 {
             return None;
         }
-        let z = Vec3A::new(v[0].z, v[1].z, v[2].z) * s.z;
-        let t_scaled = e0 * z.x + e1 * z.y + e2 * z.z;
-        if det < 0.0 && (t_scaled >= 0.0 || t_scaled <= ray.tmax * det) {
+        // Distance along the ray from the triangle's plane, in f64: differences of f32 inputs
+        // are exact there, so the own triangle and coplanar neighbours share one plane and a
+        // ray spawned just off the surface (by the hit's error bound) can never re-hit it.
+        // (pbrt-v4 instead rejects t below an error bound that grows with the triangle's
+        // extent, which loses true nearby hits on large triangles: biased contact AO.)
+        let [a, b, c] = self.p.map(|p| p.as_dvec3());
+        let n = (b - a).cross(c - a);
+        let denom = n.dot(ray.dir.as_dvec3());
+        if denom == 0.0 {
             return None;
         }
-        if det > 0.0 && (t_scaled <= 0.0 || t_scaled >= ray.tmax * det) {
+        let t = (n.dot(a - ray.origin.as_dvec3()) / denom) as f32;
+        if !(t > 0.0 && t < ray.tmax) {
             return None;
         }
         let inv_det = 1.0 / det;
-        let t = t_scaled * inv_det;
-        // Reject t within its own rounding error of zero (pbrt-v4).
-        let max_z = z.abs().max_element();
-        let max_x = Vec3A::new(v[0].x, v[1].x, v[2].x).abs().max_element();
-        let max_y = Vec3A::new(v[0].y, v[1].y, v[2].y).abs().max_element();
-        let delta_z = gamma(3) * max_z;
-        let delta_x = gamma(5) * (max_x + max_z);
-        let delta_y = gamma(5) * (max_y + max_z);
-        let delta_e = 2.0 * (gamma(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
-        let max_e = Vec3A::new(e0, e1, e2).abs().max_element();
-        let delta_t = 3.0 * (gamma(3) * max_e * max_z + delta_e * max_z + delta_z * max_e) * inv_det.abs();
-        (t > delta_t).then_some((t, e1 * inv_det, e2 * inv_det))
+        Some((t, e1 * inv_det, e2 * inv_det))
     }
 
     /// The hit at barycentrics (b1, b2), with pbrt's error bound on the interpolated point.

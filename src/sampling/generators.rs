@@ -23,17 +23,23 @@ pub enum SamplerKind {
     MultiJittered,
     /// (i/n, radical inverse of i), XOR-scrambled per set so that sets differ.
     Hammersley,
+    /// Kensler's correlated multi-jittered patterns, computed per pixel (no stored sets).
+    CorrelatedMultiJittered,
+    /// Owen-scrambled Sobol' in Morton pixel order (pbrt-v4's ZSobol): blue-noise error.
+    ZSobol,
 }
 
 impl SamplerKind {
     /// Every kind, in declaration order.
-    pub const ALL: [SamplerKind; 6] = [
+    pub const ALL: [SamplerKind; 8] = [
         SamplerKind::Regular,
         SamplerKind::Random,
         SamplerKind::Jittered,
         SamplerKind::NRooks,
         SamplerKind::MultiJittered,
         SamplerKind::Hammersley,
+        SamplerKind::CorrelatedMultiJittered,
+        SamplerKind::ZSobol,
     ];
 
     /// The kind's command-line name.
@@ -45,6 +51,8 @@ impl SamplerKind {
             SamplerKind::NRooks => "n-rooks",
             SamplerKind::MultiJittered => "multi-jittered",
             SamplerKind::Hammersley => "hammersley",
+            SamplerKind::CorrelatedMultiJittered => "cmj",
+            SamplerKind::ZSobol => "zsobol",
         }
     }
 
@@ -53,7 +61,13 @@ impl SamplerKind {
         Self::ALL.into_iter().find(|k| k.name() == name)
     }
 
-    /// Appends one set of `n` points of this pattern to `out`.
+    /// Whether samples come from precomputed sets (the RTGU families) rather than being
+    /// computed per sample.
+    pub fn uses_stored_sets(self) -> bool {
+        !matches!(self, SamplerKind::CorrelatedMultiJittered | SamplerKind::ZSobol)
+    }
+
+    /// Appends one set of `n` points of this pattern to `out` (nothing for computed kinds).
     pub fn generate(self, n: u32, rng: &mut SplitMix64, out: &mut Vec<Vec2>) {
         match self {
             SamplerKind::Regular => regular(n, out),
@@ -62,6 +76,7 @@ impl SamplerKind {
             SamplerKind::NRooks => n_rooks(n, rng, out),
             SamplerKind::MultiJittered => multi_jittered(n, rng, out),
             SamplerKind::Hammersley => hammersley(n, rng, out),
+            SamplerKind::CorrelatedMultiJittered | SamplerKind::ZSobol => {}
         }
     }
 }
@@ -191,7 +206,7 @@ mod tests {
 
     #[test]
     fn every_sample_lies_in_the_unit_square() {
-        for kind in SamplerKind::ALL {
+        for kind in SamplerKind::ALL.into_iter().filter(|k| k.uses_stored_sets()) {
             for n in [1, 2, 7, 16, 64, 100, 256] {
                 for seed in 0..20 {
                     let s = set(kind, n, seed);

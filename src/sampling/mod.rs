@@ -7,15 +7,20 @@
 //! a hashed permutation (Kensler 2013) orders it, so the `n` samples of a pass are a whole,
 //! stratified set, different in every pixel and dimension, and independent of tile order.
 
+pub mod cmj;
 pub mod generators;
 pub mod hash;
+pub mod sobol;
 pub mod warp;
 
 use bevy_ecs::prelude::Resource;
+
+use crate::resources::RenderSettings;
 use glam::Vec2;
 
 pub use generators::SamplerKind;
-use hash::{SplitMix64, hash_sample, permute};
+use hash::{SplitMix64, hash_sample, mix64, permute};
+use sobol::ZSobol;
 
 /// Sample dimensions: each consumer of 2-D samples owns one pair.
 pub mod dims {
@@ -25,13 +30,16 @@ pub mod dims {
     pub const AO: u32 = 1;
 }
 
-/// Precomputed sets of 2-D sample points for one sampler kind and set size.
+/// Precomputed sets of 2-D sample points for one sampler kind and set size (or, for the
+/// computed kinds CMJ and ZSobol, their parameters).
 #[derive(Resource, Clone, Debug)]
 pub struct SampleSets {
     kind: SamplerKind,
     n: u32,
     num_sets: u32,
     seed: u64,
+    width: u32,
+    zsobol: ZSobol,
     points: Vec<Vec2>,
 }
 
@@ -41,20 +49,22 @@ impl SampleSets {
     /// Sets generated when memory allows: enough that pixels sharing a set are rare neighbours.
     const PREFERRED_SETS: u32 = 256;
 
-    /// Generates the sets for `kind` with `n` points each, fixed by `seed`.
-    pub fn generate(kind: SamplerKind, n: u32, seed: u64) -> Self {
+    /// Generates the sets for `kind` with `n` points each, fixed by `seed`, for an image
+    /// `width × height` (ZSobol orders pixels along a Morton curve of that size).
+    pub fn generate(kind: SamplerKind, n: u32, seed: u64, width: u32, height: u32) -> Self {
         let n = n.max(1);
-        let num_sets = if kind == SamplerKind::Regular {
-            1
-        } else {
-            (Self::MAX_POINTS / n as usize).clamp(1, Self::PREFERRED_SETS as usize) as u32
+        let num_sets = match kind {
+            SamplerKind::Regular => 1,
+            k if !k.uses_stored_sets() => 0,
+            _ => (Self::MAX_POINTS / n as usize).clamp(1, Self::PREFERRED_SETS as usize) as u32,
         };
         let mut rng = SplitMix64::new(seed ^ 0x5eed_5e75);
         let mut points = Vec::with_capacity(n as usize * num_sets as usize);
         for _ in 0..num_sets {
             kind.generate(n, &mut rng, &mut points);
         }
-        SampleSets { kind, n, num_sets, seed, points }
+        let zsobol = ZSobol::new(n, width.max(height));
+        SampleSets { kind, n, num_sets, seed, width: width.max(1), zsobol, points }
     }
 
     /// The pattern of these sets.
@@ -72,9 +82,16 @@ impl SampleSets {
         self.num_sets
     }
 
-    /// Whether these sets were made for the given parameters.
-    pub fn matches(&self, kind: SamplerKind, n: u32, seed: u64) -> bool {
-        self.kind == kind && self.n == n.max(1) && self.seed == seed
+    /// The sets the render settings call for.
+    pub fn for_settings(s: &RenderSettings) -> Self {
+        Self::generate(s.sampler, s.samples_per_set, s.seed, s.width, s.height)
+    }
+
+    /// Whether these sets are the ones the render settings call for.
+    pub fn matches(&self, s: &RenderSettings) -> bool {
+        let n = s.samples_per_set.max(1);
+        let same_image = self.width == s.width.max(1) && self.zsobol == ZSobol::new(n, s.width.max(s.height));
+        self.kind == s.sampler && self.n == n && self.seed == s.seed && same_image
     }
 
     /// Bytes held by the point sets.
@@ -91,10 +108,21 @@ impl SampleSets {
             return self.points[(index % n) as usize];
         }
         let pass = index / n;
-        let h = hash_sample(pixel, pass, dim, self.seed);
-        let set = (((h >> 32) * self.num_sets as u64) >> 32) as u32;
-        let k = permute(index % n, n, h as u32);
-        self.points[(set * n + k) as usize]
+        match self.kind {
+            SamplerKind::ZSobol => {
+                let (x, y) = (pixel % self.width, pixel / self.width);
+                Vec2::from(self.zsobol.sample(x, y, index % n, dim, self.seed ^ mix64(pass as u64)))
+            }
+            SamplerKind::CorrelatedMultiJittered => {
+                Vec2::from(cmj::cmj(index % n, n, hash_sample(pixel, pass, dim, self.seed) as u32))
+            }
+            _ => {
+                let h = hash_sample(pixel, pass, dim, self.seed);
+                let set = (((h >> 32) * self.num_sets as u64) >> 32) as u32;
+                let k = permute(index % n, n, h as u32);
+                self.points[(set * n + k) as usize]
+            }
+        }
     }
 }
 
@@ -105,8 +133,8 @@ mod tests {
     #[test]
     fn same_pixel_index_dimension_gives_the_same_value() {
         for kind in SamplerKind::ALL {
-            let a = SampleSets::generate(kind, 16, 42);
-            let b = SampleSets::generate(kind, 16, 42);
+            let a = SampleSets::generate(kind, 16, 42, 64, 64);
+            let b = SampleSets::generate(kind, 16, 42, 64, 64);
             for (p, i, d) in [(0, 0, 0), (17, 5, 1), (1000, 31, 2), (5, 100, 3)] {
                 assert_eq!(a.sample(p, i, d), b.sample(p, i, d), "{kind:?}");
             }
@@ -116,7 +144,7 @@ mod tests {
     #[test]
     fn one_pass_of_a_pixel_is_a_whole_stratified_set() {
         // The 16 samples of one pass in one pixel fill all 4×4 jittered strata.
-        let sets = SampleSets::generate(SamplerKind::Jittered, 16, 1);
+        let sets = SampleSets::generate(SamplerKind::Jittered, 16, 1, 64, 64);
         for pixel in [0, 9, 12345] {
             for pass in 0..3 {
                 let mut cells = [0; 16];
@@ -132,7 +160,7 @@ mod tests {
     #[test]
     fn dimensions_and_pixels_are_decorrelated() {
         // Pearson correlation between dimension 0 and 1 over many pixels is near zero.
-        let sets = SampleSets::generate(SamplerKind::MultiJittered, 16, 3);
+        let sets = SampleSets::generate(SamplerKind::MultiJittered, 16, 3, 64, 64);
         let n = 20_000u32;
         let (mut sx, mut sy, mut sxy, mut sxx, mut syy) = (0.0f64, 0.0, 0.0, 0.0, 0.0);
         for pixel in 0..n {
@@ -151,10 +179,62 @@ mod tests {
         assert_ne!(sets.sample(0, 0, 0), sets.sample(1, 0, 0));
     }
 
+    /// Whether `pts` (2^m of them) put exactly one point in every base-2 elementary interval
+    /// of area 2^-m: the (0, m, 2)-net property.
+    fn is_02_net(pts: &[Vec2]) -> bool {
+        let m = pts.len().trailing_zeros();
+        (0..=m).all(|bx| {
+            let (sx, sy) = (1u32 << bx, 1u32 << (m - bx));
+            let mut cells = vec![0; pts.len()];
+            for p in pts {
+                cells[((p.y * sy as f32) as u32 * sx + (p.x * sx as f32) as u32) as usize] += 1;
+            }
+            cells.iter().all(|&c| c == 1)
+        })
+    }
+
+    #[test]
+    fn zsobol_pixels_get_02_nets_in_every_dimension() {
+        for spp in [4u32, 16, 64, 128] {
+            let sets = SampleSets::generate(SamplerKind::ZSobol, spp, 5, 37, 23);
+            for pixel in [0u32, 1, 36, 37 * 10 + 5, 37 * 23 - 1] {
+                for dim in 0..4 {
+                    for pass in 0..2 {
+                        let pts: Vec<Vec2> = (0..spp).map(|i| sets.sample(pixel, pass * spp + i, dim)).collect();
+                        assert!(pts.iter().all(|p| (0.0..1.0).contains(&p.x) && (0.0..1.0).contains(&p.y)));
+                        assert!(is_02_net(&pts), "spp {spp}, pixel {pixel}, dim {dim}, pass {pass}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn zsobol_neighbours_and_dimensions_differ() {
+        let sets = SampleSets::generate(SamplerKind::ZSobol, 16, 1, 64, 64);
+        assert_ne!(sets.sample(0, 0, 0), sets.sample(1, 0, 0));
+        assert_ne!(sets.sample(0, 0, 0), sets.sample(0, 0, 1));
+        assert_ne!(sets.sample(0, 0, 0), sets.sample(0, 16, 0), "passes are scrambled anew");
+    }
+
+    #[test]
+    fn cmj_pixels_are_stratified_and_decorrelated() {
+        let sets = SampleSets::generate(SamplerKind::CorrelatedMultiJittered, 16, 3, 64, 64);
+        for pixel in [0, 7, 999] {
+            let mut cells = [0; 16];
+            for i in 0..16 {
+                let p = sets.sample(pixel, i, dims::AO);
+                cells[(p.y * 4.0) as usize * 4 + (p.x * 4.0) as usize] += 1;
+            }
+            assert!(cells.iter().all(|&c| c == 1));
+        }
+        assert_ne!(sets.sample(0, 0, 0), sets.sample(1, 0, 0));
+    }
+
     #[test]
     fn different_seeds_give_different_sets() {
-        let a = SampleSets::generate(SamplerKind::Jittered, 16, 1);
-        let b = SampleSets::generate(SamplerKind::Jittered, 16, 2);
+        let a = SampleSets::generate(SamplerKind::Jittered, 16, 1, 64, 64);
+        let b = SampleSets::generate(SamplerKind::Jittered, 16, 2, 64, 64);
         assert_ne!(a.sample(3, 0, 0), b.sample(3, 0, 0));
     }
 }

@@ -1,0 +1,183 @@
+//! Owen-scrambled Sobol' samples in Morton (Z) pixel order: pbrt-v4's `ZSobolSampler`
+//! (Ahmed & Wonka 2020, "Screen-Space Blue-Noise Diffusion of Monte Carlo Sampling Error via
+//! Hierarchical Ordering of Pixels") with Burley's (2020) hash-based Owen scrambling.
+//!
+//! Pixel `p` owns the consecutive indices `morton(p)·spp .. morton(p)·spp + spp` of one global
+//! (0,2)-sequence; base-4 digits of that index are permuted by a hash of the higher digits, so
+//! neighbouring pixels get well-distributed, decorrelated sub-sequences: the error is blue noise.
+
+use super::hash::mix64;
+
+/// 2-D Sobol' generator matrices (32-bit columns): dimension 0 is the van der Corput sequence,
+/// dimension 1 follows v_i = v_{i−1} ⊕ (v_{i−1} >> 1) (the (0,2)-sequence's second component).
+const SOBOL: [[u32; 32]; 2] = {
+    let mut m = [[0u32; 32]; 2];
+    let mut i = 0;
+    let mut v = 1u32 << 31;
+    while i < 32 {
+        m[0][i] = 1 << (31 - i);
+        m[1][i] = v;
+        v ^= v >> 1;
+        i += 1;
+    }
+    m
+};
+
+/// All 24 permutations of four base-4 digits.
+const PERMUTATIONS: [[u8; 4]; 24] = {
+    let mut p = [[0u8; 4]; 24];
+    let mut k = 0;
+    let mut a = 0;
+    while a < 4 {
+        let mut b = 0;
+        while b < 4 {
+            let mut c = 0;
+            while c < 4 {
+                let d = 6 - a - b - c;
+                if a != b && a != c && b != c {
+                    p[k] = [a as u8, b as u8, c as u8, d as u8];
+                    k += 1;
+                }
+                c += 1;
+            }
+            b += 1;
+        }
+        a += 1;
+    }
+    p
+};
+
+/// pbrt-v4's `MixBits`.
+#[inline]
+fn mix_bits(mut v: u64) -> u64 {
+    v ^= v >> 31;
+    v = v.wrapping_mul(0x7fb5_d329_728e_a185);
+    v ^= v >> 27;
+    v = v.wrapping_mul(0x81da_def4_bc2d_d44d);
+    v ^ (v >> 33)
+}
+
+/// Interleaves the bits of x and y (x in the even bits).
+#[inline]
+pub fn morton2(x: u32, y: u32) -> u64 {
+    fn spread(v: u32) -> u64 {
+        let mut v = v as u64;
+        v = (v | (v << 16)) & 0x0000_ffff_0000_ffff;
+        v = (v | (v << 8)) & 0x00ff_00ff_00ff_00ff;
+        v = (v | (v << 4)) & 0x0f0f_0f0f_0f0f_0f0f;
+        v = (v | (v << 2)) & 0x3333_3333_3333_3333;
+        (v | (v << 1)) & 0x5555_5555_5555_5555
+    }
+    spread(x) | (spread(y) << 1)
+}
+
+/// Burley's hash-based Owen scrambling (pbrt-v4's `FastOwenScrambler`, Vegdahl's constants).
+#[inline]
+pub fn fast_owen(v: u32, seed: u32) -> u32 {
+    let mut v = v.reverse_bits();
+    v ^= v.wrapping_mul(0x3d20_adea);
+    v = v.wrapping_add(seed);
+    v = v.wrapping_mul((seed >> 16) | 1);
+    v ^= v.wrapping_mul(0x0552_6c56);
+    v ^= v.wrapping_mul(0x53a2_2864);
+    v.reverse_bits()
+}
+
+/// Sobol' dimension `dim` (0 or 1) of index `a`, as 32 fixed-point bits.
+#[inline]
+pub fn sobol_bits(mut a: u32, dim: usize) -> u32 {
+    let mut v = 0;
+    let mut i = 0;
+    while a != 0 {
+        if a & 1 != 0 {
+            v ^= SOBOL[dim][i];
+        }
+        a >>= 1;
+        i += 1;
+    }
+    v
+}
+
+/// The Z-order Sobol' sampler's fixed parameters.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ZSobol {
+    log2_spp: u32,
+    base4_digits: u32,
+}
+
+impl ZSobol {
+    /// A sampler for `spp` samples per pixel (rounded up to a power of two) on images up to
+    /// `resolution` pixels on a side.
+    pub fn new(spp: u32, resolution: u32) -> Self {
+        let log2_spp = spp.max(1).next_power_of_two().trailing_zeros();
+        let res_bits = resolution.max(1).next_power_of_two().trailing_zeros();
+        ZSobol { log2_spp, base4_digits: res_bits + log2_spp.div_ceil(2) }
+    }
+
+    /// pbrt-v4's `ZSobolSampler::GetSampleIndex`: the hierarchically permuted index.
+    #[inline]
+    fn sample_index(&self, morton: u64, dim: u32) -> u64 {
+        let pow2 = self.log2_spp & 1 == 1;
+        let last = u32::from(pow2);
+        let mut index = 0u64;
+        let mut i = self.base4_digits;
+        while i > last {
+            i -= 1;
+            let shift = 2 * i - u32::from(pow2);
+            let digit = (morton >> shift) & 3;
+            let higher = morton >> (shift + 2);
+            let p = (mix_bits(higher ^ (0x5555_5555u64.wrapping_mul(dim as u64))) >> 24) % 24;
+            index |= (PERMUTATIONS[p as usize][digit as usize] as u64) << shift;
+        }
+        if pow2 {
+            let digit = morton & 1;
+            index |= digit ^ (mix_bits((morton >> 1) ^ (0x5555_5555u64.wrapping_mul(dim as u64))) & 1);
+        }
+        index
+    }
+
+    /// The 2-D sample of pixel (x, y), sample `index` (< 2^log2_spp), dimension `dim`.
+    #[inline]
+    pub fn sample(&self, x: u32, y: u32, index: u32, dim: u32, seed: u64) -> [f32; 2] {
+        let morton = (morton2(x, y) << self.log2_spp) | index as u64;
+        let a = self.sample_index(morton, dim) as u32;
+        let hash = mix64(seed ^ mix64(dim as u64 + 1));
+        let to_unit = |bits: u32| (bits as f32 * (1.0 / 4_294_967_296.0)).min(1.0 - f32::EPSILON * 0.5);
+        [to_unit(fast_owen(sobol_bits(a, 0), hash as u32)), to_unit(fast_owen(sobol_bits(a, 1), (hash >> 32) as u32))]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn first_sobol_points_are_the_classic_02_sequence() {
+        let pts: Vec<(u32, u32)> = (0..4).map(|i| (sobol_bits(i, 0) >> 30, sobol_bits(i, 1) >> 30)).collect();
+        // (0,0), (1/2,1/2), (1/4,3/4), (3/4,1/4) in units of 1/4.
+        assert_eq!(pts, vec![(0, 0), (2, 2), (1, 3), (3, 1)]);
+    }
+
+    #[test]
+    fn permutations_are_all_distinct() {
+        for (i, a) in PERMUTATIONS.iter().enumerate() {
+            let mut s = *a;
+            s.sort();
+            assert_eq!(s, [0, 1, 2, 3]);
+            assert!(PERMUTATIONS[..i].iter().all(|b| b != a));
+        }
+    }
+
+    #[test]
+    fn owen_scrambling_is_a_bijection_on_prefixes() {
+        // Owen scrambling permutes each elementary interval: the top k bits of 2^k points stay distinct.
+        for seed in [1u32, 77, 0xdead_beef] {
+            let mut seen = vec![false; 256];
+            for i in 0..256u32 {
+                let v = fast_owen(i << 24, seed) >> 24;
+                assert!(!seen[v as usize]);
+                seen[v as usize] = true;
+            }
+        }
+    }
+}
