@@ -84,6 +84,18 @@ impl OutputFile {
     }
 }
 
+impl OutputFile {
+    /// Writes an 8-bit RGB picture (plots and the like) as PNG, whatever the extension says.
+    pub fn write_rgb8(self, rgb: &RgbImage) -> Result<(), HemiError> {
+        let path = self.path.clone();
+        let mut out = BufWriter::new(self.file);
+        PngEncoder::new(&mut out)
+            .write_image(rgb, rgb.width(), rgb.height(), image::ExtendedColorType::Rgb8)
+            .map_err(|e| io_error(&path, "cannot write image", e))?;
+        out.flush().map_err(|e| io_error(&path, "cannot write image", e))
+    }
+}
+
 /// Saves `image` to `path`, in the format its extension names.
 pub fn save(image: &Image, path: &Path) -> Result<(), HemiError> {
     OutputFile::create(path)?.write(image)

@@ -9,13 +9,16 @@
 //! [`Renderer::run_frame`] as often as you like. A static scene converges progressively;
 //! any change to an entity or to the settings restarts accumulation automatically.
 
+pub mod analytic;
 pub mod camera;
 pub mod cli;
 pub mod components;
+pub mod convergence;
 pub mod error;
 pub mod film;
 pub mod geometry;
 pub mod math;
+pub mod plot;
 pub mod renderer;
 pub mod resources;
 pub mod sampling;

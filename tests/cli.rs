@@ -49,6 +49,35 @@ fn stats_prints_a_table_per_frame() {
 }
 
 #[test]
+fn error_study_writes_csv_and_plot() {
+    let (csv, png) = (temp("err.csv"), temp("err.png"));
+    let args = [
+        "error",
+        "wall",
+        "--max-spp",
+        "8",
+        "--samplers",
+        "random,zsobol",
+        "--csv",
+        csv.to_str().unwrap(),
+        "--plot",
+        png.to_str().unwrap(),
+    ];
+    let (code, out, err) = hemi(&args);
+    assert_eq!(code, 0, "{err}");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let rows: Vec<&str> = text.lines().collect();
+    assert_eq!(rows[0], "sampler,spp,seconds,rays,rmse,relative_rmse");
+    assert_eq!(rows.len(), 1 + 2 * 4, "2 samplers × spp 1, 2, 4, 8");
+    assert!(rows[1].starts_with("random,1,"));
+    assert!(out.contains("slope(spp)") && out.contains("zsobol"));
+    assert_eq!(image::open(&png).unwrap().into_rgb8().dimensions(), (1400, 560));
+    let (code, _, err) = hemi(&["error", "default"]);
+    assert_eq!(code, 2);
+    assert!(err.contains("--reference"), "{err}");
+}
+
+#[test]
 fn bad_arguments_give_one_line_and_a_non_zero_exit() {
     let unwritable = "/nonexistent-dir/x.png";
     let cases: [(&[&str], &str); 8] = [

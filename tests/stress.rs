@@ -5,8 +5,8 @@ mod common;
 
 use std::sync::Arc;
 
-use common::{check_sphere_over_plane, occluder, settings, white};
-use hemi::{prelude::*, sampling::hash::SplitMix64, scene::mesh_gen};
+use common::{check_analytic, occluder, settings, white};
+use hemi::{analytic::AnalyticScene, prelude::*, sampling::hash::SplitMix64, scene::mesh_gen};
 
 /// The sphere-over-plane form factor holds from 1e-4 to 1e6 scale and up to 1e6 from the
 /// origin. (f32 quantises a unit-size scene 1e6 away to 1/16, which no renderer can undo, so
@@ -18,7 +18,8 @@ fn sphere_over_plane_is_scale_and_offset_invariant() {
             if offset.length() > 1e6 * scale.max(1.0) {
                 continue;
             }
-            check_sphere_over_plane(SamplerKind::Jittered, scale, offset, 64);
+            check_analytic(AnalyticScene::SphereOverPlane, SamplerKind::Jittered, scale, offset, 64);
+            check_analytic(AnalyticScene::Wall, SamplerKind::Jittered, scale, offset, 64);
         }
     }
 }

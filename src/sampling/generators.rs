@@ -15,7 +15,6 @@ pub enum SamplerKind {
     /// Independent uniform points.
     Random,
     /// One uniform point per grid cell.
-    #[default]
     Jittered,
     /// One point per row and per column of an n × n grid (Latin hypercube).
     NRooks,
@@ -24,6 +23,9 @@ pub enum SamplerKind {
     /// (i/n, radical inverse of i), XOR-scrambled per set so that sets differ.
     Hammersley,
     /// Kensler's correlated multi-jittered patterns, computed per pixel (no stored sets).
+    /// The default: lowest or near-lowest RMSE in `hemi error` on both analytic scenes, at
+    /// any spp (see the README).
+    #[default]
     CorrelatedMultiJittered,
     /// Owen-scrambled Sobol' in Morton pixel order (pbrt-v4's ZSobol): blue-noise error.
     ZSobol,

@@ -83,19 +83,42 @@ pub fn fast_owen(v: u32, seed: u32) -> u32 {
     v.reverse_bits()
 }
 
+/// Dimension 1's matrix applied to each byte of the index: `SOBOL1_BYTES[k][b]` is the XOR of
+/// the columns 8k..8k+8 selected by the bits of `b`.
+const SOBOL1_BYTES: [[u32; 256]; 4] = {
+    let mut t = [[0u32; 256]; 4];
+    let mut k = 0;
+    while k < 4 {
+        let mut b = 0;
+        while b < 256 {
+            let mut v = 0;
+            let mut bit = 0;
+            while bit < 8 {
+                if b >> bit & 1 == 1 {
+                    v ^= SOBOL[1][8 * k + bit];
+                }
+                bit += 1;
+            }
+            t[k][b] = v;
+            b += 1;
+        }
+        k += 1;
+    }
+    t
+};
+
 /// Sobol' dimension `dim` (0 or 1) of index `a`, as 32 fixed-point bits.
 #[inline]
-pub fn sobol_bits(mut a: u32, dim: usize) -> u32 {
-    let mut v = 0;
-    let mut i = 0;
-    while a != 0 {
-        if a & 1 != 0 {
-            v ^= SOBOL[dim][i];
-        }
-        a >>= 1;
-        i += 1;
+pub fn sobol_bits(a: u32, dim: usize) -> u32 {
+    if dim == 0 {
+        // Dimension 0's matrix is the bit reversal (van der Corput).
+        return a.reverse_bits();
     }
-    v
+    let b = a.to_le_bytes();
+    SOBOL1_BYTES[0][b[0] as usize]
+        ^ SOBOL1_BYTES[1][b[1] as usize]
+        ^ SOBOL1_BYTES[2][b[2] as usize]
+        ^ SOBOL1_BYTES[3][b[3] as usize]
 }
 
 /// The Z-order Sobol' sampler's fixed parameters.
@@ -156,6 +179,18 @@ mod tests {
         let pts: Vec<(u32, u32)> = (0..4).map(|i| (sobol_bits(i, 0) >> 30, sobol_bits(i, 1) >> 30)).collect();
         // (0,0), (1/2,1/2), (1/4,3/4), (3/4,1/4) in units of 1/4.
         assert_eq!(pts, vec![(0, 0), (2, 2), (1, 3), (3, 1)]);
+    }
+
+    #[test]
+    fn table_driven_sobol_equals_the_matrix_product() {
+        let mut x = 0x1234_5678u32;
+        for _ in 0..1000 {
+            x = x.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
+            for (dim, matrix) in SOBOL.iter().enumerate() {
+                let slow = (0..32).filter(|i| x >> i & 1 == 1).fold(0, |v, i| v ^ matrix[i]);
+                assert_eq!(sobol_bits(x, dim), slow);
+            }
+        }
     }
 
     #[test]
