@@ -5,7 +5,7 @@
 
 use glam::Vec2;
 
-use super::hash::SplitMix64;
+use super::{cmj::cmj, hash::SplitMix64};
 
 /// Which pattern a sample set follows.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
@@ -22,7 +22,7 @@ pub enum SamplerKind {
     MultiJittered,
     /// (i/n, radical inverse of i), XOR-scrambled per set so that sets differ.
     Hammersley,
-    /// Kensler's correlated multi-jittered patterns, computed per pixel (no stored sets).
+    /// Kensler's correlated multi-jittered patterns (generated into the stored sets).
     /// The default: lowest or near-lowest RMSE in `hemi error` on both analytic scenes, at
     /// any spp (see the README).
     #[default]
@@ -63,10 +63,9 @@ impl SamplerKind {
         Self::ALL.into_iter().find(|k| k.name() == name)
     }
 
-    /// Whether samples come from precomputed sets (the RTGU families) rather than being
-    /// computed per sample.
+    /// Whether samples come from precomputed sets rather than being computed per sample.
     pub fn uses_stored_sets(self) -> bool {
-        !matches!(self, SamplerKind::CorrelatedMultiJittered | SamplerKind::ZSobol)
+        self != SamplerKind::ZSobol
     }
 
     /// Appends one set of `n` points of this pattern to `out` (nothing for computed kinds).
@@ -78,7 +77,11 @@ impl SamplerKind {
             SamplerKind::NRooks => n_rooks(n, rng, out),
             SamplerKind::MultiJittered => multi_jittered(n, rng, out),
             SamplerKind::Hammersley => hammersley(n, rng, out),
-            SamplerKind::CorrelatedMultiJittered | SamplerKind::ZSobol => {}
+            SamplerKind::CorrelatedMultiJittered => {
+                let pattern = rng.next_u64() as u32;
+                out.extend((0..n).map(|s| Vec2::from(cmj(s, n, pattern))));
+            }
+            SamplerKind::ZSobol => {}
         }
     }
 }

@@ -30,8 +30,8 @@ pub mod dims {
     pub const AO: u32 = 1;
 }
 
-/// Precomputed sets of 2-D sample points for one sampler kind and set size (or, for the
-/// computed kinds CMJ and ZSobol, their parameters).
+/// Precomputed sets of 2-D sample points for one sampler kind and set size (or, for ZSobol,
+/// which is computed per sample, its parameters).
 #[derive(Resource, Clone, Debug)]
 pub struct SampleSets {
     kind: SamplerKind,
@@ -112,9 +112,6 @@ impl SampleSets {
             SamplerKind::ZSobol => {
                 let (x, y) = (pixel % self.width, pixel / self.width);
                 Vec2::from(self.zsobol.sample(x, y, index % n, dim, self.seed ^ mix64(pass as u64)))
-            }
-            SamplerKind::CorrelatedMultiJittered => {
-                Vec2::from(cmj::cmj(index % n, n, hash_sample(pixel, pass, dim, self.seed) as u32))
             }
             _ => {
                 let h = hash_sample(pixel, pass, dim, self.seed);
