@@ -18,6 +18,7 @@ pub mod error;
 pub mod film;
 pub mod geometry;
 pub mod math;
+pub mod npy;
 pub mod plot;
 pub mod renderer;
 pub mod resources;
