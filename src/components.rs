@@ -119,6 +119,15 @@ impl Mesh {
 #[require(Transform, Matte)]
 pub struct TriangleMesh(pub Arc<Mesh>);
 
+/// Marks a [`TriangleMesh`] whose vertices move from frame to frame while its triangles stay
+/// the same (skinning): its BVH keeps the tree built once from `rest` and is only refit to the
+/// current vertices, so a deforming mesh costs a refit per frame, not a rebuild.
+#[derive(Component, Clone, Debug)]
+pub struct Deforming {
+    /// The mesh in its rest pose, with the same triangles as the entity's `TriangleMesh`.
+    pub rest: Arc<Mesh>,
+}
+
 /// RTGU's matte material: ambient reflectance `ka·cd`, Lambertian diffuse `kd·cd/π`.
 #[derive(Component, Clone, Copy, Debug, PartialEq)]
 pub struct Matte {
