@@ -9,6 +9,7 @@
 //! [`Renderer::run_frame`] as often as you like. A static scene converges progressively;
 //! any change to an entity or to the settings restarts accumulation automatically.
 
+pub mod animation;
 pub mod camera;
 pub mod cli;
 pub mod components;
@@ -16,6 +17,7 @@ pub mod error;
 pub mod film;
 pub mod geometry;
 pub mod math;
+pub mod projection;
 pub mod renderer;
 pub mod resources;
 pub mod sampling;
@@ -35,10 +37,11 @@ pub mod prelude {
     pub use crate::{
         Renderer,
         components::{
-            AmbientOccluder, Camera, Cuboid, Matte, Mesh, Plane, PointLight, Sphere, Transform, TriangleMesh,
+            AmbientOccluder, Camera, Cuboid, Deforming, Matte, Mesh, OrthographicCamera, Plane, PointLight, Sphere,
+            Transform, TriangleMesh,
         },
         error::HemiError,
-        resources::{Image, RenderSettings},
+        resources::{Image, RenderSettings, Time},
         sampling::SamplerKind,
         stats::FrameStats,
         systems::FrameStage,
