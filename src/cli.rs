@@ -214,7 +214,9 @@ fn render(args: RenderArgs) -> Result<(), HemiError> {
                 eprintln!("hemi: warning: {}: {w}", path.display());
             }
             let mut r = Renderer::new(settings);
-            let time = frames.as_ref().and_then(|f| f.first()).map_or(args.time, |&f| (f as f64 / args.fps) as f32);
+            // Posed (and, without a camera in the file, framed) at the start of the whole
+            // range, so that every shard of a sequence sees the same camera.
+            let time = args.frames.map_or(args.time, |(start, _)| (start as f64 / args.fps) as f32);
             let options = SpawnOptions { camera: args.camera.clone(), animation: args.animation.clone(), time };
             scene.spawn(r.world_mut(), &options)?;
             r

@@ -116,7 +116,7 @@ pub struct SpawnOptions {
     pub camera: Option<String>,
     /// Animation by name or index (default: the first, if any).
     pub animation: Option<String>,
-    /// Time in seconds the scene is posed at.
+    /// Time in seconds the scene is posed at (and, for a file without cameras, framed at).
     pub time: f32,
 }
 
