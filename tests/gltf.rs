@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use hemi::{
     animation::{Keys, NodeGraph},
-    geometry::accel::outward_normal,
+    geometry::accel::{BvhWork, outward_normal},
     prelude::*,
     scene::gltf::{self, SpawnOptions},
 };
@@ -242,4 +242,28 @@ fn animated_frames_change_where_things_move_and_nowhere_else() {
     let mut alone = box_and_sphere();
     alone.render_at(48.0 / 24.0, 8).unwrap();
     assert_eq!(alone.image().linear, frames[2]);
+}
+
+#[test]
+fn skinned_fox_deforms_and_only_refits_its_blas() {
+    let scene = gltf::load(&asset("Fox/glTF-Binary/Fox.glb")).unwrap();
+    let mut r = Renderer::new(common::settings(32, 24, 1, SamplerKind::Jittered));
+    scene.spawn(r.world_mut(), &SpawnOptions { animation: Some("Run".into()), ..Default::default() }).unwrap();
+    let first = r.run_frame().unwrap().bvh_work;
+    assert_eq!(first.blas_built, 1, "the rest-pose tree is built once");
+    let before = r.world_mut().query::<&TriangleMesh>().single(r.world()).unwrap().0.clone();
+    for frame in 1..4 {
+        r.set_time(frame as f32 / 24.0);
+        let stats = r.run_frame().unwrap();
+        assert_eq!(stats.bvh_work, BvhWork { blas_built: 0, blas_refit: 1, tlas_built: true }, "frame {frame}");
+        assert_eq!(stats.spp, 1, "accumulation restarts on every moved frame");
+    }
+    let after = r.world_mut().query::<&TriangleMesh>().single(r.world()).unwrap().0.clone();
+    assert_eq!(after.indices, before.indices);
+    assert_ne!(after.positions, before.positions, "the skin moved the vertices");
+    // Unknown animation names are refused with the list of names.
+    let mut w = World::new();
+    let e = scene.spawn(&mut w, &SpawnOptions { animation: Some("Dance".into()), ..Default::default() });
+    let e = e.unwrap_err().to_string();
+    assert!(e.contains("no animation 'Dance'") && e.contains("Survey"), "{e}");
 }
