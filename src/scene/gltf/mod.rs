@@ -231,6 +231,13 @@ fn parse(bytes: &[u8], base: &Path) -> Result<GltfScene, String> {
             .map_err(|e| format!("{}: {e}", label("animation", animation.index(), animation.name())))?;
         scene.graph.clips.push(clip);
     }
+    let sheared = sheared_nodes(&scene.graph, scene.placements.iter().map(|p| p.node));
+    if sheared > 0 {
+        warnings.push(format!(
+            "{sheared} mesh nodes have a sheared world matrix (non-uniform scale under a rotated parent); \
+             hemi keeps its scale, rotation and translation only"
+        ));
+    }
     if skipped_prims > 0 {
         warnings.push(format!("skipped {skipped_prims} point/line primitives (hemi renders triangles only)"));
     }
@@ -244,6 +251,21 @@ fn parse(bytes: &[u8], base: &Path) -> Result<GltfScene, String> {
     }
     scene.warnings = warnings;
     Ok(scene)
+}
+
+/// How many of `nodes` have a rest-pose world matrix that a scale-rotation-translation cannot
+/// reproduce (shear).
+fn sheared_nodes(graph: &NodeGraph, nodes: impl Iterator<Item = usize>) -> usize {
+    let world = graph.pose(0.0);
+    nodes
+        .filter(|&n| {
+            let m = world[n];
+            let back = Transform::from_affine(&m);
+            let r = Affine3A::from_scale_rotation_translation(back.scale, back.rotation, back.translation);
+            let size = m.matrix3.x_axis.length() + m.matrix3.y_axis.length() + m.matrix3.z_axis.length();
+            (r.matrix3 - m.matrix3).to_cols_array().iter().any(|d| d.abs() > 1e-4 * size)
+        })
+        .count()
 }
 
 /// The default scene's nodes in depth-first order (parents first), and each file node's index
