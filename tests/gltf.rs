@@ -267,3 +267,26 @@ fn skinned_fox_deforms_and_only_refits_its_blas() {
     let e = e.unwrap_err().to_string();
     assert!(e.contains("no animation 'Dance'") && e.contains("Survey"), "{e}");
 }
+
+#[test]
+fn point_lights_and_both_camera_kinds_are_spawned() {
+    let scene = gltf::load(&asset("LightsPunctualLamp/glTF/LightsPunctualLamp.gltf")).unwrap();
+    let mut world = World::new();
+    scene.spawn(&mut world, &SpawnOptions::default()).unwrap();
+    let mut ls: Vec<f32> = world.query::<&PointLight>().iter(&world).map(|l| l.ls).collect();
+    ls.sort_by(f32::total_cmp);
+    assert_eq!(ls, [1.5, 15.0, 80.0, 80.0, 180.0], "candela map to ls one to one");
+    assert!(world.query::<&PointLight>().iter(&world).all(|l| l.falloff && l.shadows));
+    assert_eq!(world.query::<&AmbientOccluder>().iter(&world).count(), 1, "a default occluder");
+
+    let cameras = gltf::load(&asset("Cameras/glTF/Cameras.gltf")).unwrap();
+    for (key, orthographic) in [("0", false), ("1", true)] {
+        let mut r = Renderer::new(common::settings(16, 16, 2, SamplerKind::Jittered));
+        cameras.spawn(r.world_mut(), &SpawnOptions { camera: Some(key.into()), ..Default::default() }).unwrap();
+        let w = r.world_mut();
+        assert_eq!(w.query::<&OrthographicCamera>().iter(w).count(), usize::from(orthographic));
+        assert_eq!(w.query::<&Camera>().iter(w).count(), usize::from(!orthographic));
+        let stats = r.run_frame().unwrap();
+        assert!(stats.rays.ao > 0, "camera {key} sees the geometry");
+    }
+}
