@@ -121,9 +121,10 @@ fn ao_rays_default_scene(bencher: Bencher) {
 fn ao_rays_default_scene_obvhs_cwbvh(bencher: Bencher) {
     use obvhs::{BvhBuildParams, cwbvh::builder::build_cwbvh};
     let (geometry, rays) = ao_rays();
-    let aabbs: Vec<_> = geometry.prims().iter().map(|p| p.bounds()).collect();
+    let world = geometry.world_prims();
+    let aabbs: Vec<_> = world.iter().map(|p| p.bounds()).collect();
     let bvh = build_cwbvh(&aabbs, BvhBuildParams::medium_build(), &mut std::time::Duration::default());
-    let prims: Vec<_> = bvh.primitive_indices.iter().map(|&i| geometry.prims()[i as usize]).collect();
+    let prims: Vec<_> = bvh.primitive_indices.iter().map(|&i| world[i as usize]).collect();
     // The default scene's only plane is the ground y = 0, below every AO ray origin.
     assert_eq!(geometry.plane_count(), 1);
     let obvhs_rays: Vec<_> = rays.iter().map(|r| obvhs::ray::Ray::new(r.origin, r.dir, 0.0, r.tmax)).collect();

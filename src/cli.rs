@@ -6,7 +6,8 @@ use clap::{Parser, Subcommand, error::ErrorKind};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use crate::{
-    Renderer, error::HemiError, film::OutputFile, resources::RenderSettings, sampling::SamplerKind, shading::RayCounts,
+    Renderer, error::HemiError, film::OutputFile, resources::RenderSettings, sampling::SamplerKind,
+    scene::gltf::SpawnOptions, shading::RayCounts,
 };
 
 /// hemi: ambient occlusion + direct lighting by CPU ray tracing on bevy_ecs.
@@ -19,7 +20,7 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// Render the built-in default scene to an image.
+    /// Render a glTF 2.0 scene (or, without one, the built-in scene) to an image or a sequence.
     Render(RenderArgs),
     /// Measure RMSE against run time and spp for every sampler (CSV + log-log plot).
     Error(ErrorArgs),
@@ -56,9 +57,32 @@ struct ErrorArgs {
 /// Options of `hemi render`.
 #[derive(clap::Args, Debug)]
 struct RenderArgs {
-    /// Output image: .png (8-bit sRGB) or .exr (linear f32, unclamped).
+    /// A .gltf or .glb scene (default: the built-in scene).
+    scene: Option<PathBuf>,
+    /// Output image: .png (8-bit sRGB) or .exr (linear f32, unclamped). With --frames it must
+    /// hold a frame-number placeholder, `{:04}` (zero-padded) or `{}`.
     #[arg(long, default_value = "hemi.png")]
     out: PathBuf,
+    /// The glTF camera to render, by name or index (default: the scene's first camera, or one
+    /// that frames the whole scene when it has none).
+    #[arg(long)]
+    camera: Option<String>,
+    /// The glTF animation to play, by name or index (default: the first).
+    #[arg(long)]
+    animation: Option<String>,
+    /// Render the frames A..B (B excluded) of the animation as a numbered sequence.
+    #[arg(long, value_parser = parse_frames)]
+    frames: Option<(u32, u32)>,
+    /// Frames per second of the sequence: frame f shows time f / fps.
+    #[arg(long, default_value_t = 24.0, value_parser = parse_fps)]
+    fps: f64,
+    /// Render only every n-th frame of the sequence starting at the i-th, `i/n` (for array jobs);
+    /// every frame is identical to the one an unsharded run writes.
+    #[arg(long, value_parser = parse_shard)]
+    shard: Option<(u32, u32)>,
+    /// Scene time in seconds of a single image.
+    #[arg(long, default_value_t = 0.0, value_parser = parse_time)]
+    time: f32,
     /// Total samples per pixel, reached progressively over frames.
     #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
     spp: u32,
@@ -89,6 +113,57 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
     let settings = RenderSettings { width: w, height: h, ..Default::default() };
     settings.validate()?;
     Ok((w, h))
+}
+
+fn parse_frames(s: &str) -> Result<(u32, u32), String> {
+    let (a, b) = s.split_once("..").ok_or("expected a range START..END, e.g. 0..48")?;
+    let a: u32 = a.trim().parse().map_err(|_| format!("frame '{a}' is not a whole number"))?;
+    let b: u32 = b.trim().parse().map_err(|_| format!("frame '{b}' is not a whole number"))?;
+    if b <= a {
+        return Err(format!("frame range {a}..{b} is empty"));
+    }
+    Ok((a, b))
+}
+
+fn parse_fps(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("fps '{s}' must be a positive number")),
+    }
+}
+
+fn parse_time(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        _ => Err(format!("time '{s}' must be a finite number of seconds")),
+    }
+}
+
+fn parse_shard(s: &str) -> Result<(u32, u32), String> {
+    let (i, n) = s.split_once('/').ok_or("expected INDEX/COUNT, e.g. 0/4")?;
+    let i: u32 = i.trim().parse().map_err(|_| format!("shard index '{i}' is not a whole number"))?;
+    let n: u32 = n.trim().parse().map_err(|_| format!("shard count '{n}' is not a whole number"))?;
+    if n == 0 || i >= n {
+        return Err(format!("shard {i}/{n}: the index must be below the count"));
+    }
+    Ok((i, n))
+}
+
+/// The frames of `start..end` that shard `i/n` renders: every n-th, starting at the i-th.
+pub fn shard_frames((start, end): (u32, u32), (i, n): (u32, u32)) -> Vec<u32> {
+    (start..end).skip(i as usize).step_by(n as usize).collect()
+}
+
+/// The output path of `frame`: `{:04}` becomes the zero-padded number, `{}` the plain one.
+pub fn frame_path(pattern: &std::path::Path, frame: u32) -> Option<PathBuf> {
+    let s = pattern.to_str()?;
+    if s.contains("{:04}") {
+        Some(PathBuf::from(s.replace("{:04}", &format!("{frame:04}"))))
+    } else if s.contains("{}") {
+        Some(PathBuf::from(s.replace("{}", &frame.to_string())))
+    } else {
+        None
+    }
 }
 
 fn parse_sampler(s: &str) -> Result<SamplerKind, String> {
@@ -230,8 +305,30 @@ fn read_reference(path: &std::path::Path, width: u32, height: u32) -> Result<Vec
 }
 
 fn render(args: RenderArgs) -> Result<(), HemiError> {
-    // Open the output first: a bad path fails before any work is done.
-    let output = OutputFile::create(&args.out)?;
+    let frames = match args.frames {
+        Some(range) => {
+            if frame_path(&args.out, range.0).is_none() {
+                return Err(HemiError::Usage(format!(
+                    "--out {} needs a frame-number placeholder such as {{:04}} with --frames",
+                    args.out.display()
+                )));
+            }
+            Some(shard_frames(range, args.shard.unwrap_or((0, 1))))
+        }
+        None if args.shard.is_some() => return Err(HemiError::Usage("--shard needs --frames".into())),
+        None => None,
+    };
+    // Check the output first: a bad path fails before any work is done.
+    let first_out = match &frames {
+        Some(list) => list.first().and_then(|&f| frame_path(&args.out, f)),
+        None => Some(args.out.clone()),
+    };
+    if let Some(path) = &first_out {
+        if let (Some(dir), true) = (path.parent(), frames.is_some()) {
+            std::fs::create_dir_all(dir).ok();
+        }
+        OutputFile::create(path)?;
+    }
     let settings = RenderSettings {
         width: args.size.0,
         height: args.size.1,
@@ -242,40 +339,98 @@ fn render(args: RenderArgs) -> Result<(), HemiError> {
         sampler: args.sampler,
         ..Default::default()
     };
-    let mut renderer = Renderer::with_default_scene(settings);
+    let mut renderer = match &args.scene {
+        None => {
+            if args.camera.is_some() || args.animation.is_some() {
+                return Err(HemiError::Usage("--camera and --animation need a glTF scene".into()));
+            }
+            Renderer::with_default_scene(settings)
+        }
+        Some(path) => {
+            let scene = crate::scene::gltf::load(path)?;
+            for w in &scene.warnings {
+                eprintln!("hemi: warning: {}: {w}", path.display());
+            }
+            let mut r = Renderer::new(settings);
+            // Posed (and, without a camera in the file, framed) at the start of the whole
+            // range, so that every shard of a sequence sees the same camera.
+            let time = args.frames.map_or(args.time, |(start, _)| (start as f64 / args.fps) as f32);
+            let options = SpawnOptions { camera: args.camera.clone(), animation: args.animation.clone(), time };
+            scene.spawn(r.world_mut(), &options)?;
+            r
+        }
+    };
     if let Some(threads) = args.threads {
         renderer = renderer.with_threads(threads as usize)?;
     }
+    let start = Instant::now();
+    let mut totals = Totals::default();
+    match frames {
+        None => {
+            renderer.set_time(args.time);
+            render_image(&mut renderer, &args, &mut totals)?;
+            OutputFile::create(&args.out)?.write(renderer.image())?;
+            report(&args, &renderer, &totals, start, &args.out.display().to_string());
+        }
+        Some(list) => {
+            for &frame in &list {
+                let out = frame_path(&args.out, frame).unwrap_or_else(|| args.out.clone());
+                let file = OutputFile::create(&out)?;
+                renderer.set_time((frame as f64 / args.fps) as f32);
+                render_image(&mut renderer, &args, &mut totals)?;
+                file.write(renderer.image())?;
+                if !args.stats {
+                    eprintln!("hemi: frame {frame} -> {}", out.display());
+                }
+            }
+            report(&args, &renderer, &totals, start, &format!("{} frames", list.len()));
+        }
+    }
+    Ok(())
+}
+
+/// Rays and timings summed over a run.
+#[derive(Default)]
+struct Totals {
+    rays: RayCounts,
+    trace_secs: f64,
+    frames: u32,
+}
+
+/// Runs frames until the current scene state reaches `--spp`.
+fn render_image(renderer: &mut Renderer, args: &RenderArgs, totals: &mut Totals) -> Result<(), HemiError> {
     let progress = ProgressBar::with_draw_target(Some(args.spp as u64), ProgressDrawTarget::stderr());
     progress.set_style(
         ProgressStyle::with_template("{spinner} [{elapsed_precise}] {wide_bar} {pos}/{len} spp ({eta} left)")
             .expect("valid template"),
     );
-    let start = Instant::now();
-    let (mut rays, mut trace_secs, mut frames) = (RayCounts::default(), 0.0, 0u32);
-    while !renderer.converged() {
+    renderer.settings_mut().max_spp = Some(args.spp);
+    let mut first = true;
+    while first || !renderer.converged() {
+        first = false;
         let stats = renderer.run_frame()?;
-        rays.add(&stats.rays);
-        trace_secs += stats.time_of("trace").as_secs_f64();
-        frames += 1;
+        totals.rays.add(&stats.rays);
+        totals.trace_secs += stats.time_of("trace").as_secs_f64();
+        totals.frames += 1;
         if args.stats {
             progress.suspend(|| print!("{}", stats.table()));
         }
         progress.set_position(stats.spp as u64);
     }
     progress.finish_and_clear();
-    let elapsed = start.elapsed().as_secs_f64();
-    output.write(renderer.image())?;
+    Ok(())
+}
+
+fn report(args: &RenderArgs, renderer: &Renderer, totals: &Totals, start: Instant, what: &str) {
     eprintln!(
         "hemi: {}x{} at {} spp in {:.2} s ({} frames, {:.1} M rays, {:.2} Mrays/s while tracing) -> {}",
         args.size.0,
         args.size.1,
         renderer.spp(),
-        elapsed,
-        frames,
-        rays.total() as f64 / 1e6,
-        if trace_secs > 0.0 { rays.total() as f64 / trace_secs / 1e6 } else { 0.0 },
-        args.out.display()
+        start.elapsed().as_secs_f64(),
+        totals.frames,
+        totals.rays.total() as f64 / 1e6,
+        if totals.trace_secs > 0.0 { totals.rays.total() as f64 / totals.trace_secs / 1e6 } else { 0.0 },
+        what
     );
-    Ok(())
 }

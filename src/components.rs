@@ -47,6 +47,13 @@ impl Transform {
         Transform { scale: Vec3::splat(scale), ..self }
     }
 
+    /// The scale, rotation and translation of an affine matrix (a mirroring matrix gets a
+    /// negative x scale; shear, which a `Transform` cannot hold, is dropped).
+    pub fn from_affine(m: &Affine3A) -> Self {
+        let (scale, rotation, translation) = m.to_scale_rotation_translation();
+        Transform { translation, rotation, scale }
+    }
+
     /// The affine matrix, or `None` if it holds NaN/Inf or is singular.
     pub fn to_affine(&self) -> Option<Affine3A> {
         let m = Affine3A::from_scale_rotation_translation(self.scale, self.rotation, self.translation);
@@ -119,6 +126,15 @@ impl Mesh {
 #[require(Transform, Matte)]
 pub struct TriangleMesh(pub Arc<Mesh>);
 
+/// Marks a [`TriangleMesh`] whose vertices move from frame to frame while its triangles stay
+/// the same (skinning): its BVH keeps the tree built once from `rest` and is only refit to the
+/// current vertices, so a deforming mesh costs a refit per frame, not a rebuild.
+#[derive(Component, Clone, Debug)]
+pub struct Deforming {
+    /// The mesh in its rest pose, with the same triangles as the entity's `TriangleMesh`.
+    pub rest: Arc<Mesh>,
+}
+
 /// RTGU's matte material: ambient reflectance `ka·cd`, Lambertian diffuse `kd·cd/π`.
 #[derive(Component, Clone, Copy, Debug, PartialEq)]
 pub struct Matte {
@@ -166,6 +182,43 @@ impl Camera {
     pub fn from_transform(t: &Transform, vfov_degrees: f32) -> Self {
         let forward = t.rotation * Vec3::NEG_Z;
         Camera { eye: t.translation, target: t.translation + forward, up: t.rotation * Vec3::Y, vfov_degrees }
+    }
+}
+
+/// An orthographic camera looking from `eye` towards `target`: parallel rays along the view
+/// direction through a film `2·half_height` tall (width from the image's aspect ratio).
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+pub struct OrthographicCamera {
+    /// Centre of the film.
+    pub eye: Vec3,
+    /// A point the camera looks towards.
+    pub target: Vec3,
+    /// Approximate up direction.
+    pub up: Vec3,
+    /// Half the film height in world units (glTF's `ymag`).
+    pub half_height: f32,
+}
+
+impl OrthographicCamera {
+    /// A camera placed by a transform: it looks down the transform's −Z with its +Y up.
+    pub fn from_transform(t: &Transform, half_height: f32) -> Self {
+        let forward = t.rotation * Vec3::NEG_Z;
+        OrthographicCamera {
+            eye: t.translation,
+            target: t.translation + forward,
+            up: t.rotation * Vec3::Y,
+            half_height,
+        }
+    }
+
+    /// A one-line description of what makes this camera unusable, if anything.
+    pub fn validate(&self) -> Result<(), String> {
+        let as_pinhole = Camera { eye: self.eye, target: self.target, up: self.up, vfov_degrees: 90.0 };
+        as_pinhole.validate().map_err(|e| format!("orthographic {e}"))?;
+        if !(self.half_height.is_finite() && self.half_height > 0.0) {
+            return Err(format!("orthographic camera half height {} must be positive and finite", self.half_height));
+        }
+        Ok(())
     }
 }
 

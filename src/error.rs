@@ -14,6 +14,13 @@ pub enum HemiError {
         /// What went wrong.
         message: String,
     },
+    /// A scene file is malformed or unsupported.
+    Load {
+        /// The file concerned.
+        path: PathBuf,
+        /// What is wrong, naming the element.
+        message: String,
+    },
     /// A command-line argument is unusable.
     Usage(String),
 }
@@ -22,7 +29,9 @@ impl fmt::Display for HemiError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             HemiError::InvalidScene(m) => write!(f, "invalid scene: {m}"),
-            HemiError::Io { path, message } => write!(f, "{}: {message}", path.display()),
+            HemiError::Io { path, message } | HemiError::Load { path, message } => {
+                write!(f, "{}: {message}", path.display())
+            }
             HemiError::Usage(m) => write!(f, "{m}"),
         }
     }

@@ -10,6 +10,7 @@
 //! any change to an entity or to the settings restarts accumulation automatically.
 
 pub mod analytic;
+pub mod animation;
 pub mod camera;
 pub mod cli;
 pub mod components;
@@ -20,6 +21,7 @@ pub mod geometry;
 pub mod math;
 pub mod npy;
 pub mod plot;
+pub mod projection;
 pub mod renderer;
 pub mod resources;
 pub mod sampling;
@@ -39,10 +41,11 @@ pub mod prelude {
     pub use crate::{
         Renderer,
         components::{
-            AmbientOccluder, Camera, Cuboid, Matte, Mesh, Plane, PointLight, Sphere, Transform, TriangleMesh,
+            AmbientOccluder, Camera, Cuboid, Deforming, Matte, Mesh, OrthographicCamera, Plane, PointLight, Sphere,
+            Transform, TriangleMesh,
         },
         error::HemiError,
-        resources::{Image, RenderSettings},
+        resources::{Image, RenderSettings, Time},
         sampling::SamplerKind,
         stats::FrameStats,
         systems::FrameStage,

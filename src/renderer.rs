@@ -8,7 +8,7 @@ use crate::{
     error::HemiError,
     film,
     geometry::SceneGeometry,
-    resources::{Accumulation, FrameSamples, Image, RenderSettings, SceneProblems},
+    resources::{Accumulation, FrameSamples, Image, RenderSettings, SceneProblems, Time},
     sampling::SampleSets,
     scene::{DEFAULT_BACKGROUND, spawn_default_scene},
     stats::FrameStats,
@@ -90,6 +90,25 @@ impl Renderer {
     /// The render settings, for changing (any change restarts accumulation).
     pub fn settings_mut(&mut self) -> Mut<'_, RenderSettings> {
         self.world.resource_mut::<RenderSettings>()
+    }
+
+    /// Sets the scene time in seconds (the animation systems pose the scene for it on the next
+    /// frame); setting the same time again changes nothing.
+    pub fn set_time(&mut self, seconds: f32) {
+        match self.world.get_resource_mut::<Time>() {
+            Some(mut time) => {
+                time.set_if_neq(Time { seconds });
+            }
+            None => self.world.insert_resource(Time { seconds }),
+        }
+    }
+
+    /// Poses the scene at `seconds` and runs frames until every pixel has `spp` samples: one
+    /// frame of an animation, as `hemi render --frames` makes it. The image depends only on the
+    /// scene at that time, never on the frames rendered before.
+    pub fn render_at(&mut self, seconds: f32, spp: u32) -> Result<u32, HemiError> {
+        self.set_time(seconds);
+        self.render(spp)
     }
 
     /// Runs one frame: BVH upkeep, sample sets, tracing, accumulation, resolve.

@@ -162,3 +162,11 @@ impl SceneProblems {
         self.geometry.first().or(self.view.first())
     }
 }
+
+/// Scene time in seconds: the animation systems pose the scene for it. Changing it restarts
+/// accumulation only when something actually moves.
+#[derive(Resource, Clone, Copy, Debug, Default, PartialEq)]
+pub struct Time {
+    /// Seconds since the start of the animation.
+    pub seconds: f32,
+}

@@ -4,7 +4,7 @@ use std::{fmt::Write, time::Duration};
 
 use bevy_ecs::prelude::Resource;
 
-use crate::shading::RayCounts;
+use crate::{geometry::accel::BvhWork, shading::RayCounts};
 
 /// Wall time one system spent in this frame.
 #[derive(Clone, Debug, PartialEq)]
@@ -30,8 +30,10 @@ pub struct FrameStats {
     pub samples_traced: u32,
     /// Samples per pixel accumulated after this frame.
     pub spp: u32,
-    /// Whether the BVH was built this frame.
+    /// Whether any BVH was built or refit this frame.
     pub bvh_built: bool,
+    /// Which BVHs were built or refit this frame.
+    pub bvh_work: BvhWork,
     /// BVH nodes.
     pub bvh_nodes: usize,
     /// Primitives in the BVH (triangles + spheres).

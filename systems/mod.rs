@@ -1,5 +1,7 @@
 //! The systems that make a frame, one file per stage, run in this order:
 //!
+//! 0. [`animation`] then [`skinning`]: pose the node hierarchy for the current time and
+//!    deform skinned meshes (only when a glTF scene put a `NodeGraph` in the world).
 //! 1. [`scene_changes`]: detect changed entities/settings, validate them, reset accumulation.
 //! 2. [`bvh`]: rebuild the BVH only when geometry changed.
 //! 3. [`sample_sets`]: regenerate sample sets only when sampler settings changed.
@@ -8,17 +10,24 @@
 //! 6. [`resolve`]: average into the linear and sRGB images.
 
 pub mod accumulate;
+pub mod animation;
 pub mod bvh;
 pub mod resolve;
 pub mod sample_sets;
 pub mod scene_changes;
+pub mod skinning;
 pub mod trace;
 
 use bevy_ecs::prelude::*;
 
-/// The stages of a frame; add your own systems `.before(FrameStage::SceneChanges)` to animate.
+use crate::animation::NodeGraph;
+
+/// The stages of a frame; add your own animation systems `.in_set(FrameStage::Animate)` (or
+/// anywhere `.before(FrameStage::SceneChanges)`).
 #[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum FrameStage {
+    /// Animation and skinning (time → node transforms → vertices).
+    Animate,
     /// Change detection, validation and accumulation reset.
     SceneChanges,
     /// Acceleration structure upkeep.
@@ -38,6 +47,7 @@ pub fn frame_schedule() -> Schedule {
     let mut schedule = Schedule::default();
     schedule.configure_sets(
         (
+            FrameStage::Animate,
             FrameStage::SceneChanges,
             FrameStage::Bvh,
             FrameStage::SampleSets,
@@ -48,6 +58,12 @@ pub fn frame_schedule() -> Schedule {
             .chain(),
     );
     schedule.add_systems((
+        (
+            animation::animate.run_if(resource_exists::<NodeGraph>),
+            skinning::skin_meshes.run_if(resource_exists_and_changed::<NodeGraph>),
+        )
+            .chain()
+            .in_set(FrameStage::Animate),
         scene_changes::detect_scene_changes.in_set(FrameStage::SceneChanges),
         bvh::update_bvh.in_set(FrameStage::Bvh),
         sample_sets::update_sample_sets

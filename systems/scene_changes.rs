@@ -6,7 +6,9 @@ use std::time::Instant;
 use bevy_ecs::{prelude::*, system::SystemParam};
 
 use crate::{
-    components::{AmbientOccluder, Camera, Cuboid, Matte, Plane, PointLight, Sphere, Transform, TriangleMesh},
+    components::{
+        AmbientOccluder, Camera, Cuboid, Matte, OrthographicCamera, Plane, PointLight, Sphere, Transform, TriangleMesh,
+    },
     resources::{Accumulation, RenderSettings, SceneProblems},
     stats::FrameStats,
 };
@@ -19,6 +21,7 @@ type SceneChanged = Or<(
     Changed<TriangleMesh>,
     Changed<Matte>,
     Changed<Camera>,
+    Changed<OrthographicCamera>,
     Changed<AmbientOccluder>,
     Changed<PointLight>,
 )>;
@@ -33,6 +36,7 @@ pub struct SceneRemovals<'w, 's> {
     mesh: RemovedComponents<'w, 's, TriangleMesh>,
     matte: RemovedComponents<'w, 's, Matte>,
     camera: RemovedComponents<'w, 's, Camera>,
+    orthographic: RemovedComponents<'w, 's, OrthographicCamera>,
     occluder: RemovedComponents<'w, 's, AmbientOccluder>,
     light: RemovedComponents<'w, 's, PointLight>,
 }
@@ -48,6 +52,7 @@ impl SceneRemovals<'_, '_> {
             self.mesh.read().count(),
             self.matte.read().count(),
             self.camera.read().count(),
+            self.orthographic.read().count(),
             self.occluder.read().count(),
             self.light.read().count(),
         ];
@@ -62,6 +67,7 @@ pub fn detect_scene_changes(
     mut removed: SceneRemovals,
     settings: Res<RenderSettings>,
     cameras: Query<&Camera>,
+    orthographic: Query<&OrthographicCamera>,
     occluders: Query<&AmbientOccluder>,
     lights: Query<(&PointLight, &Transform)>,
     mut accumulation: ResMut<Accumulation>,
@@ -73,7 +79,7 @@ pub fn detect_scene_changes(
     let resized = accumulation.width != settings.width || accumulation.height != settings.height;
     let dirty = !changed.is_empty() || removed_any || settings.is_changed() || resized;
     if dirty {
-        problems.view = validate_view(&settings, &cameras, &occluders, &lights);
+        problems.view = validate_view(&settings, &cameras, &orthographic, &occluders, &lights);
         // Never allocate for settings that were refused (e.g. an absurd image size).
         match settings.validate() {
             Ok(()) => accumulation.reset(settings.width, settings.height),
@@ -87,6 +93,7 @@ pub fn detect_scene_changes(
 fn validate_view(
     settings: &RenderSettings,
     cameras: &Query<&Camera>,
+    orthographic: &Query<&OrthographicCamera>,
     occluders: &Query<&AmbientOccluder>,
     lights: &Query<(&PointLight, &Transform)>,
 ) -> Vec<String> {
@@ -94,12 +101,13 @@ fn validate_view(
     if let Err(e) = settings.validate() {
         problems.push(e);
     }
-    match cameras.iter().count() {
+    match cameras.iter().count() + orthographic.iter().count() {
         0 => problems.push("the scene has no Camera".into()),
         1 => {}
         n => problems.push(format!("the scene has {n} cameras; exactly one is rendered")),
     }
     problems.extend(cameras.iter().filter_map(|c| c.validate().err()));
+    problems.extend(orthographic.iter().filter_map(|c| c.validate().err()));
     problems.extend(occluders.iter().filter_map(|o| o.validate().err()));
     problems.extend(lights.iter().filter_map(|(l, t)| l.validate(t.translation).err()));
     problems

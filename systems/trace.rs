@@ -10,9 +10,9 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::{
-    camera::PinholeRays,
-    components::{AmbientOccluder, Camera, PointLight, Transform},
+    components::{AmbientOccluder, Camera, OrthographicCamera, PointLight, Transform},
     geometry::SceneGeometry,
+    projection::PrimaryRays,
     resources::{Accumulation, FrameSamples, RenderSettings, SceneProblems},
     sampling::{SampleSets, dims},
     shading::{LightSample, RayCounts, Scene, Tracer},
@@ -45,6 +45,7 @@ pub fn trace(
     problems: Res<SceneProblems>,
     accumulation: Res<Accumulation>,
     cameras: Query<&Camera>,
+    orthographic: Query<&OrthographicCamera>,
     occluders: Query<(Entity, &AmbientOccluder)>,
     lights: Query<(Entity, &PointLight, &Transform)>,
     mut frame: ResMut<FrameSamples>,
@@ -53,7 +54,7 @@ pub fn trace(
     let start = Instant::now();
     let remaining = settings.max_spp.map_or(u32::MAX, |max| max.saturating_sub(accumulation.spp));
     let count = settings.samples_per_frame.min(remaining);
-    let camera = cameras.single().ok().and_then(|c| PinholeRays::new(c, settings.width, settings.height).ok());
+    let camera = PrimaryRays::single(cameras.iter(), orthographic.iter(), settings.width, settings.height);
     let (Some(camera), None, true) = (camera, problems.first(), count > 0) else {
         if frame.samples_per_pixel != 0 {
             frame.samples_per_pixel = 0;
@@ -110,7 +111,7 @@ fn tiles(width: u32, height: u32, size: u32) -> Vec<Tile> {
     tiles
 }
 
-fn trace_tile(scene: &Scene, camera: &PinholeRays, tile: Tile, width: u32, first: u32, count: u32) -> TileResult {
+fn trace_tile(scene: &Scene, camera: &PrimaryRays, tile: Tile, width: u32, first: u32, count: u32) -> TileResult {
     let mut tracer = Tracer::default();
     let mut nonfinite = 0;
     let mut sums = Vec::with_capacity(((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize);

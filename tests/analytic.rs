@@ -90,6 +90,58 @@ fn inside_closed_mesh_is_the_min_amount_floor() {
     }
 }
 
+/// A non-trivial instance transform: rotation, non-uniform scale and a large translation.
+fn far_transform(scale: Vec3) -> Transform {
+    Transform {
+        translation: Vec3::new(3.0e3, -1.5e3, 7.5e2),
+        rotation: Quat::from_euler(glam::EulerRot::YXZ, 0.7, -0.4, 0.25),
+        scale,
+    }
+}
+
+/// The closed-mesh floor test through an instance transform: the ray enters the BLAS frame and
+/// the hit comes back with its error bound, and still no AO ray escapes.
+#[test]
+fn inside_closed_instanced_mesh_is_the_min_amount_floor() {
+    let mesh = std::sync::Arc::new(hemi::scene::mesh_gen::uv_sphere(1.0, 24, 48));
+    let t = far_transform(Vec3::new(2.5, 1.5, 3.5));
+    let mut r = Renderer::new(settings(32, 32, 16, SamplerKind::Jittered));
+    let w = r.world_mut();
+    w.spawn((TriangleMesh(mesh), t, white()));
+    w.spawn(occluder(0.3));
+    let eye = t.translation + t.rotation * Vec3::new(0.1, 0.05, 0.0);
+    w.spawn(Camera::look_at(eye, eye + t.rotation * Vec3::new(1.0, 0.3, 0.2), 100.0));
+    let r = render(r);
+    assert_eq!(r.stats().rays.ao, r.stats().rays.primary, "every primary ray hits the mesh");
+    for p in &r.image().linear {
+        assert!((*p - 0.3).abs().max_element() <= 1e-6, "light leaked through the instanced mesh: {p}");
+    }
+}
+
+/// A convex tessellated sphere seen from outside through the same kind of transform: AO is
+/// exactly 1 at every pixel, so no spawned ray re-hits its own instanced surface.
+#[test]
+fn convex_instanced_mesh_is_unoccluded_everywhere() {
+    let mesh = std::sync::Arc::new(hemi::scene::mesh_gen::uv_sphere(1.0, 16, 32));
+    for scale in [Vec3::new(2.0, 0.5, 1.0), Vec3::splat(1e-2), Vec3::new(-3.0, 3.0, 3.0)] {
+        let t = far_transform(scale);
+        let mut r = Renderer::new(settings(24, 24, 8, SamplerKind::Jittered));
+        let w = r.world_mut();
+        w.spawn((TriangleMesh(mesh.clone()), t, white()));
+        w.spawn(occluder(0.0));
+        // Look at the centre along the local axis of least scale, close enough that the
+        // surface fills the view.
+        let axis = Vec3::AXES[scale.abs().min_position()];
+        let eye = t.translation + t.rotation * (axis * 1.6 * scale.abs().min_element());
+        w.spawn(Camera::look_at(eye, t.translation, 20.0));
+        let r = render(r);
+        assert_eq!(r.stats().rays.ao, r.stats().rays.primary, "every primary ray hits the mesh");
+        for p in &r.image().linear {
+            assert_eq!(*p, Vec3::ONE, "scale {scale}: self-intersection");
+        }
+    }
+}
+
 /// Sphere of radius r, centre at height h over a plane: AO(x) = 1 − r²h/(h² + x²)^{3/2}
 /// (the sphere's configuration factor), for every sampler whose AO directions are random.
 #[test]

@@ -98,3 +98,72 @@ fn bad_arguments_give_one_line_and_a_non_zero_exit() {
         assert!(err.contains(needle), "{args:?}: '{needle}' not in {err}");
     }
 }
+
+fn asset(rel: &str) -> String {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/assets").join(rel);
+    assert!(path.is_file(), "shared test asset missing: {} (CI keeps ../shared beside the checkout)", path.display());
+    path.to_str().unwrap().to_string()
+}
+
+#[test]
+fn renders_a_gltf_file_with_default_ambient_occlusion() {
+    let png = temp("fox.png");
+    let fox = asset("Fox/glTF-Binary/Fox.glb");
+    let (code, _, err) = hemi(&["render", &fox, "--out", png.to_str().unwrap(), "--size", "40x30", "--spp", "2"]);
+    assert_eq!(code, 0, "{err}");
+    let img = image::open(&png).unwrap().into_rgb8();
+    assert!(img.pixels().any(|p| p.0[0] > 100), "the fox is visible");
+    let cams = asset("Cameras/glTF/Cameras.gltf");
+    for camera in ["0", "1"] {
+        let (code, _, err) =
+            hemi(&["render", &cams, "--camera", camera, "--out", png.to_str().unwrap(), "--size", "8x8"]);
+        assert_eq!(code, 0, "camera {camera}: {err}");
+    }
+    let (code, _, err) = hemi(&["render", &cams, "--camera", "nope", "--out", png.to_str().unwrap()]);
+    assert_eq!(code, 1);
+    assert!(err.contains("no camera 'nope'") && err.contains("Cameras.gltf"), "{err}");
+}
+
+#[test]
+fn shards_write_the_same_frames_as_one_run() {
+    let model = asset("BoxAnimated/glTF-Binary/BoxAnimated.glb");
+    let run = |dir: &str, shard: Option<&str>| {
+        let out = temp(dir).join("f_{:04}.exr");
+        let mut args = vec!["render", &model, "--frames", "0..5", "--fps", "3", "--size", "24x16", "--spp", "4"];
+        let out = out.to_str().unwrap().to_string();
+        args.extend(["--out", &out]);
+        if let Some(s) = shard {
+            args.extend(["--shard", s]);
+        }
+        let (code, _, err) = hemi(&args);
+        assert_eq!(code, 0, "{err}");
+    };
+    run("seq-all", None);
+    run("seq-shards", Some("0/2"));
+    run("seq-shards", Some("1/2"));
+    let mut differ = 0;
+    for f in 0..5 {
+        let name = format!("f_{f:04}.exr");
+        let a = std::fs::read(temp("seq-all").join(&name)).unwrap();
+        let b = std::fs::read(temp("seq-shards").join(&name)).unwrap();
+        assert!(a == b, "frame {f} differs between the sharded and the single run");
+        if f > 0 && a != std::fs::read(temp("seq-all").join("f_0000.exr")).unwrap() {
+            differ += 1;
+        }
+    }
+    assert!(differ > 0, "the animation moves");
+    let (code, _, err) = hemi(&["render", &model, "--frames", "0..2", "--out", "x.png"]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("placeholder"), "{err}");
+}
+
+#[test]
+fn malformed_gltf_gives_one_line_naming_the_file() {
+    let glb = std::fs::read(asset("Box/glTF-Binary/Box.glb")).unwrap();
+    let truncated = temp("truncated.glb");
+    std::fs::write(&truncated, &glb[..glb.len() / 2]).unwrap();
+    let (code, _, err) = hemi(&["render", truncated.to_str().unwrap(), "--out", temp("t.png").to_str().unwrap()]);
+    assert_eq!(code, 1, "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "not one line: {err}");
+    assert!(err.contains("truncated.glb"), "{err}");
+}

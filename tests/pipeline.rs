@@ -6,7 +6,10 @@ mod common;
 use std::sync::Arc;
 
 use common::{occluder, settings, white};
-use hemi::{geometry::SceneGeometry, prelude::*};
+use hemi::{
+    geometry::{SceneGeometry, accel::BvhWork},
+    prelude::*,
+};
 
 fn small_default_scene(threads: Option<usize>) -> Renderer {
     let s = RenderSettings { width: 64, height: 36, samples_per_frame: 2, samples_per_set: 8, ..Default::default() };
@@ -200,5 +203,22 @@ fn shared_meshes_are_instanced_by_many_entities() {
         r.world_mut().spawn((TriangleMesh(mesh.clone()), Transform::from_xyz(i as f32 - 2.0, 0.4, -1.0)));
     }
     let stats = r.run_frame().unwrap();
-    assert_eq!(stats.bvh_prims, 1 + 5 * mesh.triangle_count());
+    assert_eq!(stats.bvh_prims, 1 + mesh.triangle_count(), "the mesh is stored once");
+    assert_eq!(stats.bvh_work.blas_built, 2, "one BLAS for the sphere, one for the shared mesh");
+    let geometry = r.world().resource::<SceneGeometry>();
+    assert_eq!(geometry.instanced_triangle_count, 5 * mesh.triangle_count());
+    assert_eq!(geometry.instances().len(), 6);
+}
+
+#[test]
+fn moving_a_mesh_instance_rebuilds_only_the_top_level() {
+    let mesh = Arc::new(hemi::scene::mesh_gen::uv_sphere(0.4, 8, 16));
+    let mut r = floor_scene(1, None);
+    let e = r.world_mut().spawn((TriangleMesh(mesh.clone()), Transform::from_xyz(1.0, 0.4, -1.0))).id();
+    r.world_mut().spawn((TriangleMesh(mesh), Transform::from_xyz(-1.0, 0.4, -1.0)));
+    r.run_frame().unwrap();
+    r.world_mut().get_mut::<Transform>(e).unwrap().translation.y += 0.3;
+    let stats = r.run_frame().unwrap();
+    assert_eq!(stats.bvh_work, BvhWork { blas_built: 0, blas_refit: 0, tlas_built: true });
+    assert_eq!(stats.spp, 2, "accumulation restarted");
 }

@@ -128,3 +128,37 @@ fn tiny_and_one_pixel_images_work() {
     assert_eq!(r.image().linear.len(), 1);
     assert!(r.image().linear[0].is_finite());
 }
+
+#[test]
+fn a_pinhole_and_an_orthographic_camera_together_are_refused() {
+    let mut r = base();
+    r.world_mut().spawn(OrthographicCamera {
+        eye: Vec3::new(0.0, 5.0, 0.0),
+        target: Vec3::ZERO,
+        up: Vec3::Z,
+        half_height: 2.0,
+    });
+    assert!(error_of(r).contains("2 cameras"));
+    let mut r = Renderer::new(common::settings(8, 8, 1, SamplerKind::Jittered));
+    r.world_mut().spawn(OrthographicCamera { eye: Vec3::Y, target: Vec3::ZERO, up: Vec3::Z, half_height: 0.0 });
+    assert!(error_of(r).contains("half height"));
+}
+
+/// An orthographic camera looking straight down at an open plane: every ray is parallel, hits
+/// the plane and sees the open sky, so every pixel is exactly 1.
+#[test]
+fn orthographic_view_of_an_open_plane_is_exactly_one() {
+    let mut r = Renderer::new(common::settings(12, 8, 4, SamplerKind::Jittered));
+    let w = r.world_mut();
+    w.spawn((Plane::default(), common::white()));
+    w.spawn(common::occluder(0.0));
+    w.spawn(OrthographicCamera {
+        eye: Vec3::new(3.0, 2.0, 1.0),
+        target: Vec3::new(3.0, 0.0, 1.0),
+        up: Vec3::Z,
+        half_height: 5.0,
+    });
+    let stats = r.run_frame().unwrap().clone();
+    assert_eq!(stats.rays.ao, stats.rays.primary);
+    assert!(r.image().linear.iter().all(|p| *p == Vec3::ONE));
+}

@@ -1,19 +1,37 @@
-//! The scene's acceleration structure: an obvhs PLOC-built BVH2 over triangles and sphere
-//! bounds, with primitives stored in BVH leaf order, plus the infinite planes kept outside it.
-//! Traversal is hemi's own, so that it honours the ray's full (0, tmax) range at every scale.
+//! The scene's two-level acceleration structure. Each unique triangle mesh gets one
+//! bottom-level BVH ([`Blas`]) in its own frame, built once (obvhs PLOC) and refit when its
+//! vertices move; spheres and cuboids share one world-space BLAS. A top-level BVH over the
+//! instances (BLAS + affine transform) is rebuilt whenever an instance moves, which costs
+//! microseconds per hundred instances. Infinite planes stay outside both levels.
+//!
+//! Traversal is hemi's own, front to back, honouring the ray's full (0, tmax) range at every
+//! scale. Rays enter an instance through its inverse affine with the direction kept
+//! un-normalised, so `t` means the same in both frames; as in pbrt-v4, the transformed origin
+//! is advanced past its own rounding error and hit points carry the transform's error back to
+//! world space, so spawned rays stay free of self-intersection under any instance transform.
 
-use std::time::{Duration, Instant};
+use std::{
+    sync::Arc,
+    time::{Duration, Instant},
+};
 
 use bevy_ecs::prelude::{Entity, Resource};
-use glam::Vec3A;
-use obvhs::{BvhBuildParams, aabb::Aabb, bvh2::builder::build_bvh2, bvh2::node::Bvh2Node};
+use glam::{Affine3A, Mat3A, Vec3, Vec3A};
+use obvhs::{
+    BvhBuildParams,
+    aabb::Aabb,
+    bvh2::{Bvh2, builder::build_bvh2, node::Bvh2Node},
+};
 
 use super::{
     hit::SurfaceHit,
     ray::Ray,
     shapes::{PlanePrim, SpherePrim, Triangle},
 };
-use crate::{components::Matte, math::gamma};
+use crate::{
+    components::{Matte, Mesh},
+    math::gamma,
+};
 
 /// A bounded primitive.
 #[derive(Clone, Copy, Debug)]
@@ -29,7 +47,7 @@ pub enum Shape {
 pub struct Prim {
     /// Geometry.
     pub shape: Shape,
-    /// Index into [`SceneGeometry::objects`].
+    /// Index into [`SceneGeometry::objects`] (unused in a mesh BLAS: the instance names it).
     pub object: u32,
 }
 
@@ -55,83 +73,489 @@ pub struct Object {
     pub material: Matte,
 }
 
+/// Entry distance of the ray into `aabb`, if it enters before `tmax`.
+/// A zero direction component gives 0·∞ = NaN exactly when the origin lies on that slab's
+/// plane; such a bound is replaced by the infinity that leaves the slab unbounded, so rays
+/// running inside a box face are not culled. The far distance is widened by 2γ(3)
+/// (Ize 2013) so rounding never culls a true hit.
+#[inline(always)]
+fn enter(aabb: &Aabb, ray: &Ray, tmax: f32) -> Option<f32> {
+    let t1 = (aabb.min - ray.origin) * ray.inv_dir;
+    let t2 = (aabb.max - ray.origin) * ray.inv_dir;
+    let t1 = Vec3A::select(t1.is_nan_mask(), -ray.inv_dir, t1);
+    let t2 = Vec3A::select(t2.is_nan_mask(), ray.inv_dir, t2);
+    let near = t1.min(t2).max_element().max(0.0);
+    let far = t1.max(t2).min_element() * (1.0 + 2.0 * gamma(3));
+    (near <= far.min(tmax)).then_some(near)
+}
+
+/// Intersects one primitive: (t, b1, b2).
+#[inline(always)]
+fn hit_prim(prim: &Prim, ray: &Ray) -> Option<(f32, f32, f32)> {
+    match prim.shape {
+        Shape::Triangle(t) => t.intersect(ray),
+        Shape::Sphere(s) => s.intersect(ray).map(|t| (t, 0.0, 0.0)),
+    }
+}
+
+/// A bottom-level BVH: an obvhs BVH2 over primitives stored in leaf order.
+#[derive(Clone)]
+pub struct Blas {
+    bvh: Bvh2,
+    prims: Vec<Prim>,
+    /// Triangles stored.
+    pub triangle_count: usize,
+    /// Zero-area triangles dropped at build time (they can never be hit).
+    pub degenerate_triangles: usize,
+    /// Depth of the tree.
+    pub depth: usize,
+}
+
+impl Blas {
+    /// Builds a BVH over `prims` (in any order).
+    pub fn build(prims: Vec<Prim>) -> Self {
+        let triangle_count = prims.iter().filter(|p| matches!(p.shape, Shape::Triangle(_))).count();
+        let aabbs: Vec<Aabb> = prims.iter().map(Prim::bounds).collect();
+        let bvh = if prims.is_empty() {
+            Bvh2::default()
+        } else {
+            build_bvh2(&aabbs, BvhBuildParams::medium_build(), &mut Duration::default())
+        };
+        let prims = bvh.primitive_indices.iter().map(|&i| prims[i as usize]).collect();
+        let depth = subtree_depth(&bvh.nodes);
+        Blas { bvh, prims, triangle_count, degenerate_triangles: 0, depth }
+    }
+
+    /// A mesh's triangles in its own frame; zero-area triangles are counted and skipped.
+    pub fn from_mesh(mesh: &Mesh) -> Self {
+        let mut prims = Vec::with_capacity(mesh.indices.len());
+        let mut degenerate = 0;
+        for tri in &mesh.indices {
+            let [a, b, c] = tri.map(|i| Vec3A::from(mesh.positions[i as usize]));
+            match Triangle::new(a, b, c) {
+                Some(t) => prims.push(Prim { shape: Shape::Triangle(t), object: 0 }),
+                None => degenerate += 1,
+            }
+        }
+        let mut blas = Blas::build(prims);
+        blas.degenerate_triangles = degenerate;
+        blas
+    }
+
+    /// A BLAS for a deforming mesh: every triangle keeps its slot (zero-area ones included, they
+    /// are never hit) so that [`Blas::refit`] can move the vertices without rebuilding.
+    pub fn deformable(mesh: &Mesh) -> Self {
+        let prims = mesh.indices.iter().map(|tri| {
+            let p = tri.map(|i| Vec3A::from(mesh.positions[i as usize]));
+            Prim { shape: Shape::Triangle(Triangle { p }), object: 0 }
+        });
+        Blas::build(prims.collect())
+    }
+
+    /// Moves the triangles of a [`Blas::deformable`] BLAS to `positions` (same triangles as at
+    /// build time) and refits the node bounds bottom-up (obvhs `refit_all`); the tree topology
+    /// stays that of the build, so the result depends only on the build mesh and `positions`.
+    pub fn refit(&mut self, positions: &[Vec3], indices: &[[u32; 3]]) {
+        for (slot, &original) in self.bvh.primitive_indices.iter().enumerate() {
+            let p = indices[original as usize].map(|i| Vec3A::from(positions[i as usize]));
+            self.prims[slot].shape = Shape::Triangle(Triangle { p });
+        }
+        for node in &mut self.bvh.nodes {
+            if node.prim_count > 0 {
+                let first = node.first_index as usize;
+                let leaf = &self.prims[first..first + node.prim_count as usize];
+                let aabb = leaf.iter().fold(Aabb::empty(), |acc, p| acc.union(&p.bounds()));
+                node.set_aabb(aabb);
+            }
+        }
+        self.bvh.refit_all();
+    }
+
+    /// Bounds of everything in this BLAS.
+    pub fn bounds(&self) -> Option<Aabb> {
+        self.bvh.nodes.first().map(|n| *n.aabb())
+    }
+
+    /// Number of nodes.
+    pub fn node_count(&self) -> usize {
+        self.bvh.nodes.len()
+    }
+
+    /// The primitives, in leaf order.
+    pub fn prims(&self) -> &[Prim] {
+        &self.prims
+    }
+
+    /// Bytes held by nodes and primitives.
+    pub fn memory_bytes(&self) -> usize {
+        self.bvh.nodes.len() * size_of::<Bvh2Node>() + self.prims.len() * (size_of::<Prim>() + 4)
+    }
+
+    /// Front-to-back traversal; shrinks `ray.tmax` to the closest hit and returns the
+    /// primitive slot and barycentrics. Uses `stack` above its current length only.
+    #[inline]
+    fn closest(&self, ray: &mut Ray, stack: &mut Vec<(u32, f32)>) -> Option<(u32, f32, f32)> {
+        let nodes = &self.bvh.nodes;
+        let root = nodes.first()?;
+        enter(root.aabb(), ray, ray.tmax)?;
+        let base = stack.len();
+        let mut best = None;
+        let mut node = root;
+        loop {
+            if node.prim_count > 0 {
+                let first = node.first_index as usize;
+                let leaf = &self.prims[first..first + node.prim_count as usize];
+                for (k, prim) in leaf.iter().enumerate() {
+                    if let Some((t, b1, b2)) = hit_prim(prim, ray) {
+                        ray.tmax = t;
+                        best = Some(((first + k) as u32, b1, b2));
+                    }
+                }
+            } else {
+                let (li, ri) = (node.first_index, node.first_index + 1);
+                let left = &nodes[li as usize];
+                let right = &nodes[ri as usize];
+                match (enter(left.aabb(), ray, ray.tmax), enter(right.aabb(), ray, ray.tmax)) {
+                    (Some(dl), Some(dr)) => {
+                        let (near, far, dfar) = if dl <= dr { (left, ri, dr) } else { (right, li, dl) };
+                        stack.push((far, dfar));
+                        node = near;
+                        continue;
+                    }
+                    (Some(_), None) => {
+                        node = left;
+                        continue;
+                    }
+                    (None, Some(_)) => {
+                        node = right;
+                        continue;
+                    }
+                    (None, None) => {}
+                }
+            }
+            loop {
+                if stack.len() == base {
+                    return best;
+                }
+                match stack.pop() {
+                    Some((i, d)) if d <= ray.tmax => {
+                        node = &nodes[i as usize];
+                        break;
+                    }
+                    _ => continue,
+                }
+            }
+        }
+    }
+
+    /// Whether any primitive blocks `ray` in (0, tmax). Uses `stack` above its current length.
+    #[inline]
+    fn occluded(&self, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool {
+        let nodes = &self.bvh.nodes;
+        let Some(root) = nodes.first() else { return false };
+        if enter(root.aabb(), ray, ray.tmax).is_none() {
+            return false;
+        }
+        let base = stack.len();
+        let mut node = root;
+        loop {
+            if node.prim_count > 0 {
+                let first = node.first_index as usize;
+                if self.prims[first..first + node.prim_count as usize].iter().any(|p| hit_prim(p, ray).is_some()) {
+                    stack.truncate(base);
+                    return true;
+                }
+            } else {
+                let left = &nodes[node.first_index as usize];
+                let right = &nodes[node.first_index as usize + 1];
+                match (enter(left.aabb(), ray, ray.tmax), enter(right.aabb(), ray, ray.tmax)) {
+                    (Some(_), Some(_)) => {
+                        stack.push((node.first_index + 1, 0.0));
+                        node = left;
+                        continue;
+                    }
+                    (Some(_), None) => {
+                        node = left;
+                        continue;
+                    }
+                    (None, Some(_)) => {
+                        node = right;
+                        continue;
+                    }
+                    (None, None) => {}
+                }
+            }
+            if stack.len() == base {
+                return false;
+            }
+            match stack.pop() {
+                Some((i, _)) => node = &nodes[i as usize],
+                None => return false,
+            }
+        }
+    }
+
+    fn surface(&self, slot: u32, ray: &Ray, b1: f32, b2: f32, object: u32) -> SurfaceHit {
+        let prim = &self.prims[slot as usize];
+        match prim.shape {
+            Shape::Triangle(tri) => tri.surface(ray, ray.tmax, b1, b2, object),
+            Shape::Sphere(s) => s.surface(ray, ray.tmax, object),
+        }
+    }
+}
+
+impl std::fmt::Debug for Blas {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Blas")
+            .field("nodes", &self.bvh.nodes.len())
+            .field("prims", &self.prims.len())
+            .field("depth", &self.depth)
+            .finish()
+    }
+}
+
+fn subtree_depth(nodes: &[Bvh2Node]) -> usize {
+    let mut max = 0;
+    let mut stack = vec![(0usize, 1usize)];
+    while let Some((i, d)) = stack.pop() {
+        let Some(n) = nodes.get(i) else { continue };
+        max = max.max(d);
+        if n.prim_count == 0 {
+            stack.push((n.first_index as usize, d + 1));
+            stack.push((n.first_index as usize + 1, d + 1));
+        }
+    }
+    max
+}
+
+/// One placement of a BLAS in the world.
+#[derive(Clone, Debug)]
+pub struct Instance {
+    /// Index into the scene's BLAS list.
+    pub blas: u32,
+    /// The object every primitive of this instance belongs to (`None`: each prim names its own).
+    pub object: Option<u32>,
+    to_world: Affine3A,
+    to_local: Affine3A,
+    identity: bool,
+    translation_only: bool,
+    bounds: Aabb,
+}
+
+impl Instance {
+    /// An instance of `blas` (whose bounds are `local`) placed by `to_world`, or `None` when
+    /// the transform is singular or the placed bounds overflow.
+    pub fn new(blas: u32, local: Aabb, to_world: Affine3A, object: Option<u32>) -> Option<Self> {
+        let to_local = to_world.inverse();
+        if !to_local.is_finite() {
+            return None;
+        }
+        let mut bounds = Aabb::empty();
+        for i in 0..8 {
+            let corner = Vec3A::new(
+                if i & 1 == 0 { local.min.x } else { local.max.x },
+                if i & 2 == 0 { local.min.y } else { local.max.y },
+                if i & 4 == 0 { local.min.z } else { local.max.z },
+            );
+            bounds.extend(to_world.transform_point3a(corner));
+        }
+        // Pad by the rounding of the corner transform so no true hit is culled.
+        let pad = bounds.min.abs().max(bounds.max.abs()) * gamma(4);
+        let bounds = Aabb::new(bounds.min - pad, bounds.max + pad);
+        if !(bounds.min.is_finite() && bounds.max.is_finite()) {
+            return None;
+        }
+        Some(Instance {
+            blas,
+            object,
+            to_world,
+            to_local,
+            identity: to_world == Affine3A::IDENTITY,
+            translation_only: to_world.matrix3 == Mat3A::IDENTITY,
+            bounds,
+        })
+    }
+
+    /// Placed bounds in world space.
+    pub fn bounds(&self) -> Aabb {
+        self.bounds
+    }
+
+    /// The transform from the BLAS frame to world space.
+    pub fn to_world(&self) -> Affine3A {
+        self.to_world
+    }
+
+    /// The ray in the instance's frame and the parameter shift `dt` (world t = local t + dt):
+    /// the origin is moved along the direction past its transform's rounding error (pbrt-v4).
+    #[inline]
+    fn local_ray(&self, ray: &Ray) -> Option<(Ray, f32)> {
+        let m = &self.to_local;
+        if self.translation_only {
+            // Same direction: only the origin moves, by one rounded subtraction.
+            let o = ray.origin + m.translation;
+            let o_err = (ray.origin.abs() + m.translation.abs()) * gamma(1);
+            let len2 = ray.dir.length_squared();
+            let dt = if len2 > 0.0 { ray.dir.abs().dot(o_err) / len2 } else { 0.0 };
+            let tmax = ray.tmax - dt;
+            return (tmax > 0.0).then(|| (Ray { origin: o + ray.dir * dt, tmax, ..*ray }, dt));
+        }
+        let o = m.transform_point3a(ray.origin);
+        let d = m.matrix3 * ray.dir;
+        let o_err = (abs_mat(&m.matrix3) * ray.origin.abs() + m.translation.abs()) * gamma(3);
+        let len2 = d.length_squared();
+        let dt = if len2 > 0.0 { d.abs().dot(o_err) / len2 } else { 0.0 };
+        let tmax = ray.tmax - dt;
+        (tmax > 0.0).then(|| (Ray::new(o + d * dt, d, tmax), dt))
+    }
+
+    /// A hit found in the instance's frame, moved to world space with its error bound grown by
+    /// the transform's rounding (pbrt-v4's `Transform::operator()(Point3fi)`).
+    #[inline]
+    fn to_world_hit(&self, hit: SurfaceHit, dt: f32) -> SurfaceHit {
+        let m = &self.to_world;
+        let abs = abs_mat(&m.matrix3);
+        let p = m.transform_point3a(hit.p);
+        let p_error = (abs * hit.p_error) * (1.0 + gamma(3)) + (abs * hit.p.abs() + m.translation.abs()) * gamma(3);
+        // Normals go by the inverse transpose; it keeps the side the ray came from.
+        let normal = (self.to_local.matrix3.transpose() * hit.normal).normalize();
+        SurfaceHit { t: hit.t + dt, p, p_error, normal, object: hit.object }
+    }
+}
+
+#[inline(always)]
+fn abs_mat(m: &Mat3A) -> Mat3A {
+    Mat3A::from_cols(m.x_axis.abs(), m.y_axis.abs(), m.z_axis.abs())
+}
+
+/// What the last BVH update did, for statistics.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BvhWork {
+    /// Bottom-level BVHs built from scratch.
+    pub blas_built: usize,
+    /// Bottom-level BVHs refit to moved vertices.
+    pub blas_refit: usize,
+    /// Whether the top-level BVH over the instances was rebuilt.
+    pub tlas_built: bool,
+}
+
+impl BvhWork {
+    /// Whether any BVH work was done.
+    pub fn any(&self) -> bool {
+        self.blas_built + self.blas_refit > 0 || self.tlas_built
+    }
+}
+
 /// Everything rays can hit.
 #[derive(Resource, Clone, Debug, Default)]
 pub struct SceneGeometry {
-    nodes: Vec<Bvh2Node>,
-    prims: Vec<Prim>,
+    blases: Vec<Arc<Blas>>,
+    instances: Vec<Instance>,
+    tlas: Vec<Bvh2Node>,
     planes: Vec<PlanePrim>,
     /// Objects, indexed by `SurfaceHit::object`.
     pub objects: Vec<Object>,
-    /// Number of triangles in the BVH.
+    /// Triangles stored (each shared mesh once).
     pub triangle_count: usize,
+    /// Triangles placed in the scene (each instance counted).
+    pub instanced_triangle_count: usize,
     /// Zero-area triangles dropped from the input (they can never be hit).
     pub degenerate_triangles: usize,
     /// Bounds of the bounded primitives (empty when there are none).
     pub bounds: Option<(Vec3A, Vec3A)>,
-    /// Depth of the BVH.
+    /// Depth of the top-level BVH plus the deepest BLAS.
     pub depth: usize,
-    /// Time the last BVH build took.
+    /// Time the last update took.
     pub build_time: Duration,
 }
 
 impl SceneGeometry {
-    /// Builds the BVH over `prims` (in any order) and keeps `planes` beside it.
+    /// A scene whose bounded primitives (given in world space, any order) form one BLAS,
+    /// with `planes` beside it.
     pub fn build(prims: Vec<Prim>, planes: Vec<PlanePrim>, objects: Vec<Object>) -> Self {
         let start = Instant::now();
-        let triangle_count = prims.iter().filter(|p| matches!(p.shape, Shape::Triangle(_))).count();
-        let (nodes, prims) = if prims.is_empty() {
-            (Vec::new(), prims)
+        let blas = Arc::new(Blas::build(prims));
+        let instances = blas.bounds().and_then(|b| Instance::new(0, b, Affine3A::IDENTITY, None));
+        let mut g = SceneGeometry::from_instances(vec![blas], instances.into_iter().collect(), planes, objects);
+        g.build_time = start.elapsed();
+        g
+    }
+
+    /// A scene of BLAS instances plus `planes`; builds the top-level BVH over the instances.
+    pub fn from_instances(
+        blases: Vec<Arc<Blas>>,
+        instances: Vec<Instance>,
+        planes: Vec<PlanePrim>,
+        objects: Vec<Object>,
+    ) -> Self {
+        let start = Instant::now();
+        let (tlas, instances) = if instances.is_empty() {
+            (Vec::new(), instances)
         } else {
-            let aabbs: Vec<Aabb> = prims.iter().map(Prim::bounds).collect();
-            let bvh = build_bvh2(&aabbs, BvhBuildParams::medium_build(), &mut Duration::default());
-            let ordered = bvh.primitive_indices.iter().map(|&i| prims[i as usize]).collect();
+            let aabbs: Vec<Aabb> = instances.iter().map(|i| i.bounds).collect();
+            let params = BvhBuildParams { max_prims_per_leaf: 1, ..BvhBuildParams::fast_build() };
+            let bvh = build_bvh2(&aabbs, params, &mut Duration::default());
+            let ordered = bvh.primitive_indices.iter().map(|&i| instances[i as usize].clone()).collect();
             (bvh.nodes, ordered)
         };
-        let bounds = nodes.first().map(|n| (n.aabb.min, n.aabb.max));
-        let mut geometry = SceneGeometry {
-            nodes,
-            prims,
+        let triangle_count = blases.iter().map(|b| b.triangle_count).sum();
+        let instanced_triangle_count = instances.iter().map(|i| blases[i.blas as usize].triangle_count).sum();
+        let degenerate_triangles = blases.iter().map(|b| b.degenerate_triangles).sum();
+        let bounds = tlas.first().map(|n| (n.aabb().min, n.aabb().max));
+        let depth = subtree_depth(&tlas) + blases.iter().map(|b| b.depth).max().unwrap_or(0);
+        SceneGeometry {
+            blases,
+            instances,
+            tlas,
             planes,
             objects,
             triangle_count,
-            degenerate_triangles: 0,
+            instanced_triangle_count,
+            degenerate_triangles,
             bounds,
-            depth: 0,
-            build_time: Duration::ZERO,
-        };
-        geometry.depth = geometry.subtree_depth(0);
-        geometry.build_time = start.elapsed();
-        geometry
+            depth,
+            build_time: start.elapsed(),
+        }
     }
 
-    fn subtree_depth(&self, root: usize) -> usize {
-        let mut max = 0;
-        let mut stack = vec![(root, 1usize)];
-        while let Some((i, d)) = stack.pop() {
-            let Some(n) = self.nodes.get(i) else { continue };
-            max = max.max(d);
-            if n.prim_count == 0 {
-                stack.push((n.first_index as usize, d + 1));
-                stack.push((n.first_index as usize + 1, d + 1));
+    /// Number of BVH nodes (top level plus every BLAS once).
+    pub fn node_count(&self) -> usize {
+        self.tlas.len() + self.blases.iter().map(|b| b.node_count()).sum::<usize>()
+    }
+
+    /// Number of bounded primitives stored (shared meshes once).
+    pub fn prim_count(&self) -> usize {
+        self.blases.iter().map(|b| b.prims.len()).sum()
+    }
+
+    /// The bottom-level BVHs.
+    pub fn blases(&self) -> &[Arc<Blas>] {
+        &self.blases
+    }
+
+    /// The instances, in top-level leaf order.
+    pub fn instances(&self) -> &[Instance] {
+        &self.instances
+    }
+
+    /// Every bounded primitive placed in world space (instances expanded), for comparisons.
+    pub fn world_prims(&self) -> Vec<Prim> {
+        let mut out = Vec::new();
+        for inst in &self.instances {
+            let m = inst.to_world;
+            for prim in &self.blases[inst.blas as usize].prims {
+                let object = inst.object.unwrap_or(prim.object);
+                let shape = match prim.shape {
+                    Shape::Triangle(t) => Shape::Triangle(Triangle { p: t.p.map(|p| m.transform_point3a(p)) }),
+                    Shape::Sphere(s) => {
+                        let scale = m.matrix3.x_axis.length();
+                        Shape::Sphere(SpherePrim { center: m.transform_point3a(s.center), radius: s.radius * scale })
+                    }
+                };
+                out.push(Prim { shape, object });
             }
         }
-        max
-    }
-
-    /// Number of BVH nodes.
-    pub fn node_count(&self) -> usize {
-        self.nodes.len()
-    }
-
-    /// Number of bounded primitives (triangles and spheres).
-    pub fn prim_count(&self) -> usize {
-        self.prims.len()
-    }
-
-    /// The bounded primitives, in BVH leaf order.
-    pub fn prims(&self) -> &[Prim] {
-        &self.prims
+        out
     }
 
     /// Number of infinite planes.
@@ -139,10 +563,11 @@ impl SceneGeometry {
         self.planes.len()
     }
 
-    /// Bytes held by nodes and primitives.
+    /// Bytes held by nodes, instances and primitives.
     pub fn memory_bytes(&self) -> usize {
-        self.nodes.len() * size_of::<Bvh2Node>()
-            + self.prims.len() * size_of::<Prim>()
+        self.tlas.len() * size_of::<Bvh2Node>()
+            + self.instances.len() * size_of::<Instance>()
+            + self.blases.iter().map(|b| b.memory_bytes()).sum::<usize>()
             + self.planes.len() * size_of::<PlanePrim>()
     }
 
@@ -151,27 +576,11 @@ impl SceneGeometry {
         self.bounds.map_or(0.0, |(min, max)| (max - min).length())
     }
 
-    /// Entry distance of the ray into `node`'s box, if it enters before `tmax`.
-    /// A zero direction component gives 0·∞ = NaN exactly when the origin lies on that slab's
-    /// plane; such a bound is replaced by the infinity that leaves the slab unbounded, so rays
-    /// running inside a box face are not culled. The far distance is widened by 2γ(3)
-    /// (Ize 2013) so rounding never culls a true hit.
-    #[inline(always)]
-    fn enter(node: &Bvh2Node, ray: &Ray, tmax: f32) -> Option<f32> {
-        let t1 = (node.aabb.min - ray.origin) * ray.inv_dir;
-        let t2 = (node.aabb.max - ray.origin) * ray.inv_dir;
-        let t1 = Vec3A::select(t1.is_nan_mask(), -ray.inv_dir, t1);
-        let t2 = Vec3A::select(t2.is_nan_mask(), ray.inv_dir, t2);
-        let near = t1.min(t2).max_element().max(0.0);
-        let far = t1.max(t2).min_element() * (1.0 + 2.0 * gamma(3));
-        (near <= far.min(tmax)).then_some(near)
-    }
-
     /// Closest hit along `ray`, if any. `stack` is reusable scratch space.
     #[inline]
     pub fn intersect(&self, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> Option<SurfaceHit> {
         let mut ray = *ray;
-        let best = self.closest_prim(&mut ray, stack);
+        let best = self.closest_instance(&mut ray, stack);
         let mut plane_hit = None;
         for plane in &self.planes {
             if let Some(t) = plane.intersect(&ray) {
@@ -182,50 +591,57 @@ impl SceneGeometry {
         if let Some(plane) = plane_hit {
             return Some(plane.surface(&ray, ray.tmax));
         }
-        best.map(|(i, b1, b2)| self.surface(i, &ray, b1, b2))
+        best.map(|(i, slot, b1, b2)| self.surface(i, slot, &ray, b1, b2))
     }
 
-    fn surface(&self, index: u32, ray: &Ray, b1: f32, b2: f32) -> SurfaceHit {
-        let prim = &self.prims[index as usize];
-        match prim.shape {
-            Shape::Triangle(tri) => tri.surface(ray, ray.tmax, b1, b2, prim.object),
-            Shape::Sphere(s) => s.surface(ray, ray.tmax, prim.object),
+    /// The surface at a hit of instance `i`'s primitive `slot`; `ray.tmax` is the world t.
+    fn surface(&self, i: u32, slot: u32, ray: &Ray, b1: f32, b2: f32) -> SurfaceHit {
+        let inst = &self.instances[i as usize];
+        let blas = &self.blases[inst.blas as usize];
+        let object = inst.object.unwrap_or(blas.prims[slot as usize].object);
+        if inst.identity {
+            return blas.surface(slot, ray, b1, b2, object);
         }
+        // The same local ray as during traversal (a pure function of the world ray's origin and
+        // direction), so the local hit is the one that was found.
+        let Some((local, dt)) = inst.local_ray(&ray.with_tmax(f32::INFINITY)) else {
+            return blas.surface(slot, ray, b1, b2, object);
+        };
+        let local = local.with_tmax(ray.tmax - dt);
+        inst.to_world_hit(blas.surface(slot, &local, b1, b2, object), dt)
     }
 
-    /// Intersects one primitive: (t, b1, b2).
-    #[inline(always)]
-    pub fn hit_prim(prim: &Prim, ray: &Ray) -> Option<(f32, f32, f32)> {
-        match prim.shape {
-            Shape::Triangle(t) => t.intersect(ray),
-            Shape::Sphere(s) => s.intersect(ray).map(|t| (t, 0.0, 0.0)),
-        }
-    }
-
-    /// Front-to-back BVH traversal; shrinks `ray.tmax` to the closest hit and returns the
-    /// primitive index and barycentrics.
+    /// Front-to-back top-level traversal; shrinks `ray.tmax` (world t) to the closest hit and
+    /// returns (instance, primitive slot, b1, b2).
     #[inline]
-    fn closest_prim(&self, ray: &mut Ray, stack: &mut Vec<(u32, f32)>) -> Option<(u32, f32, f32)> {
-        let root = self.nodes.first()?;
-        Self::enter(root, ray, ray.tmax)?;
-        let mut best = None;
+    fn closest_instance(&self, ray: &mut Ray, stack: &mut Vec<(u32, f32)>) -> Option<(u32, u32, f32, f32)> {
+        let root = self.tlas.first()?;
+        enter(root.aabb(), ray, ray.tmax)?;
         stack.clear();
+        let mut best = None;
         let mut node = root;
         loop {
             if node.prim_count > 0 {
                 let first = node.first_index as usize;
-                let leaf = &self.prims[first..first + node.prim_count as usize];
-                for (k, prim) in leaf.iter().enumerate() {
-                    if let Some((t, b1, b2)) = Self::hit_prim(prim, ray) {
-                        ray.tmax = t;
-                        best = Some(((first + k) as u32, b1, b2));
+                for k in first..first + node.prim_count as usize {
+                    let inst = &self.instances[k];
+                    let blas = &self.blases[inst.blas as usize];
+                    if inst.identity {
+                        if let Some((slot, b1, b2)) = blas.closest(ray, stack) {
+                            best = Some((k as u32, slot, b1, b2));
+                        }
+                    } else if let Some((mut local, dt)) = inst.local_ray(ray)
+                        && let Some((slot, b1, b2)) = blas.closest(&mut local, stack)
+                    {
+                        ray.tmax = ray.tmax.min(local.tmax + dt);
+                        best = Some((k as u32, slot, b1, b2));
                     }
                 }
             } else {
                 let (li, ri) = (node.first_index, node.first_index + 1);
-                let left = &self.nodes[li as usize];
-                let right = &self.nodes[ri as usize];
-                match (Self::enter(left, ray, ray.tmax), Self::enter(right, ray, ray.tmax)) {
+                let left = &self.tlas[li as usize];
+                let right = &self.tlas[ri as usize];
+                match (enter(left.aabb(), ray, ray.tmax), enter(right.aabb(), ray, ray.tmax)) {
                     (Some(dl), Some(dr)) => {
                         let (near, far, dfar) = if dl <= dr { (left, ri, dr) } else { (right, li, dl) };
                         stack.push((far, dfar));
@@ -246,7 +662,7 @@ impl SceneGeometry {
             loop {
                 match stack.pop() {
                     Some((i, d)) if d <= ray.tmax => {
-                        node = &self.nodes[i as usize];
+                        node = &self.tlas[i as usize];
                         break;
                     }
                     Some(_) => continue,
@@ -262,8 +678,8 @@ impl SceneGeometry {
         if self.planes.iter().any(|p| p.intersect(ray).is_some()) {
             return true;
         }
-        let Some(root) = self.nodes.first() else { return false };
-        if Self::enter(root, ray, ray.tmax).is_none() {
+        let Some(root) = self.tlas.first() else { return false };
+        if enter(root.aabb(), ray, ray.tmax).is_none() {
             return false;
         }
         stack.clear();
@@ -271,15 +687,21 @@ impl SceneGeometry {
         loop {
             if node.prim_count > 0 {
                 let first = node.first_index as usize;
-                for prim in &self.prims[first..first + node.prim_count as usize] {
-                    if Self::hit_prim(prim, ray).is_some() {
+                for inst in &self.instances[first..first + node.prim_count as usize] {
+                    let blas = &self.blases[inst.blas as usize];
+                    let blocked = if inst.identity {
+                        blas.occluded(ray, stack)
+                    } else {
+                        inst.local_ray(ray).is_some_and(|(local, _)| blas.occluded(&local, stack))
+                    };
+                    if blocked {
                         return true;
                     }
                 }
             } else {
-                let left = &self.nodes[node.first_index as usize];
-                let right = &self.nodes[node.first_index as usize + 1];
-                match (Self::enter(left, ray, ray.tmax), Self::enter(right, ray, ray.tmax)) {
+                let left = &self.tlas[node.first_index as usize];
+                let right = &self.tlas[node.first_index as usize + 1];
+                match (enter(left.aabb(), ray, ray.tmax), enter(right.aabb(), ray, ray.tmax)) {
                     (Some(_), Some(_)) => {
                         stack.push((node.first_index + 1, 0.0));
                         node = left;
@@ -297,20 +719,38 @@ impl SceneGeometry {
                 }
             }
             match stack.pop() {
-                Some((i, _)) => node = &self.nodes[i as usize],
+                Some((i, _)) => node = &self.tlas[i as usize],
                 None => return false,
             }
         }
     }
 
-    /// Closest hit by testing every primitive (for tests and validation).
+    /// Intersects one world-space primitive: (t, b1, b2).
+    #[inline(always)]
+    pub fn hit_prim(prim: &Prim, ray: &Ray) -> Option<(f32, f32, f32)> {
+        hit_prim(prim, ray)
+    }
+
+    /// Closest hit by testing every primitive of every instance (for tests and validation).
     pub fn intersect_brute_force(&self, ray: &Ray) -> Option<SurfaceHit> {
         let mut ray = *ray;
         let mut best = None;
-        for (i, prim) in self.prims.iter().enumerate() {
-            if let Some((t, b1, b2)) = Self::hit_prim(prim, &ray) {
-                ray.tmax = t;
-                best = Some((i as u32, b1, b2));
+        for (i, inst) in self.instances.iter().enumerate() {
+            let blas = &self.blases[inst.blas as usize];
+            let (mut local, dt) = if inst.identity {
+                (ray, 0.0)
+            } else {
+                match inst.local_ray(&ray) {
+                    Some(local) => local,
+                    None => continue,
+                }
+            };
+            for (slot, prim) in blas.prims.iter().enumerate() {
+                if let Some((t, b1, b2)) = hit_prim(prim, &local) {
+                    local.tmax = t;
+                    ray.tmax = t + dt;
+                    best = Some((i as u32, slot as u32, b1, b2));
+                }
             }
         }
         let mut plane_hit = None;
@@ -320,6 +760,15 @@ impl SceneGeometry {
                 plane_hit = Some(plane.surface(&ray, t));
             }
         }
-        plane_hit.or_else(|| best.map(|(i, b1, b2)| self.surface(i, &ray, b1, b2)))
+        plane_hit.or_else(|| best.map(|(i, slot, b1, b2)| self.surface(i, slot, &ray, b1, b2)))
     }
+}
+
+/// The world-space geometric normal of a mesh triangle placed by `to_world`, oriented by the
+/// mesh's winding (counter-clockwise = front) whatever the sign of the transform's determinant:
+/// normals transform by the inverse transpose, so a mirroring transform keeps them outward.
+pub fn outward_normal(mesh: &Mesh, triangle: usize, to_world: &Affine3A) -> Vec3 {
+    let [a, b, c] = mesh.indices[triangle].map(|i| mesh.positions[i as usize]);
+    let n = (b - a).cross(c - a);
+    (to_world.matrix3.inverse().transpose() * Vec3A::from(n)).normalize().into()
 }

@@ -1,0 +1,630 @@
+//! glTF 2.0 scenes (`.gltf` with external or `data:` buffers, `.glb`): meshes (triangle lists,
+//! strips, fans; indexed or not; strided and sparse accessors), the default scene's node
+//! hierarchy, `EXT_mesh_gpu_instancing`, perspective and orthographic cameras,
+//! `KHR_lights_punctual` point lights, base colours, node animations and skins.
+//!
+//! [`load`] reads a file into a [`GltfScene`]; [`GltfScene::spawn`] puts it into a renderer's
+//! world as ordinary hemi entities (one `TriangleMesh` per primitive, shared by every node that
+//! uses the mesh) plus a [`NodeGraph`] resource that the animation systems pose from
+//! [`Time`]. Malformed input is refused with one line naming the element; gltf's reader is also
+//! wrapped in `catch_unwind`, so no input can panic.
+//!
+//! Units: a point light's `intensity` (candela) becomes `PointLight::ls` with inverse-square
+//! falloff, so with a white Lambertian surface at 1 m a 1 cd light gives radiance 1/π, the same
+//! scale on which the default ambient occluder (`ls = 1`) gives radiance 1 to unoccluded white.
+
+pub mod accessors;
+pub mod buffers;
+
+use std::{
+    collections::HashMap,
+    panic::AssertUnwindSafe,
+    path::{Path, PathBuf},
+    sync::Arc,
+};
+
+use ::gltf::{
+    Document,
+    accessor::Dimensions,
+    animation::{Interpolation as GltfInterpolation, Property},
+    khr_lights_punctual::Kind as LightKind,
+    mesh::{Mode, Semantic},
+};
+use bevy_ecs::{name::Name, prelude::World};
+use glam::{Affine3A, Mat4, Quat, Vec3};
+
+use crate::{
+    animation::{Channel, Clip, Influences, Interpolation, Keys, Node, NodeGraph, NodeLink, Skin},
+    components::{
+        AmbientOccluder, Camera, Deforming, Matte, Mesh, OrthographicCamera, PointLight, Transform, TriangleMesh,
+    },
+    error::HemiError,
+    resources::Time,
+};
+
+/// One drawable piece of a glTF mesh: triangles and a material.
+#[derive(Clone, Debug)]
+pub struct Primitive {
+    /// Triangles in the mesh's frame.
+    pub mesh: Arc<Mesh>,
+    /// Base colour as a matte material.
+    pub material: Matte,
+    /// Skinning influences per vertex, when the primitive has JOINTS_0 and WEIGHTS_0.
+    pub influences: Option<Influences>,
+}
+
+/// A camera's projection.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Projection {
+    /// Perspective with this vertical field of view in degrees.
+    Perspective(f32),
+    /// Orthographic with this half height.
+    Orthographic(f32),
+}
+
+/// A camera placed at a node.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CameraNode {
+    /// Node index in [`GltfScene::graph`].
+    pub node: usize,
+    /// Index in the file's `cameras` array.
+    pub index: usize,
+    /// Camera name, or the node's name, or `camera N`.
+    pub name: String,
+    /// Projection.
+    pub projection: Projection,
+}
+
+/// A mesh placed at a node (with its `EXT_mesh_gpu_instancing` offsets, if any).
+#[derive(Clone, Debug)]
+struct Placement {
+    node: usize,
+    mesh: usize,
+    skin: Option<usize>,
+    offsets: Vec<Affine3A>,
+}
+
+#[derive(Clone, Debug)]
+struct SkinData {
+    joints: Vec<usize>,
+    inverse_bind: Vec<Affine3A>,
+}
+
+/// A loaded glTF asset, ready to spawn.
+#[derive(Clone, Debug)]
+pub struct GltfScene {
+    /// The file it came from.
+    pub path: PathBuf,
+    /// The default scene's nodes (parents first) and the animations.
+    pub graph: NodeGraph,
+    /// Primitives of each glTF mesh used by the scene (indexed like the file's `meshes`).
+    pub meshes: Vec<Vec<Primitive>>,
+    /// Cameras of the scene, in hierarchy order.
+    pub cameras: Vec<CameraNode>,
+    /// Point lights of the scene: (node, light).
+    pub lights: Vec<(usize, PointLight)>,
+    /// What was skipped or approximated, one line each.
+    pub warnings: Vec<String>,
+    placements: Vec<Placement>,
+    skins: Vec<SkinData>,
+}
+
+/// Which camera and animation to use, and the start time.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SpawnOptions {
+    /// Camera by name or index in the file's `cameras` (default: the first in the scene).
+    pub camera: Option<String>,
+    /// Animation by name or index (default: the first, if any).
+    pub animation: Option<String>,
+    /// Time in seconds the scene is posed at (and, for a file without cameras, framed at).
+    pub time: f32,
+}
+
+/// Reads a `.gltf` or `.glb` file. Errors name the file and the offending element.
+pub fn load(path: &Path) -> Result<GltfScene, HemiError> {
+    let fail = |message: String| HemiError::Load { path: path.to_path_buf(), message };
+    let bytes = std::fs::read(path).map_err(|e| fail(format!("cannot read: {e}")))?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    match std::panic::catch_unwind(AssertUnwindSafe(|| parse(&bytes, base))) {
+        Ok(Ok(mut scene)) => {
+            scene.path = path.to_path_buf();
+            Ok(scene)
+        }
+        Ok(Err(message)) => Err(fail(message)),
+        Err(_) => Err(fail("the glTF reader failed on malformed data".into())),
+    }
+}
+
+fn label(kind: &str, index: usize, name: Option<&str>) -> String {
+    match name {
+        Some(n) => format!("{kind} {index} ('{n}')"),
+        None => format!("{kind} {index}"),
+    }
+}
+
+fn parse(bytes: &[u8], base: &Path) -> Result<GltfScene, String> {
+    let ::gltf::Gltf { document: doc, blob } =
+        ::gltf::Gltf::from_slice(bytes).map_err(|e| format!("not a valid glTF 2.0 file: {e}"))?;
+    let buffers = buffers::load(&doc, blob, base)?;
+    let mut warnings = Vec::new();
+    let (nodes, graph_index) = hierarchy(&doc)?;
+
+    let mut scene = GltfScene {
+        path: PathBuf::new(),
+        graph: NodeGraph { nodes, ..Default::default() },
+        meshes: vec![Vec::new(); doc.meshes().len()],
+        cameras: Vec::new(),
+        lights: Vec::new(),
+        warnings: Vec::new(),
+        placements: Vec::new(),
+        skins: Vec::new(),
+    };
+    let mut mesh_read = vec![false; doc.meshes().len()];
+    let mut skin_slot: HashMap<usize, usize> = HashMap::new();
+    let (mut skipped_prims, mut textured, mut other_lights) = (0, 0, Vec::new());
+
+    // Walk the scene's nodes in hierarchy order.
+    let mut order: Vec<(usize, ::gltf::Node)> =
+        doc.nodes().filter_map(|n| graph_index[n.index()].map(|g| (g, n))).collect();
+    order.sort_by_key(|(g, _)| *g);
+    for (g, node) in &order {
+        let g = *g;
+        let node_label = label("node", node.index(), node.name());
+        if let Some(mesh) = node.mesh() {
+            let m = mesh.index();
+            if !mesh_read[m] {
+                mesh_read[m] = true;
+                let mesh_label = label("mesh", m, mesh.name());
+                for p in mesh.primitives() {
+                    let prim_label = format!("{mesh_label} primitive {}", p.index());
+                    match read_primitive(&p, &buffers).map_err(|e| format!("{prim_label}: {e}"))? {
+                        Some(prim) => {
+                            textured +=
+                                usize::from(p.material().pbr_metallic_roughness().base_color_texture().is_some());
+                            scene.meshes[m].push(prim);
+                        }
+                        None => skipped_prims += 1,
+                    }
+                }
+            }
+            let skin = match node.skin() {
+                Some(skin) => {
+                    let next = scene.skins.len();
+                    let slot = *skin_slot.entry(skin.index()).or_insert(next);
+                    if slot == next {
+                        let data = read_skin(&skin, &buffers, &graph_index)
+                            .map_err(|e| format!("{}: {e}", label("skin", skin.index(), skin.name())))?;
+                        scene.skins.push(data);
+                    }
+                    Some(slot)
+                }
+                None => None,
+            };
+            let offsets = gpu_instances(&doc, node, &buffers).map_err(|e| format!("{node_label}: {e}"))?;
+            scene.placements.push(Placement { node: g, mesh: m, skin, offsets });
+        }
+        if let Some(camera) = node.camera() {
+            let projection = match camera.projection() {
+                ::gltf::camera::Projection::Perspective(p) => Projection::Perspective(p.yfov().to_degrees()),
+                ::gltf::camera::Projection::Orthographic(o) => Projection::Orthographic(o.ymag().abs()),
+            };
+            let name = camera.name().or(node.name()).map_or(format!("camera {}", camera.index()), str::to_string);
+            scene.cameras.push(CameraNode { node: g, index: camera.index(), name, projection });
+        }
+        if let Some(light) = node.light() {
+            let light_label = label("light", light.index(), light.name());
+            match light.kind() {
+                LightKind::Point => {
+                    let [r, gr, b] = light.color();
+                    let l =
+                        PointLight { ls: light.intensity(), color: Vec3::new(r, gr, b), shadows: true, falloff: true };
+                    l.validate(Vec3::ZERO).map_err(|e| format!("{light_label}: {e}"))?;
+                    scene.lights.push((g, l));
+                }
+                LightKind::Directional => other_lights.push(format!("{light_label} (directional)")),
+                LightKind::Spot { .. } => other_lights.push(format!("{light_label} (spot)")),
+            }
+        }
+    }
+    for animation in doc.animations() {
+        let clip = read_clip(&animation, &buffers, &graph_index, &mut warnings)
+            .map_err(|e| format!("{}: {e}", label("animation", animation.index(), animation.name())))?;
+        scene.graph.clips.push(clip);
+    }
+    let sheared = sheared_nodes(&scene.graph, scene.placements.iter().map(|p| p.node));
+    if sheared > 0 {
+        warnings.push(format!(
+            "{sheared} mesh nodes have a sheared world matrix (non-uniform scale under a rotated parent); \
+             hemi keeps its scale, rotation and translation only"
+        ));
+    }
+    if skipped_prims > 0 {
+        warnings.push(format!("skipped {skipped_prims} point/line primitives (hemi renders triangles only)"));
+    }
+    if textured > 0 {
+        warnings.push(format!(
+            "{textured} primitives use a base-color texture; hemi does not sample textures yet and uses baseColorFactor"
+        ));
+    }
+    if !other_lights.is_empty() {
+        warnings.push(format!("hemi has no spot or directional lights yet; not rendered: {}", other_lights.join(", ")));
+    }
+    scene.warnings = warnings;
+    Ok(scene)
+}
+
+/// How many of `nodes` have a rest-pose world matrix that a scale-rotation-translation cannot
+/// reproduce (shear).
+fn sheared_nodes(graph: &NodeGraph, nodes: impl Iterator<Item = usize>) -> usize {
+    let world = graph.pose(0.0);
+    nodes
+        .filter(|&n| {
+            let m = world[n];
+            let back = Transform::from_affine(&m);
+            let r = Affine3A::from_scale_rotation_translation(back.scale, back.rotation, back.translation);
+            let size = m.matrix3.x_axis.length() + m.matrix3.y_axis.length() + m.matrix3.z_axis.length();
+            (r.matrix3 - m.matrix3).to_cols_array().iter().any(|d| d.abs() > 1e-4 * size)
+        })
+        .count()
+}
+
+/// The default scene's nodes in depth-first order (parents first), and each file node's index
+/// in that order (`None` for nodes outside the scene).
+fn hierarchy(doc: &Document) -> Result<(Vec<Node>, Vec<Option<usize>>), String> {
+    let roots: Vec<::gltf::Node> = match doc.default_scene().or_else(|| doc.scenes().next()) {
+        Some(scene) => scene.nodes().collect(),
+        None => {
+            let mut is_child = vec![false; doc.nodes().len()];
+            for n in doc.nodes() {
+                for c in n.children() {
+                    is_child[c.index()] = true;
+                }
+            }
+            doc.nodes().filter(|n| !is_child[n.index()]).collect()
+        }
+    };
+    let mut index = vec![None; doc.nodes().len()];
+    let mut nodes = Vec::new();
+    let mut stack: Vec<(::gltf::Node, Option<usize>)> = roots.into_iter().rev().map(|n| (n, None)).collect();
+    while let Some((node, parent)) = stack.pop() {
+        let node_label = label("node", node.index(), node.name());
+        if index[node.index()].is_some() {
+            return Err(format!("{node_label} appears twice in the scene hierarchy (a cycle or a shared child)"));
+        }
+        let (t, r, s) = node.transform().decomposed();
+        let rest = Transform { translation: Vec3::from(t), rotation: Quat::from_array(r), scale: Vec3::from(s) };
+        if !(rest.translation.is_finite() && rest.rotation.is_finite() && rest.scale.is_finite()) {
+            return Err(format!("{node_label} has a non-finite transform"));
+        }
+        let g = nodes.len();
+        index[node.index()] = Some(g);
+        nodes.push(Node { name: node.name().map_or(format!("node {}", node.index()), str::to_string), parent, rest });
+        let children: Vec<::gltf::Node> = node.children().collect();
+        stack.extend(children.into_iter().rev().map(|c| (c, Some(g))));
+    }
+    Ok((nodes, index))
+}
+
+/// Triangles of one primitive, or `None` for points and lines.
+fn read_primitive(p: &::gltf::Primitive, buffers: &[Vec<u8>]) -> Result<Option<Primitive>, String> {
+    if !matches!(p.mode(), Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
+        return Ok(None);
+    }
+    let pos = p.get(&Semantic::Positions).ok_or("has no POSITION attribute")?;
+    let positions: Vec<Vec3> = accessors::floats::<[f32; 3]>(&pos, Dimensions::Vec3, buffers)
+        .map_err(|e| format!("POSITION {e}"))?
+        .into_iter()
+        .map(Vec3::from)
+        .collect();
+    let n = positions.len() as u32;
+    let verts: Vec<u32> = match p.indices() {
+        Some(acc) => {
+            let idx = accessors::indices(&acc, buffers).map_err(|e| format!("indices {e}"))?;
+            if let Some(k) = idx.iter().position(|&i| i >= n) {
+                return Err(format!("index {} at position {k} is out of range ({n} vertices)", idx[k]));
+            }
+            idx
+        }
+        None => (0..n).collect(),
+    };
+    let m = verts.len();
+    let indices: Vec<[u32; 3]> = match p.mode() {
+        Mode::Triangles => verts.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+        // glTF 2.0 §3.7.2.1: strip triangle i is (i, i+1+i%2, i+2-i%2); fan i is (i+1, i+2, 0).
+        Mode::TriangleStrip => {
+            (0..m.saturating_sub(2)).map(|i| [verts[i], verts[i + 1 + i % 2], verts[i + 2 - i % 2]]).collect()
+        }
+        _ => (0..m.saturating_sub(2)).map(|i| [verts[i + 1], verts[i + 2], verts[0]]).collect(),
+    };
+    let mesh = Mesh { positions, indices };
+    mesh.validate()?;
+    let [r, g, b, _] = p.material().pbr_metallic_roughness().base_color_factor();
+    let material = Matte::new(Vec3::new(r, g, b));
+    let influences = match (p.get(&Semantic::Joints(0)), p.get(&Semantic::Weights(0))) {
+        (Some(j), Some(w)) => {
+            let joints = accessors::uint4(&j, buffers).map_err(|e| format!("JOINTS_0 {e}"))?;
+            let weights = accessors::unorm4(&w, buffers).map_err(|e| format!("WEIGHTS_0 {e}"))?;
+            if joints.len() != mesh.positions.len() || weights.len() != mesh.positions.len() {
+                return Err("JOINTS_0/WEIGHTS_0 counts differ from POSITION's".into());
+            }
+            let inf = joints.iter().zip(&weights).map(|(j, w)| std::array::from_fn(|k| (j[k], w[k]))).collect();
+            Some(Arc::new(inf))
+        }
+        _ => None,
+    };
+    Ok(Some(Primitive { mesh: Arc::new(mesh), material, influences }))
+}
+
+fn read_skin(skin: &::gltf::Skin, buffers: &[Vec<u8>], graph_index: &[Option<usize>]) -> Result<SkinData, String> {
+    let joints = skin
+        .joints()
+        .map(|j| graph_index[j.index()].ok_or_else(|| format!("joint node {} is not in the scene", j.index())))
+        .collect::<Result<Vec<_>, _>>()?;
+    let inverse_bind = match skin.inverse_bind_matrices() {
+        Some(acc) => {
+            let m = accessors::floats::<[[f32; 4]; 4]>(&acc, Dimensions::Mat4, buffers)
+                .map_err(|e| format!("inverseBindMatrices {e}"))?;
+            if m.len() < joints.len() {
+                return Err(format!("{} inverse bind matrices for {} joints", m.len(), joints.len()));
+            }
+            m.iter().map(|c| Affine3A::from_mat4(Mat4::from_cols_array_2d(c))).collect()
+        }
+        None => vec![Affine3A::IDENTITY; joints.len()],
+    };
+    if inverse_bind.iter().any(|m: &Affine3A| !m.is_finite()) {
+        return Err("an inverse bind matrix is not finite".into());
+    }
+    Ok(SkinData { joints, inverse_bind })
+}
+
+/// The per-instance transforms of `EXT_mesh_gpu_instancing` (one identity without it).
+fn gpu_instances(doc: &Document, node: &::gltf::Node, buffers: &[Vec<u8>]) -> Result<Vec<Affine3A>, String> {
+    let Some(ext) = node.extension_value("EXT_mesh_gpu_instancing") else {
+        return Ok(vec![Affine3A::IDENTITY]);
+    };
+    let attribute = |name: &str| -> Result<Option<Vec<[f32; 4]>>, String> {
+        let Some(i) = ext.get("attributes").and_then(|a| a.get(name)).and_then(|v| v.as_u64()) else {
+            return Ok(None);
+        };
+        let acc = doc.accessors().nth(i as usize).ok_or_else(|| format!("instancing {name} accessor {i} missing"))?;
+        let values = if name == "ROTATION" {
+            accessors::quats(&acc, buffers)
+        } else {
+            accessors::floats::<[f32; 3]>(&acc, Dimensions::Vec3, buffers)
+                .map(|v| v.into_iter().map(|[x, y, z]| [x, y, z, 0.0]).collect())
+        };
+        values.map(Some).map_err(|e| format!("instancing {name} {e}"))
+    };
+    let (t, r, s) = (attribute("TRANSLATION")?, attribute("ROTATION")?, attribute("SCALE")?);
+    let count = [&t, &r, &s].iter().filter_map(|a| a.as_ref().map(Vec::len)).max().unwrap_or(0);
+    if [&t, &r, &s].iter().any(|a| a.as_ref().is_some_and(|v| v.len() != count)) {
+        return Err("EXT_mesh_gpu_instancing attributes have different counts".into());
+    }
+    let at = |a: &Option<Vec<[f32; 4]>>, i: usize, default: [f32; 4]| a.as_ref().map_or(default, |v| v[i]);
+    let offsets: Vec<Affine3A> = (0..count)
+        .map(|i| {
+            let [tx, ty, tz, _] = at(&t, i, [0.0; 4]);
+            let [sx, sy, sz, _] = at(&s, i, [1.0; 4]);
+            let q = Quat::from_array(at(&r, i, [0.0, 0.0, 0.0, 1.0])).normalize();
+            Affine3A::from_scale_rotation_translation(Vec3::new(sx, sy, sz), q, Vec3::new(tx, ty, tz))
+        })
+        .collect();
+    if offsets.iter().any(|m| !m.is_finite()) {
+        return Err("EXT_mesh_gpu_instancing has a non-finite instance transform".into());
+    }
+    Ok(offsets)
+}
+
+fn read_clip(
+    animation: &::gltf::Animation,
+    buffers: &[Vec<u8>],
+    graph_index: &[Option<usize>],
+    warnings: &mut Vec<String>,
+) -> Result<Clip, String> {
+    let mut channels = Vec::new();
+    let mut duration: f32 = 0.0;
+    let mut morph = false;
+    for ch in animation.channels() {
+        let ch_label = format!("channel {}", ch.index());
+        let Some(node) = graph_index[ch.target().node().index()] else { continue };
+        let sampler = ch.sampler();
+        let times = accessors::floats::<f32>(&sampler.input(), Dimensions::Scalar, buffers)
+            .map_err(|e| format!("{ch_label} input {e}"))?;
+        if times.iter().any(|t| !t.is_finite()) || times.windows(2).any(|w| w[1] < w[0]) {
+            return Err(format!("{ch_label}: key times must be finite and non-decreasing"));
+        }
+        let interpolation = match sampler.interpolation() {
+            GltfInterpolation::Step => Interpolation::Step,
+            GltfInterpolation::Linear => Interpolation::Linear,
+            GltfInterpolation::CubicSpline => Interpolation::CubicSpline,
+        };
+        let output = sampler.output();
+        let out_err = |e: String| format!("{ch_label} output {e}");
+        let vec3 = || -> Result<Vec<Vec3>, String> {
+            Ok(accessors::floats::<[f32; 3]>(&output, Dimensions::Vec3, buffers)
+                .map_err(out_err)?
+                .into_iter()
+                .map(Vec3::from)
+                .collect())
+        };
+        let keys = match ch.target().property() {
+            Property::Translation => Keys::Translation(vec3()?),
+            Property::Scale => Keys::Scale(vec3()?),
+            Property::Rotation => Keys::Rotation(
+                accessors::quats(&output, buffers)
+                    .map_err(out_err)?
+                    .into_iter()
+                    .map(|q| Quat::from_array(q).normalize())
+                    .collect(),
+            ),
+            Property::MorphTargetWeights => {
+                morph = true;
+                continue;
+            }
+        };
+        let per_key = if interpolation == Interpolation::CubicSpline { 3 } else { 1 };
+        let values = match &keys {
+            Keys::Translation(v) | Keys::Scale(v) => v.len(),
+            Keys::Rotation(q) => q.len(),
+        };
+        let finite = match &keys {
+            Keys::Translation(v) | Keys::Scale(v) => v.iter().all(|x| x.is_finite()),
+            Keys::Rotation(q) => q.iter().all(|x| x.is_finite()),
+        };
+        if values != times.len() * per_key || !finite {
+            return Err(format!(
+                "{ch_label}: {values} output values for {} keys (expected {} finite values)",
+                times.len(),
+                times.len() * per_key
+            ));
+        }
+        duration = duration.max(*times.last().unwrap_or(&0.0));
+        channels.push(Channel { node, times, keys, interpolation });
+    }
+    let name = animation.name().map_or(format!("animation {}", animation.index()), str::to_string);
+    if morph {
+        warnings.push(format!("{name}: morph-target weights are not animated (no morph targets yet)"));
+    }
+    Ok(Clip { name, channels, duration })
+}
+
+/// Finds an item by index (a whole number) or by name.
+fn choose<'a, T>(items: &'a [T], key: &str, index: impl Fn(&T) -> usize, name: impl Fn(&T) -> &str) -> Option<&'a T> {
+    match key.parse::<usize>() {
+        Ok(i) => items.iter().find(|c| index(c) == i),
+        Err(_) => items.iter().find(|c| name(c) == key),
+    }
+}
+
+impl GltfScene {
+    /// Number of triangles the default scene places (each mesh counted once per node and
+    /// per GPU instance that uses it), as `SOURCES.md`'s "scene" column counts them.
+    pub fn scene_triangle_count(&self) -> usize {
+        self.placements
+            .iter()
+            .map(|p| p.offsets.len() * self.meshes[p.mesh].iter().map(|m| m.mesh.triangle_count()).sum::<usize>())
+            .sum()
+    }
+
+    /// Names of the animations, in file order.
+    pub fn animation_names(&self) -> Vec<&str> {
+        self.graph.clips.iter().map(|c| c.name.as_str()).collect()
+    }
+
+    /// Spawns the scene into `world`: mesh instances, lights, the chosen camera (or one that
+    /// frames the scene when the file has none), a default ambient occluder when the world has
+    /// none, the [`NodeGraph`] and [`Time`].
+    pub fn spawn(&self, world: &mut World, options: &SpawnOptions) -> Result<(), HemiError> {
+        let fail = |message: String| HemiError::Load { path: self.path.clone(), message };
+        let mut graph = self.graph.clone();
+        graph.active = match &options.animation {
+            None => (!graph.clips.is_empty()).then_some(0),
+            Some(key) => {
+                let clips: Vec<(usize, &str)> = graph.clips.iter().enumerate().map(|(i, c)| (i, &*c.name)).collect();
+                let found = choose(&clips, key, |c| c.0, |c| c.1).ok_or_else(|| {
+                    let names: Vec<String> = clips.iter().map(|(i, n)| format!("{i}: {n}")).collect();
+                    fail(format!("no animation '{key}' (available: {})", list(&names)))
+                })?;
+                Some(found.0)
+            }
+        };
+        graph.world = graph.pose(options.time);
+        let camera = match &options.camera {
+            None => self.cameras.first(),
+            Some(key) => Some(choose(&self.cameras, key, |c| c.index, |c| &c.name).ok_or_else(|| {
+                let names: Vec<String> = self.cameras.iter().map(|c| format!("{}: {}", c.index, c.name)).collect();
+                fail(format!("no camera '{key}' (available: {})", list(&names)))
+            })?),
+        };
+
+        let mut bounds: Option<(Vec3, Vec3)> = None;
+        let mut grow = |mesh: &Mesh, m: &Affine3A| {
+            for p in &mesh.positions {
+                let q = m.transform_point3(*p);
+                bounds = Some(bounds.map_or((q, q), |(lo, hi)| (lo.min(q), hi.max(q))));
+            }
+        };
+        for placement in &self.placements {
+            let node_world = graph.world[placement.node];
+            let node_name = &graph.nodes[placement.node].name;
+            let skin = placement.skin.map(|s| &self.skins[s]);
+            for (k, prim) in self.meshes[placement.mesh].iter().enumerate() {
+                let name = Name::new(format!("{node_name}/{k}"));
+                if let (Some(skin), Some(influences)) = (skin, &prim.influences) {
+                    // Skinned: vertices in world space, the node's own transform ignored (glTF).
+                    let skin = Skin {
+                        joints: skin.joints.clone(),
+                        inverse_bind: skin.inverse_bind.clone(),
+                        influences: influences.clone(),
+                        rest: prim.mesh.clone(),
+                    };
+                    let posed = Mesh { positions: skin.deform(&graph.world), indices: prim.mesh.indices.clone() };
+                    grow(&posed, &Affine3A::IDENTITY);
+                    world.spawn((
+                        TriangleMesh(Arc::new(posed)),
+                        Deforming { rest: prim.mesh.clone() },
+                        skin,
+                        Transform::IDENTITY,
+                        prim.material,
+                        name,
+                    ));
+                    continue;
+                }
+                for offset in &placement.offsets {
+                    let m = node_world * *offset;
+                    grow(&prim.mesh, &m);
+                    world.spawn((
+                        TriangleMesh(prim.mesh.clone()),
+                        Transform::from_affine(&m),
+                        NodeLink { node: placement.node, offset: *offset },
+                        prim.material,
+                        name.clone(),
+                    ));
+                }
+            }
+        }
+        for &(node, light) in &self.lights {
+            let t = Transform::from_translation(graph.world[node].translation.into());
+            world.spawn((
+                light,
+                t,
+                NodeLink { node, offset: Affine3A::IDENTITY },
+                Name::new(graph.nodes[node].name.clone()),
+            ));
+        }
+        match camera {
+            Some(c) => {
+                let t = Transform::from_affine(&graph.world[c.node]);
+                let link = NodeLink { node: c.node, offset: Affine3A::IDENTITY };
+                match c.projection {
+                    Projection::Perspective(vfov) => world.spawn((Camera::from_transform(&t, vfov), link)),
+                    Projection::Orthographic(h) => world.spawn((OrthographicCamera::from_transform(&t, h), link)),
+                };
+            }
+            None => {
+                world.spawn(framing_camera(bounds.unwrap_or((Vec3::splat(-1.0), Vec3::ONE))));
+            }
+        }
+        if world.query::<&AmbientOccluder>().iter(world).next().is_none() {
+            world.spawn(AmbientOccluder::default());
+        }
+        world.insert_resource(Time { seconds: options.time });
+        world.insert_resource(graph);
+        Ok(())
+    }
+}
+
+fn list(names: &[String]) -> String {
+    if names.is_empty() { "none".into() } else { names.join(", ") }
+}
+
+/// A 40° camera looking at the centre of `bounds` from the front-right and a little above,
+/// far enough back that the bounding sphere fits the view.
+pub fn framing_camera((lo, hi): (Vec3, Vec3)) -> Camera {
+    let center = (lo + hi) * 0.5;
+    let radius = ((hi - lo).length() * 0.5).max(1e-6);
+    let vfov: f32 = 40.0;
+    let distance = radius / (vfov.to_radians() * 0.5).sin() * 1.05;
+    let dir = Vec3::new(0.45, 0.35, 1.0).normalize();
+    Camera::look_at(center + dir * distance, center, vfov)
+}
