@@ -355,7 +355,12 @@ fn render(args: RenderArgs) -> Result<(), HemiError> {
             // Posed (and, without a camera in the file, framed) at the start of the whole
             // range, so that every shard of a sequence sees the same camera.
             let time = args.frames.map_or(args.time, |(start, _)| (start as f64 / args.fps) as f32);
-            let options = SpawnOptions { camera: args.camera.clone(), animation: args.animation.clone(), time };
+            let options = SpawnOptions {
+                camera: args.camera.clone(),
+                animation: args.animation.clone(),
+                time,
+                geometry_only: false,
+            };
             scene.spawn(r.world_mut(), &options)?;
             r
         }

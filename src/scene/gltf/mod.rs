@@ -118,6 +118,9 @@ pub struct SpawnOptions {
     pub animation: Option<String>,
     /// Time in seconds the scene is posed at (and, for a file without cameras, framed at).
     pub time: f32,
+    /// Spawn only the posed, static geometry: no camera, lights, default occluder, animation
+    /// graph or node links (for merging several files into one scene, as peer scenes do).
+    pub geometry_only: bool,
 }
 
 /// Reads a `.gltf` or `.glb` file. Errors name the file and the offending element.
@@ -550,7 +553,7 @@ impl GltfScene {
             let skin = placement.skin.map(|s| &self.skins[s]);
             for (k, prim) in self.meshes[placement.mesh].iter().enumerate() {
                 let name = Name::new(format!("{node_name}/{k}"));
-                if let (Some(skin), Some(influences)) = (skin, &prim.influences) {
+                if let (Some(skin), Some(influences), false) = (skin, &prim.influences, options.geometry_only) {
                     // Skinned: vertices in world space, the node's own transform ignored (glTF).
                     let skin = Skin {
                         joints: skin.joints.clone(),
@@ -573,15 +576,20 @@ impl GltfScene {
                 for offset in &placement.offsets {
                     let m = node_world * *offset;
                     grow(&prim.mesh, &m);
-                    world.spawn((
+                    let mut entity = world.spawn((
                         TriangleMesh(prim.mesh.clone()),
                         Transform::from_affine(&m),
-                        NodeLink { node: placement.node, offset: *offset },
                         prim.material,
                         name.clone(),
                     ));
+                    if !options.geometry_only {
+                        entity.insert(NodeLink { node: placement.node, offset: *offset });
+                    }
                 }
             }
+        }
+        if options.geometry_only {
+            return Ok(());
         }
         for &(node, light) in &self.lights {
             let t = Transform::from_translation(graph.world[node].translation.into());

@@ -1,0 +1,146 @@
+//! The peer renderers' scene format (`../shared/peers/scenes/*.json`): glTF meshes, a pinhole
+//! camera, AO settings and point lights, rendered under their contract (pixel-centre primary
+//! rays, two-sided geometric normals, cosine-weighted AO, Lambertian point lights with 1/d²).
+
+use std::path::{Path, PathBuf};
+
+use bevy_ecs::prelude::World;
+use glam::Vec3;
+use serde::Deserialize;
+
+use crate::{
+    components::{AmbientOccluder, Camera, PointLight, Transform},
+    error::HemiError,
+    scene::gltf::{self, SpawnOptions},
+};
+
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum OneOrMany {
+    One(String),
+    Many(Vec<String>),
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CameraJson {
+    eye: [f32; 3],
+    target: [f32; 3],
+    up: [f32; 3],
+    vfov_deg: f32,
+}
+
+#[derive(Deserialize)]
+struct AoJson {
+    samples: u32,
+    max_distance: Option<f32>,
+    #[allow(dead_code)] // hemi offsets rays by the hit's own error bound instead
+    epsilon: Option<f32>,
+}
+
+#[derive(Deserialize)]
+struct LightJson {
+    position: [f32; 3],
+    intensity: [f32; 3],
+}
+
+#[derive(Deserialize)]
+struct SceneJson {
+    name: String,
+    mesh: OneOrMany,
+    camera: CameraJson,
+    width: u32,
+    height: u32,
+    ao: AoJson,
+    #[serde(default)]
+    point_lights: Vec<LightJson>,
+    seed: u64,
+}
+
+/// A peer scene, read and checked.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PeerScene {
+    /// The JSON file.
+    pub path: PathBuf,
+    /// Scene name (names the reference files `refs/<name>.ao.npy`, `.hit.npy`).
+    pub name: String,
+    /// Mesh files, resolved against the JSON's folder.
+    pub meshes: Vec<PathBuf>,
+    /// The pinhole camera.
+    pub camera: Camera,
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Default AO samples per pixel.
+    pub samples: u32,
+    /// AO ray length (∞ when `null`).
+    pub max_distance: f32,
+    /// Point lights: position and radiant intensity per channel.
+    pub lights: Vec<(Vec3, Vec3)>,
+    /// The scene's seed.
+    pub seed: u64,
+}
+
+impl PeerScene {
+    /// Reads a scene file; errors name the file and what is wrong.
+    pub fn load(path: &Path) -> Result<Self, HemiError> {
+        let fail = |message: String| HemiError::Load { path: path.to_path_buf(), message };
+        let text = std::fs::read_to_string(path).map_err(|e| fail(format!("cannot read: {e}")))?;
+        let json: SceneJson = serde_json::from_str(&text).map_err(|e| fail(format!("not a peer scene: {e}")))?;
+        let dir = path.parent().unwrap_or(Path::new("."));
+        let meshes = match json.mesh {
+            OneOrMany::One(m) => vec![m],
+            OneOrMany::Many(ms) => ms,
+        };
+        let c = json.camera;
+        let scene = PeerScene {
+            path: path.to_path_buf(),
+            name: json.name,
+            meshes: meshes.iter().map(|m| dir.join(m)).collect(),
+            camera: Camera { eye: c.eye.into(), target: c.target.into(), up: c.up.into(), vfov_degrees: c.vfov_deg },
+            width: json.width,
+            height: json.height,
+            samples: json.ao.samples.max(1),
+            max_distance: json.ao.max_distance.unwrap_or(f32::INFINITY),
+            lights: json.point_lights.iter().map(|l| (l.position.into(), l.intensity.into())).collect(),
+            seed: json.seed,
+        };
+        scene.camera.validate().map_err(fail)?;
+        if !(scene.max_distance > 0.0) {
+            return Err(fail(format!("ao.max_distance {} must be positive or null", scene.max_distance)));
+        }
+        if let Some((p, i)) =
+            scene.lights.iter().find(|(p, i)| !p.is_finite() || !i.is_finite() || i.min_element() < 0.0)
+        {
+            return Err(fail(format!("point light at {p} with intensity {i} is not usable")));
+        }
+        Ok(scene)
+    }
+
+    /// Spawns meshes (as static geometry, albedo = baseColorFactor), camera, occluder and lights.
+    /// Returns the loaders' warnings.
+    pub fn spawn(&self, world: &mut World) -> Result<Vec<String>, HemiError> {
+        let mut warnings = Vec::new();
+        for mesh in &self.meshes {
+            let scene = gltf::load(mesh)?;
+            warnings.extend(scene.warnings.iter().map(|w| format!("{}: {w}", mesh.display())));
+            scene.spawn(world, &SpawnOptions { geometry_only: true, ..Default::default() })?;
+        }
+        world.spawn(self.camera);
+        world.spawn(AmbientOccluder { max_distance: self.max_distance, ..Default::default() });
+        for &(position, intensity) in &self.lights {
+            world.spawn((
+                PointLight { ls: 1.0, color: intensity, shadows: true, falloff: true },
+                Transform::from_translation(position),
+            ));
+        }
+        Ok(warnings)
+    }
+
+    /// Reference files beside the scenes: `<scenes>/../refs/<name>.ao.npy` and `.hit.npy`.
+    pub fn reference_paths(&self) -> (PathBuf, PathBuf) {
+        let refs = self.path.parent().unwrap_or(Path::new(".")).join("../refs");
+        (refs.join(format!("{}.ao.npy", self.name)), refs.join(format!("{}.hit.npy", self.name)))
+    }
+}
