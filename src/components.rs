@@ -6,6 +6,8 @@ use std::sync::Arc;
 use bevy_ecs::prelude::Component;
 use glam::{Affine3A, Quat, Vec3};
 
+pub use crate::lights::{AmbientOccluder, PointLight};
+
 /// Placement of an entity: scale, then rotation, then translation.
 #[derive(Component, Clone, Copy, Debug, PartialEq)]
 pub struct Transform {
@@ -166,83 +168,5 @@ impl Camera {
     pub fn from_transform(t: &Transform, vfov_degrees: f32) -> Self {
         let forward = t.rotation * Vec3::NEG_Z;
         Camera { eye: t.translation, target: t.translation + forward, up: t.rotation * Vec3::Y, vfov_degrees }
-    }
-}
-
-/// RTGU's ambient occluder (Suffern ch. 17) as a light: it adds
-/// `ka·cd·ls·color·(min_amount + (1 − min_amount)·AO)` with AO = (1/π)∫V(ω) cos θ dω.
-#[derive(Component, Clone, Copy, Debug, PartialEq)]
-pub struct AmbientOccluder {
-    /// Radiance scale.
-    pub ls: f32,
-    /// Light colour (linear RGB).
-    pub color: Vec3,
-    /// Fraction of light still received from occluded directions, in [0, 1].
-    pub min_amount: f32,
-    /// Occluders farther than this do not count (∞ for classic AO).
-    pub max_distance: f32,
-    /// Directions are sampled with density ∝ cos^e θ; the estimate is weighted to stay
-    /// unbiased for every e ≥ 0 (e = 1 is cosine sampling, the lowest-variance choice).
-    pub exponent: f32,
-}
-
-impl Default for AmbientOccluder {
-    fn default() -> Self {
-        AmbientOccluder { ls: 1.0, color: Vec3::ONE, min_amount: 0.0, max_distance: f32::INFINITY, exponent: 1.0 }
-    }
-}
-
-/// A point light at the entity's translation.
-#[derive(Component, Clone, Copy, Debug, PartialEq)]
-#[require(Transform)]
-pub struct PointLight {
-    /// Intensity scale.
-    pub ls: f32,
-    /// Light colour (linear RGB).
-    pub color: Vec3,
-    /// Trace a shadow ray for every lit point.
-    pub shadows: bool,
-    /// Divide by the squared distance (physical falloff); RTGU's default has none.
-    pub falloff: bool,
-}
-
-impl Default for PointLight {
-    fn default() -> Self {
-        PointLight { ls: 1.0, color: Vec3::ONE, shadows: true, falloff: true }
-    }
-}
-
-impl AmbientOccluder {
-    /// A one-line description of the first unusable parameter.
-    pub fn validate(&self) -> Result<(), String> {
-        if !(self.ls.is_finite() && self.ls >= 0.0 && self.color.is_finite() && self.color.min_element() >= 0.0) {
-            return Err(format!(
-                "ambient occluder ls {} color {} must be finite and non-negative",
-                self.ls, self.color
-            ));
-        }
-        if !(0.0..=1.0).contains(&self.min_amount) {
-            return Err(format!("ambient occluder min_amount {} is outside [0, 1]", self.min_amount));
-        }
-        if self.max_distance.is_nan() || self.max_distance <= 0.0 {
-            return Err(format!("ambient occluder max_distance {} must be positive (∞ allowed)", self.max_distance));
-        }
-        if !(self.exponent.is_finite() && self.exponent >= 0.0) {
-            return Err(format!("ambient occluder exponent {} must be finite and non-negative", self.exponent));
-        }
-        Ok(())
-    }
-}
-
-impl PointLight {
-    /// A one-line description of the first unusable parameter, given the light's position.
-    pub fn validate(&self, position: Vec3) -> Result<(), String> {
-        if !(self.ls.is_finite() && self.ls >= 0.0 && self.color.is_finite() && self.color.min_element() >= 0.0) {
-            return Err(format!("point light ls {} color {} must be finite and non-negative", self.ls, self.color));
-        }
-        if !position.is_finite() {
-            return Err(format!("point light position {position} is not finite"));
-        }
-        Ok(())
     }
 }

@@ -15,6 +15,8 @@ pub mod components;
 pub mod error;
 pub mod film;
 pub mod geometry;
+pub mod light;
+pub mod lights;
 pub mod math;
 pub mod renderer;
 pub mod resources;
@@ -38,16 +40,18 @@ pub mod prelude {
             AmbientOccluder, Camera, Cuboid, Matte, Mesh, Plane, PointLight, Sphere, Transform, TriangleMesh,
         },
         error::HemiError,
+        light::{Light, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term},
         resources::{Image, RenderSettings},
         sampling::SamplerKind,
         stats::FrameStats,
         systems::FrameStage,
     };
     pub use bevy_ecs::{
+        component::Component,
         entity::Entity,
         name::Name,
         query::{With, Without},
         world::World,
     };
-    pub use glam::{Quat, Vec3};
+    pub use glam::{Quat, Vec2, Vec3, Vec3A};
 }

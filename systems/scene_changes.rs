@@ -6,7 +6,8 @@ use std::time::Instant;
 use bevy_ecs::{prelude::*, system::SystemParam};
 
 use crate::{
-    components::{AmbientOccluder, Camera, Cuboid, Matte, Plane, PointLight, Sphere, Transform, TriangleMesh},
+    components::{Camera, Cuboid, Matte, Plane, Sphere, Transform, TriangleMesh},
+    light::LightRegistry,
     resources::{Accumulation, RenderSettings, SceneProblems},
     stats::FrameStats,
 };
@@ -19,11 +20,10 @@ type SceneChanged = Or<(
     Changed<TriangleMesh>,
     Changed<Matte>,
     Changed<Camera>,
-    Changed<AmbientOccluder>,
-    Changed<PointLight>,
 )>;
 
-/// Removals of any scene component (including despawns) since the last frame.
+/// Removals of any scene component (including despawns) since the last frame. Lights are
+/// watched by the systems their registration adds ([`crate::light::register_light`]).
 #[derive(SystemParam)]
 pub struct SceneRemovals<'w, 's> {
     transform: RemovedComponents<'w, 's, Transform>,
@@ -33,8 +33,6 @@ pub struct SceneRemovals<'w, 's> {
     mesh: RemovedComponents<'w, 's, TriangleMesh>,
     matte: RemovedComponents<'w, 's, Matte>,
     camera: RemovedComponents<'w, 's, Camera>,
-    occluder: RemovedComponents<'w, 's, AmbientOccluder>,
-    light: RemovedComponents<'w, 's, PointLight>,
 }
 
 impl SceneRemovals<'_, '_> {
@@ -48,8 +46,6 @@ impl SceneRemovals<'_, '_> {
             self.mesh.read().count(),
             self.matte.read().count(),
             self.camera.read().count(),
-            self.occluder.read().count(),
-            self.light.read().count(),
         ];
         counts.iter().any(|&c| c > 0)
     }
@@ -62,8 +58,7 @@ pub fn detect_scene_changes(
     mut removed: SceneRemovals,
     settings: Res<RenderSettings>,
     cameras: Query<&Camera>,
-    occluders: Query<&AmbientOccluder>,
-    lights: Query<(&PointLight, &Transform)>,
+    mut lights: ResMut<LightRegistry>,
     mut accumulation: ResMut<Accumulation>,
     mut problems: ResMut<SceneProblems>,
     mut stats: ResMut<FrameStats>,
@@ -71,9 +66,10 @@ pub fn detect_scene_changes(
     let start = Instant::now();
     let removed_any = removed.any();
     let resized = accumulation.width != settings.width || accumulation.height != settings.height;
-    let dirty = !changed.is_empty() || removed_any || settings.is_changed() || resized;
+    let lights_changed = lights.take_changed();
+    let dirty = !changed.is_empty() || removed_any || lights_changed || settings.is_changed() || resized;
     if dirty {
-        problems.view = validate_view(&settings, &cameras, &occluders, &lights);
+        problems.view = validate_view(&settings, &cameras, &lights);
         // Never allocate for settings that were refused (e.g. an absurd image size).
         match settings.validate() {
             Ok(()) => accumulation.reset(settings.width, settings.height),
@@ -84,12 +80,7 @@ pub fn detect_scene_changes(
     stats.record("scene_changes", start.elapsed(), note);
 }
 
-fn validate_view(
-    settings: &RenderSettings,
-    cameras: &Query<&Camera>,
-    occluders: &Query<&AmbientOccluder>,
-    lights: &Query<(&PointLight, &Transform)>,
-) -> Vec<String> {
+fn validate_view(settings: &RenderSettings, cameras: &Query<&Camera>, lights: &LightRegistry) -> Vec<String> {
     let mut problems = Vec::new();
     if let Err(e) = settings.validate() {
         problems.push(e);
@@ -100,7 +91,6 @@ fn validate_view(
         n => problems.push(format!("the scene has {n} cameras; exactly one is rendered")),
     }
     problems.extend(cameras.iter().filter_map(|c| c.validate().err()));
-    problems.extend(occluders.iter().filter_map(|o| o.validate().err()));
-    problems.extend(lights.iter().filter_map(|(l, t)| l.validate(t.translation).err()));
+    problems.extend(lights.problems().cloned());
     problems
 }

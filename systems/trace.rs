@@ -1,6 +1,6 @@
 //! Stage 4: traces this frame's samples, tile-parallel with rayon. Each pixel sample is a
-//! primary ray, one AO ray per occluder and one shadow ray per point light that can light the
-//! point; every random number comes from (pixel, sample index, dimension), so the image does
+//! primary ray, then every registered light group shades the hit (one AO ray per occluder, one
+//! shadow ray per light that can light the point); every random number comes from (pixel, sample index, dimension), so the image does
 //! not depend on tile order or thread count.
 
 use std::time::Instant;
@@ -11,11 +11,12 @@ use rayon::prelude::*;
 
 use crate::{
     camera::PinholeRays,
-    components::{AmbientOccluder, Camera, PointLight, Transform},
+    components::Camera,
     geometry::SceneGeometry,
+    light::{LightGroup, LightRegistry},
     resources::{Accumulation, FrameSamples, RenderSettings, SceneProblems},
     sampling::{SampleSets, dims},
-    shading::{LightSample, RayCounts, Scene, Tracer},
+    shading::{RayCounts, Scene, Tracer},
     stats::FrameStats,
 };
 
@@ -45,8 +46,7 @@ pub fn trace(
     problems: Res<SceneProblems>,
     accumulation: Res<Accumulation>,
     cameras: Query<&Camera>,
-    occluders: Query<(Entity, &AmbientOccluder)>,
-    lights: Query<(Entity, &PointLight, &Transform)>,
+    lights: Res<LightRegistry>,
     mut frame: ResMut<FrameSamples>,
     mut stats: ResMut<FrameStats>,
 ) {
@@ -63,16 +63,9 @@ pub fn trace(
         return;
     };
 
-    // Entity order fixes which sample dimension each occluder uses.
-    let mut occ: Vec<(Entity, AmbientOccluder)> = occluders.iter().map(|(e, o)| (e, *o)).collect();
-    occ.sort_by_key(|o| o.0);
-    let occ: Vec<AmbientOccluder> = occ.into_iter().map(|o| o.1).collect();
-    let mut lit: Vec<(Entity, LightSample)> =
-        lights.iter().filter_map(|(e, l, t)| LightSample::new(l, t.translation).map(|s| (e, s))).collect();
-    lit.sort_by_key(|l| l.0);
-    let lit: Vec<LightSample> = lit.into_iter().map(|l| l.1).collect();
-    let scene =
-        Scene { geometry: &geometry, occluders: &occ, lights: &lit, sets: &sets, background: settings.background };
+    // Registration order, then entity order, fixes which sample dimensions each light uses.
+    let groups: Vec<(u32, &dyn LightGroup)> = lights.groups().filter(|(_, g)| g.count() > 0).collect();
+    let scene = Scene { geometry: &geometry, lights: &groups, sets: &sets, background: settings.background };
 
     let first = accumulation.spp;
     let tiles = tiles(settings.width, settings.height, settings.tile_size);
@@ -95,7 +88,7 @@ pub fn trace(
     }
     stats.rays = rays;
     stats.samples_traced = count;
-    let note = format!("{} tiles, {count} spp, {} occluders, {} lights", tiles.len(), occ.len(), lit.len());
+    let note = format!("{} tiles, {count} spp, {}", tiles.len(), lights.summary());
     stats.record("trace", start.elapsed(), note);
 }
 

@@ -21,8 +21,11 @@ use hash::{SplitMix64, hash_sample, permute};
 pub mod dims {
     /// Sub-pixel position of the primary ray.
     pub const PIXEL: u32 = 0;
-    /// First AO direction; occluder `k` uses `AO + k`.
-    pub const AO: u32 = 1;
+    /// Lens position of a thin-lens camera.
+    pub const LENS: u32 = 1;
+    /// First light dimension: lights take theirs from here on, in registration order, then
+    /// entity order (see [`crate::light`]).
+    pub const LIGHTS: u32 = 2;
 }
 
 /// Precomputed sets of 2-D sample points for one sampler kind and set size.
@@ -121,7 +124,7 @@ mod tests {
             for pass in 0..3 {
                 let mut cells = [0; 16];
                 for j in 0..16 {
-                    let p = sets.sample(pixel, pass * 16 + j, dims::AO);
+                    let p = sets.sample(pixel, pass * 16 + j, dims::LIGHTS);
                     cells[(p.y * 4.0) as usize * 4 + (p.x * 4.0) as usize] += 1;
                 }
                 assert!(cells.iter().all(|&c| c == 1));
