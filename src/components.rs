@@ -6,7 +6,7 @@ use std::sync::Arc;
 use bevy_ecs::prelude::Component;
 use glam::{Affine3A, Quat, Vec3};
 
-pub use crate::lights::{AmbientOccluder, PointLight};
+pub use crate::lights::{AmbientOccluder, DirectionalLight, DiskLight, PointLight, SpotLight};
 
 /// Placement of an entity: scale, then rotation, then translation.
 #[derive(Component, Clone, Copy, Debug, PartialEq)]
@@ -42,6 +42,18 @@ impl Transform {
     /// This transform with its rotation replaced.
     pub fn with_rotation(self, rotation: Quat) -> Self {
         Transform { rotation, ..self }
+    }
+
+    /// This transform rotated so that its local −Z axis, where cameras look and lights shine,
+    /// points along `dir` (a zero or non-finite `dir` gives a NaN rotation, refused by validation).
+    pub fn facing(self, dir: Vec3) -> Self {
+        Transform { rotation: Quat::from_rotation_arc(Vec3::NEG_Z, dir.normalize()), ..self }
+    }
+
+    /// The unit direction of the local −Z axis (glTF's light and camera direction), or zero
+    /// when the rotation is degenerate or not finite.
+    pub fn forward(&self) -> Vec3 {
+        (self.rotation * Vec3::NEG_Z).normalize_or_zero()
     }
 
     /// This transform with a uniform scale.

@@ -37,7 +37,8 @@ pub mod prelude {
     pub use crate::{
         Renderer,
         components::{
-            AmbientOccluder, Camera, Cuboid, Matte, Mesh, Plane, PointLight, Sphere, Transform, TriangleMesh,
+            AmbientOccluder, Camera, Cuboid, DirectionalLight, DiskLight, Matte, Mesh, Plane, PointLight, Sphere,
+            SpotLight, Transform, TriangleMesh,
         },
         error::HemiError,
         light::{Light, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term},

@@ -9,7 +9,7 @@ use crate::{
     film,
     geometry::SceneGeometry,
     light::{Light, register_light},
-    lights::{AmbientOccluder, PointLight},
+    lights::{AmbientOccluder, DirectionalLight, DiskLight, PointLight, SpotLight},
     resources::{Accumulation, FrameSamples, Image, RenderSettings, SceneProblems},
     sampling::SampleSets,
     scene::{DEFAULT_BACKGROUND, spawn_default_scene},
@@ -49,7 +49,11 @@ impl Renderer {
         world.init_resource::<SceneProblems>();
         world.init_resource::<FrameStats>();
         let mut r = Renderer { world, schedule: frame_schedule(), pool: None, frames: 0 };
-        r.add_light::<AmbientOccluder>().add_light::<PointLight>();
+        r.add_light::<AmbientOccluder>()
+            .add_light::<PointLight>()
+            .add_light::<DirectionalLight>()
+            .add_light::<SpotLight>()
+            .add_light::<DiskLight>();
         r
     }
 
