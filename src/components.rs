@@ -182,3 +182,39 @@ impl Camera {
         Camera { eye: t.translation, target: t.translation + forward, up: t.rotation * Vec3::Y, vfov_degrees }
     }
 }
+
+/// A thin-lens camera (Suffern ch. 10, pbrt-v4 §5.2.3): a [`Camera`] whose rays start on a
+/// lens disk of `lens_radius` (sampled with the concentric mapping) and pass through the
+/// pinhole ray's point on the focal plane, `focal_distance` ahead and perpendicular to the
+/// view direction. Points on that plane stay sharp. A point at depth d (distance along the
+/// view direction) is seen by the film points x = p·f/d + l·(1 − f/d) for lens points l, a
+/// disk on the focal plane of diameter `c = 2·lens_radius·|d − f|/d` — the circle of
+/// confusion — that is `c·H / (2·f·tan(vfov/2))` pixels for an image `H` pixels high.
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+pub struct ThinLensCamera {
+    /// Centre of the lens.
+    pub eye: Vec3,
+    /// Point the camera looks at.
+    pub target: Vec3,
+    /// Approximate up direction.
+    pub up: Vec3,
+    /// Vertical field of view in degrees, in (0, 180).
+    pub vfov_degrees: f32,
+    /// Radius of the lens aperture (0: a pinhole).
+    pub lens_radius: f32,
+    /// Depth of the plane in focus, along the view direction.
+    pub focal_distance: f32,
+}
+
+impl ThinLensCamera {
+    /// A thin-lens camera at `eye` looking at, and focused on, `target`, with +Y up.
+    pub fn look_at(eye: Vec3, target: Vec3, vfov_degrees: f32, lens_radius: f32) -> Self {
+        let focal_distance = (target - eye).length();
+        ThinLensCamera { eye, target, up: Vec3::Y, vfov_degrees, lens_radius, focal_distance }
+    }
+
+    /// The pinhole camera with the same view.
+    pub fn pinhole(&self) -> Camera {
+        Camera { eye: self.eye, target: self.target, up: self.up, vfov_degrees: self.vfov_degrees }
+    }
+}

@@ -38,7 +38,7 @@ pub mod prelude {
         Renderer,
         components::{
             AmbientOccluder, Camera, Cuboid, DirectionalLight, DiskLight, Matte, Mesh, Plane, PointLight, Sphere,
-            SpotLight, Transform, TriangleMesh,
+            SpotLight, ThinLensCamera, Transform, TriangleMesh,
         },
         error::HemiError,
         light::{Light, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term},

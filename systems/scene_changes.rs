@@ -6,7 +6,7 @@ use std::time::Instant;
 use bevy_ecs::{prelude::*, system::SystemParam};
 
 use crate::{
-    components::{Camera, Cuboid, Matte, Plane, Sphere, Transform, TriangleMesh},
+    components::{Camera, Cuboid, Matte, Plane, Sphere, ThinLensCamera, Transform, TriangleMesh},
     light::LightRegistry,
     resources::{Accumulation, RenderSettings, SceneProblems},
     stats::FrameStats,
@@ -20,6 +20,7 @@ type SceneChanged = Or<(
     Changed<TriangleMesh>,
     Changed<Matte>,
     Changed<Camera>,
+    Changed<ThinLensCamera>,
 )>;
 
 /// Removals of any scene component (including despawns) since the last frame. Lights are
@@ -33,6 +34,7 @@ pub struct SceneRemovals<'w, 's> {
     mesh: RemovedComponents<'w, 's, TriangleMesh>,
     matte: RemovedComponents<'w, 's, Matte>,
     camera: RemovedComponents<'w, 's, Camera>,
+    lens: RemovedComponents<'w, 's, ThinLensCamera>,
 }
 
 impl SceneRemovals<'_, '_> {
@@ -46,6 +48,7 @@ impl SceneRemovals<'_, '_> {
             self.mesh.read().count(),
             self.matte.read().count(),
             self.camera.read().count(),
+            self.lens.read().count(),
         ];
         counts.iter().any(|&c| c > 0)
     }
@@ -58,6 +61,7 @@ pub fn detect_scene_changes(
     mut removed: SceneRemovals,
     settings: Res<RenderSettings>,
     cameras: Query<&Camera>,
+    lenses: Query<&ThinLensCamera>,
     mut lights: ResMut<LightRegistry>,
     mut accumulation: ResMut<Accumulation>,
     mut problems: ResMut<SceneProblems>,
@@ -69,7 +73,7 @@ pub fn detect_scene_changes(
     let lights_changed = lights.take_changed();
     let dirty = !changed.is_empty() || removed_any || lights_changed || settings.is_changed() || resized;
     if dirty {
-        problems.view = validate_view(&settings, &cameras, &lights);
+        problems.view = validate_view(&settings, &cameras, &lenses, &lights);
         // Never allocate for settings that were refused (e.g. an absurd image size).
         match settings.validate() {
             Ok(()) => accumulation.reset(settings.width, settings.height),
@@ -80,17 +84,23 @@ pub fn detect_scene_changes(
     stats.record("scene_changes", start.elapsed(), note);
 }
 
-fn validate_view(settings: &RenderSettings, cameras: &Query<&Camera>, lights: &LightRegistry) -> Vec<String> {
+fn validate_view(
+    settings: &RenderSettings,
+    cameras: &Query<&Camera>,
+    lenses: &Query<&ThinLensCamera>,
+    lights: &LightRegistry,
+) -> Vec<String> {
     let mut problems = Vec::new();
     if let Err(e) = settings.validate() {
         problems.push(e);
     }
-    match cameras.iter().count() {
+    match cameras.iter().count() + lenses.iter().count() {
         0 => problems.push("the scene has no Camera".into()),
         1 => {}
         n => problems.push(format!("the scene has {n} cameras; exactly one is rendered")),
     }
     problems.extend(cameras.iter().filter_map(|c| c.validate().err()));
+    problems.extend(lenses.iter().filter_map(|c| c.validate().err()));
     problems.extend(lights.problems().cloned());
     problems
 }

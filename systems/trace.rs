@@ -6,12 +6,12 @@
 use std::time::Instant;
 
 use bevy_ecs::prelude::*;
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 use crate::{
-    camera::PinholeRays,
-    components::Camera,
+    camera::{ActiveCamera, CameraRays},
+    components::{Camera, ThinLensCamera},
     geometry::SceneGeometry,
     light::{LightGroup, LightRegistry},
     resources::{Accumulation, FrameSamples, RenderSettings, SceneProblems},
@@ -46,6 +46,7 @@ pub fn trace(
     problems: Res<SceneProblems>,
     accumulation: Res<Accumulation>,
     cameras: Query<&Camera>,
+    lenses: Query<&ThinLensCamera>,
     lights: Res<LightRegistry>,
     mut frame: ResMut<FrameSamples>,
     mut stats: ResMut<FrameStats>,
@@ -53,7 +54,7 @@ pub fn trace(
     let start = Instant::now();
     let remaining = settings.max_spp.map_or(u32::MAX, |max| max.saturating_sub(accumulation.spp));
     let count = settings.samples_per_frame.min(remaining);
-    let camera = cameras.single().ok().and_then(|c| PinholeRays::new(c, settings.width, settings.height).ok());
+    let camera = ActiveCamera::find(&cameras, &lenses, settings.width, settings.height);
     let (Some(camera), None, true) = (camera, problems.first(), count > 0) else {
         if frame.samples_per_pixel != 0 {
             frame.samples_per_pixel = 0;
@@ -69,8 +70,13 @@ pub fn trace(
 
     let first = accumulation.spp;
     let tiles = tiles(settings.width, settings.height, settings.tile_size);
-    let results: Vec<TileResult> =
-        tiles.par_iter().map(|tile| trace_tile(&scene, &camera, *tile, settings.width, first, count)).collect();
+    let width = settings.width;
+    let results: Vec<TileResult> = match camera {
+        ActiveCamera::Pinhole(c) => tiles.par_iter().map(|t| trace_tile(&scene, &c, *t, width, first, count)).collect(),
+        ActiveCamera::ThinLens(c) => {
+            tiles.par_iter().map(|t| trace_tile(&scene, &c, *t, width, first, count)).collect()
+        }
+    };
 
     let frame = &mut *frame;
     frame.sums.resize(settings.pixel_count(), Vec3::ZERO);
@@ -103,7 +109,7 @@ fn tiles(width: u32, height: u32, size: u32) -> Vec<Tile> {
     tiles
 }
 
-fn trace_tile(scene: &Scene, camera: &PinholeRays, tile: Tile, width: u32, first: u32, count: u32) -> TileResult {
+fn trace_tile<C: CameraRays>(scene: &Scene, camera: &C, tile: Tile, width: u32, first: u32, count: u32) -> TileResult {
     let mut tracer = Tracer::default();
     let mut nonfinite = 0;
     let mut sums = Vec::with_capacity(((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize);
@@ -112,7 +118,8 @@ fn trace_tile(scene: &Scene, camera: &PinholeRays, tile: Tile, width: u32, first
             let pixel = y * width + x;
             let mut sum = Vec3::ZERO;
             for index in first..first + count {
-                let ray = camera.ray(x, y, scene.sets.sample(pixel, index, dims::PIXEL));
+                let lens = if C::USES_LENS { scene.sets.sample(pixel, index, dims::LENS) } else { Vec2::ZERO };
+                let ray = camera.ray(x, y, scene.sets.sample(pixel, index, dims::PIXEL), lens);
                 let l = tracer.radiance(scene, &ray, pixel, index);
                 if l.is_finite() {
                     sum += l;
