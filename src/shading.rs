@@ -6,7 +6,7 @@ use glam::Vec3;
 
 use crate::{
     geometry::{Ray, SceneGeometry, SurfaceHit},
-    light::{LightGroup, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term},
+    light::{LightGroup, LightSamples, PlacedLight, ShadingPoint, Shadow, Term},
     sampling::SampleSets,
 };
 
@@ -60,7 +60,7 @@ const SHADOW_EPSILON: f32 = 1e-4;
 
 impl Tracer {
     /// Radiance along one camera ray for sample `index` of `pixel`.
-    #[inline]
+    #[inline(always)]
     pub fn radiance(&mut self, scene: &Scene, ray: &Ray, pixel: u32, index: u32) -> Vec3 {
         self.rays.primary += 1;
         let Some(hit) = scene.geometry.intersect(ray, &mut self.stack) else {
@@ -98,20 +98,25 @@ impl Tracer {
         for light in lights {
             let u = LightSamples::from_sets(scene.sets, pixel, index, dim, P::DIMS);
             dim += P::DIMS;
-            if let Some(s) = light.sample(at, &u) {
-                sum += if self.visible(scene, hit, &s, P::TERM) { s.unoccluded } else { s.occluded };
-            }
+            let Some(s) = light.sample(at, &u) else { continue };
+            sum += match s.shadow {
+                // A shadow ray only when its answer changes the result.
+                Some(shadow) if s.unoccluded != s.occluded => {
+                    if self.blocked(scene, hit, shadow, P::TERM) {
+                        s.occluded
+                    } else {
+                        s.unoccluded
+                    }
+                }
+                _ => s.unoccluded,
+            };
         }
         reflectance * sum
     }
 
-    /// Whether the sample's shadow segment is clear; traces it only when the answer matters.
+    /// Traces a shadow segment from the hit, counted by the light's term; true if blocked.
     #[inline]
-    fn visible(&mut self, scene: &Scene, hit: &SurfaceHit, s: &LightSample, term: Term) -> bool {
-        let Some(shadow) = s.shadow else { return true };
-        if s.unoccluded == s.occluded {
-            return true;
-        }
+    fn blocked(&mut self, scene: &Scene, hit: &SurfaceHit, shadow: Shadow, term: Term) -> bool {
         let ray = match shadow {
             Shadow::ToPoint(q) => {
                 let origin = hit.spawn_origin(q - hit.p);
@@ -123,6 +128,6 @@ impl Tracer {
             Term::Ambient => self.rays.ao += 1,
             Term::Diffuse => self.rays.shadow += 1,
         }
-        !scene.geometry.occluded(&ray, &mut self.stack)
+        scene.geometry.occluded(&ray, &mut self.stack)
     }
 }
