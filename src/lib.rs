@@ -1,10 +1,13 @@
 //! # hemi
 //!
-//! Ambient occlusion plus direct point-light illumination by CPU ray tracing, structured as a
-//! bevy_ecs world whose systems run once per frame (see [`systems`]):
+//! Ambient occlusion plus direct illumination by CPU ray tracing, structured as a bevy_ecs
+//! world whose systems run once per frame (see [`systems`]):
 //! scene changes → BVH → sample sets → trace → accumulate → resolve.
 //!
-//! Scene objects, the camera, the ambient occluder and point lights are ECS components
+//! Lights are an extension point ([`light`]): hemi's own ([`lights`]) are written exactly as a
+//! user's would be and registered through the same [`Renderer::add_light`] call.
+//!
+//! Scene objects, the camera, the ambient occluder and lights are ECS components
 //! ([`components`]); spawn them into a [`Renderer`]'s world and call
 //! [`Renderer::run_frame`] as often as you like. A static scene converges progressively;
 //! any change to an entity or to the settings restarts accumulation automatically.
