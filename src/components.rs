@@ -6,6 +6,8 @@ use std::sync::Arc;
 use bevy_ecs::prelude::Component;
 use glam::{Affine3A, Quat, Vec3};
 
+pub use crate::lights::{AmbientOccluder, DirectionalLight, DiskLight, PointLight, SpotLight};
+
 /// Placement of an entity: scale, then rotation, then translation.
 #[derive(Component, Clone, Copy, Debug, PartialEq)]
 pub struct Transform {
@@ -40,6 +42,18 @@ impl Transform {
     /// This transform with its rotation replaced.
     pub fn with_rotation(self, rotation: Quat) -> Self {
         Transform { rotation, ..self }
+    }
+
+    /// This transform rotated so that its local −Z axis, where cameras look and lights shine,
+    /// points along `dir` (a zero or non-finite `dir` gives a NaN rotation, refused by validation).
+    pub fn facing(self, dir: Vec3) -> Self {
+        Transform { rotation: Quat::from_rotation_arc(Vec3::NEG_Z, dir.normalize()), ..self }
+    }
+
+    /// The unit direction of the local −Z axis (glTF's light and camera direction), or zero
+    /// when the rotation is degenerate or not finite.
+    pub fn forward(&self) -> Vec3 {
+        (self.rotation * Vec3::NEG_Z).normalize_or_zero()
     }
 
     /// This transform with a uniform scale.
@@ -222,80 +236,38 @@ impl OrthographicCamera {
     }
 }
 
-/// RTGU's ambient occluder (Suffern ch. 17) as a light: it adds
-/// `ka·cd·ls·color·(min_amount + (1 − min_amount)·AO)` with AO = (1/π)∫V(ω) cos θ dω.
+/// A thin-lens camera (Suffern ch. 10, pbrt-v4 §5.2.3): a [`Camera`] whose rays start on a
+/// lens disk of `lens_radius` (sampled with the concentric mapping) and pass through the
+/// pinhole ray's point on the focal plane, `focal_distance` ahead and perpendicular to the
+/// view direction. Points on that plane stay sharp. A point at depth d (distance along the
+/// view direction) is seen by the film points x = p·f/d + l·(1 − f/d) for lens points l, a
+/// disk on the focal plane of diameter `c = 2·lens_radius·|d − f|/d` — the circle of
+/// confusion — that is `c·H / (2·f·tan(vfov/2))` pixels for an image `H` pixels high.
 #[derive(Component, Clone, Copy, Debug, PartialEq)]
-pub struct AmbientOccluder {
-    /// Radiance scale.
-    pub ls: f32,
-    /// Light colour (linear RGB).
-    pub color: Vec3,
-    /// Fraction of light still received from occluded directions, in [0, 1].
-    pub min_amount: f32,
-    /// Occluders farther than this do not count (∞ for classic AO).
-    pub max_distance: f32,
-    /// Directions are sampled with density ∝ cos^e θ; the estimate is weighted to stay
-    /// unbiased for every e ≥ 0 (e = 1 is cosine sampling, the lowest-variance choice).
-    pub exponent: f32,
+pub struct ThinLensCamera {
+    /// Centre of the lens.
+    pub eye: Vec3,
+    /// Point the camera looks at.
+    pub target: Vec3,
+    /// Approximate up direction.
+    pub up: Vec3,
+    /// Vertical field of view in degrees, in (0, 180).
+    pub vfov_degrees: f32,
+    /// Radius of the lens aperture (0: a pinhole).
+    pub lens_radius: f32,
+    /// Depth of the plane in focus, along the view direction.
+    pub focal_distance: f32,
 }
 
-impl Default for AmbientOccluder {
-    fn default() -> Self {
-        AmbientOccluder { ls: 1.0, color: Vec3::ONE, min_amount: 0.0, max_distance: f32::INFINITY, exponent: 1.0 }
+impl ThinLensCamera {
+    /// A thin-lens camera at `eye` looking at, and focused on, `target`, with +Y up.
+    pub fn look_at(eye: Vec3, target: Vec3, vfov_degrees: f32, lens_radius: f32) -> Self {
+        let focal_distance = (target - eye).length();
+        ThinLensCamera { eye, target, up: Vec3::Y, vfov_degrees, lens_radius, focal_distance }
     }
-}
 
-/// A point light at the entity's translation.
-#[derive(Component, Clone, Copy, Debug, PartialEq)]
-#[require(Transform)]
-pub struct PointLight {
-    /// Intensity scale.
-    pub ls: f32,
-    /// Light colour (linear RGB).
-    pub color: Vec3,
-    /// Trace a shadow ray for every lit point.
-    pub shadows: bool,
-    /// Divide by the squared distance (physical falloff); RTGU's default has none.
-    pub falloff: bool,
-}
-
-impl Default for PointLight {
-    fn default() -> Self {
-        PointLight { ls: 1.0, color: Vec3::ONE, shadows: true, falloff: true }
-    }
-}
-
-impl AmbientOccluder {
-    /// A one-line description of the first unusable parameter.
-    pub fn validate(&self) -> Result<(), String> {
-        if !(self.ls.is_finite() && self.ls >= 0.0 && self.color.is_finite() && self.color.min_element() >= 0.0) {
-            return Err(format!(
-                "ambient occluder ls {} color {} must be finite and non-negative",
-                self.ls, self.color
-            ));
-        }
-        if !(0.0..=1.0).contains(&self.min_amount) {
-            return Err(format!("ambient occluder min_amount {} is outside [0, 1]", self.min_amount));
-        }
-        if self.max_distance.is_nan() || self.max_distance <= 0.0 {
-            return Err(format!("ambient occluder max_distance {} must be positive (∞ allowed)", self.max_distance));
-        }
-        if !(self.exponent.is_finite() && self.exponent >= 0.0) {
-            return Err(format!("ambient occluder exponent {} must be finite and non-negative", self.exponent));
-        }
-        Ok(())
-    }
-}
-
-impl PointLight {
-    /// A one-line description of the first unusable parameter, given the light's position.
-    pub fn validate(&self, position: Vec3) -> Result<(), String> {
-        if !(self.ls.is_finite() && self.ls >= 0.0 && self.color.is_finite() && self.color.min_element() >= 0.0) {
-            return Err(format!("point light ls {} color {} must be finite and non-negative", self.ls, self.color));
-        }
-        if !position.is_finite() {
-            return Err(format!("point light position {position} is not finite"));
-        }
-        Ok(())
+    /// The pinhole camera with the same view.
+    pub fn pinhole(&self) -> Camera {
+        Camera { eye: self.eye, target: self.target, up: self.up, vfov_degrees: self.vfov_degrees }
     }
 }

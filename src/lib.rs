@@ -1,10 +1,13 @@
 //! # hemi
 //!
-//! Ambient occlusion plus direct point-light illumination by CPU ray tracing, structured as a
-//! bevy_ecs world whose systems run once per frame (see [`systems`]):
+//! Ambient occlusion plus direct illumination by CPU ray tracing, structured as a bevy_ecs
+//! world whose systems run once per frame (see [`systems`]):
 //! scene changes → BVH → sample sets → trace → accumulate → resolve.
 //!
-//! Scene objects, the camera, the ambient occluder and point lights are ECS components
+//! Lights are an extension point ([`light`]): hemi's own ([`lights`]) are written exactly as a
+//! user's would be and registered through the same [`Renderer::add_light`] call.
+//!
+//! Scene objects, the camera, the ambient occluder and lights are ECS components
 //! ([`components`]); spawn them into a [`Renderer`]'s world and call
 //! [`Renderer::run_frame`] as often as you like. A static scene converges progressively;
 //! any change to an entity or to the settings restarts accumulation automatically.
@@ -18,10 +21,11 @@ pub mod convergence;
 pub mod error;
 pub mod film;
 pub mod geometry;
+pub mod light;
+pub mod lights;
 pub mod math;
 pub mod npy;
 pub mod plot;
-pub mod projection;
 pub mod renderer;
 pub mod resources;
 pub mod sampling;
@@ -41,20 +45,22 @@ pub mod prelude {
     pub use crate::{
         Renderer,
         components::{
-            AmbientOccluder, Camera, Cuboid, Deforming, Matte, Mesh, OrthographicCamera, Plane, PointLight, Sphere,
-            Transform, TriangleMesh,
+            AmbientOccluder, Camera, Cuboid, Deforming, DirectionalLight, DiskLight, Matte, Mesh, OrthographicCamera,
+            Plane, PointLight, Sphere, SpotLight, ThinLensCamera, Transform, TriangleMesh,
         },
         error::HemiError,
+        light::{Light, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term},
         resources::{Image, RenderSettings, Time},
         sampling::SamplerKind,
         stats::FrameStats,
         systems::FrameStage,
     };
     pub use bevy_ecs::{
+        component::Component,
         entity::Entity,
         name::Name,
         query::{With, Without},
         world::World,
     };
-    pub use glam::{Quat, Vec3};
+    pub use glam::{Quat, Vec2, Vec3, Vec3A};
 }

@@ -8,6 +8,8 @@ use crate::{
     error::HemiError,
     film,
     geometry::SceneGeometry,
+    light::{Light, register_light},
+    lights::{AmbientOccluder, DirectionalLight, DiskLight, PointLight, SpotLight},
     resources::{Accumulation, FrameSamples, Image, RenderSettings, SceneProblems, Time},
     sampling::SampleSets,
     scene::{DEFAULT_BACKGROUND, spawn_default_scene},
@@ -46,7 +48,22 @@ impl Renderer {
         world.init_resource::<Image>();
         world.init_resource::<SceneProblems>();
         world.init_resource::<FrameStats>();
-        Renderer { world, schedule: frame_schedule(), pool: None, frames: 0 }
+        let mut r = Renderer { world, schedule: frame_schedule(), pool: None, frames: 0 };
+        r.add_light::<AmbientOccluder>()
+            .add_light::<PointLight>()
+            .add_light::<DirectionalLight>()
+            .add_light::<SpotLight>()
+            .add_light::<DiskLight>();
+        r
+    }
+
+    /// Registers a light component type: from the next frame on, its entities are validated,
+    /// placed and traced, and adding, changing or removing one restarts accumulation.
+    /// Registering a type twice does nothing. Lights take their sample dimensions in
+    /// registration order, so register in the same order for the same image.
+    pub fn add_light<L: Light>(&mut self) -> &mut Self {
+        register_light::<L>(&mut self.world, &mut self.schedule);
+        self
     }
 
     /// The built-in default scene with these settings (its sky replaces the background).

@@ -1,15 +1,13 @@
-//! The per-sample integrator: ambient occlusion (Suffern ch. 17, made unbiased for any
-//! cosine exponent) plus Lambertian direct light from point lights with shadow rays.
+//! The per-sample integrator: a primary ray, then every registered light group at the hit
+//! (see [`crate::light`]). The core knows no light kinds; it applies the reflectance a light
+//! names, traces the shadow rays lights ask for, and counts them.
 
-use std::f32::consts::FRAC_1_PI;
-
-use glam::{Vec3, Vec3A};
+use glam::Vec3;
 
 use crate::{
-    components::{AmbientOccluder, Matte, PointLight},
     geometry::{Ray, SceneGeometry, SurfaceHit},
-    math::Onb,
-    sampling::{SampleSets, dims, warp::cosine_power_hemisphere},
+    light::{LightGroup, LightSamples, PlacedLight, ShadingPoint, Shadow, Term},
+    sampling::SampleSets,
 };
 
 /// Rays traced, by kind.
@@ -17,9 +15,9 @@ use crate::{
 pub struct RayCounts {
     /// Camera rays.
     pub primary: u64,
-    /// Ambient-occlusion visibility rays.
+    /// Visibility rays of ambient-term lights (the ambient occluder).
     pub ao: u64,
-    /// Point-light shadow rays.
+    /// Shadow rays of all other lights.
     pub shadow: u64,
 }
 
@@ -37,40 +35,12 @@ impl RayCounts {
     }
 }
 
-/// A point light resolved to world space.
-#[derive(Clone, Copy, Debug)]
-pub struct LightSample {
-    /// Position.
-    pub position: Vec3A,
-    /// `ls · color`.
-    pub intensity: Vec3,
-    /// Trace shadow rays.
-    pub shadows: bool,
-    /// Apply 1/d².
-    pub falloff: bool,
-}
-
-impl LightSample {
-    /// The light at `position`; `None` when it can never contribute (zero intensity).
-    pub fn new(light: &PointLight, position: Vec3) -> Option<Self> {
-        let intensity = light.color * light.ls;
-        (intensity.max_element() > 0.0).then_some(LightSample {
-            position: position.into(),
-            intensity,
-            shadows: light.shadows,
-            falloff: light.falloff,
-        })
-    }
-}
-
 /// Everything a sample needs to read, shared by all threads.
 pub struct Scene<'a> {
     /// Geometry and materials.
     pub geometry: &'a SceneGeometry,
-    /// Active ambient occluders (empty: no AO rays at all).
-    pub occluders: &'a [AmbientOccluder],
-    /// Lights that can contribute.
-    pub lights: &'a [LightSample],
+    /// Light groups with their first sample dimension, in registration order.
+    pub lights: &'a [(u32, &'a dyn LightGroup)],
     /// Sample sets.
     pub sets: &'a SampleSets,
     /// Radiance of escaped primary rays.
@@ -85,78 +55,79 @@ pub struct Tracer {
     pub rays: RayCounts,
 }
 
-/// pbrt-v4's ShadowEpsilon: shadow rays to a light stop this fraction short of it.
+/// pbrt-v4's ShadowEpsilon: shadow rays to a point stop this fraction short of it.
 const SHADOW_EPSILON: f32 = 1e-4;
 
 impl Tracer {
     /// Radiance along one camera ray for sample `index` of `pixel`.
-    #[inline]
+    #[inline(always)]
     pub fn radiance(&mut self, scene: &Scene, ray: &Ray, pixel: u32, index: u32) -> Vec3 {
         self.rays.primary += 1;
         let Some(hit) = scene.geometry.intersect(ray, &mut self.stack) else {
             return scene.background;
         };
         let material = scene.geometry.objects[hit.object as usize].material;
+        let at = ShadingPoint { p: hit.p, normal: hit.normal, material };
         let mut l = Vec3::ZERO;
-        for (k, occluder) in scene.occluders.iter().enumerate() {
-            l += self.ambient(scene, occluder, &hit, &material, pixel, index, dims::AO + k as u32);
-        }
-        for light in scene.lights {
-            l += self.direct(scene, light, &hit, &material);
+        for &(first_dim, group) in scene.lights {
+            l += group.shade(self, scene, &hit, &at, pixel, index, first_dim);
         }
         l
     }
 
-    /// Ambient occluder term for one sample: ka·cd·ls·c·(min + (1 − min)·V·w).
+    /// Reflected radiance from `lights` (all of one type) at a hit: each light's sample,
+    /// its shadow ray when it can matter, times the reflectance of the light's term.
     #[inline]
     #[allow(clippy::too_many_arguments)]
-    fn ambient(
+    pub(crate) fn shade_lights<P: PlacedLight>(
         &mut self,
         scene: &Scene,
-        occ: &AmbientOccluder,
         hit: &SurfaceHit,
-        m: &Matte,
+        at: &ShadingPoint,
+        lights: &[P],
         pixel: u32,
         index: u32,
-        dim: u32,
+        first_dim: u32,
     ) -> Vec3 {
-        let scale = m.cd * (m.ka * occ.ls) * occ.color;
-        if scale.max_element() <= 0.0 {
+        let reflectance = P::TERM.reflectance(&at.material);
+        if reflectance.max_element() <= 0.0 {
             return Vec3::ZERO;
         }
-        let s = cosine_power_hemisphere(scene.sets.sample(pixel, index, dim), occ.exponent);
-        let mut visible = 0.0;
-        if s.weight > 0.0 {
-            let w = Onb::from_normal(hit.normal.into()).to_world(s.dir);
-            let w = Vec3A::from(w);
-            let ray = Ray::new(hit.spawn_origin(w), w, occ.max_distance);
-            self.rays.ao += 1;
-            if !scene.geometry.occluded(&ray, &mut self.stack) {
-                visible = s.weight;
-            }
+        let mut sum = Vec3::ZERO;
+        let mut dim = first_dim;
+        for light in lights {
+            let u = LightSamples::from_sets(scene.sets, pixel, index, dim, P::DIMS);
+            dim += P::DIMS;
+            let Some(s) = light.sample(at, &u) else { continue };
+            sum += match s.shadow {
+                // A shadow ray only when its answer changes the result.
+                Some(shadow) if s.unoccluded != s.occluded => {
+                    if self.blocked(scene, hit, shadow, P::TERM) {
+                        s.occluded
+                    } else {
+                        s.unoccluded
+                    }
+                }
+                _ => s.unoccluded,
+            };
         }
-        scale * (occ.min_amount + (1.0 - occ.min_amount) * visible)
+        reflectance * sum
     }
 
-    /// Lambertian direct light from one point light, with its shadow ray when it can matter.
+    /// Traces a shadow segment from the hit, counted by the light's term; true if blocked.
     #[inline]
-    fn direct(&mut self, scene: &Scene, light: &LightSample, hit: &SurfaceHit, m: &Matte) -> Vec3 {
-        let to_light = light.position - hit.p;
-        let dist2 = to_light.length_squared();
-        let cos = hit.normal.dot(to_light);
-        if cos <= 0.0 || dist2 == 0.0 || m.kd <= 0.0 {
-            return Vec3::ZERO;
-        }
-        let cos = cos / dist2.sqrt();
-        if light.shadows {
-            let origin = hit.spawn_origin(to_light);
-            let ray = Ray::new(origin, light.position - origin, 1.0 - SHADOW_EPSILON);
-            self.rays.shadow += 1;
-            if scene.geometry.occluded(&ray, &mut self.stack) {
-                return Vec3::ZERO;
+    fn blocked(&mut self, scene: &Scene, hit: &SurfaceHit, shadow: Shadow, term: Term) -> bool {
+        let ray = match shadow {
+            Shadow::ToPoint(q) => {
+                let origin = hit.spawn_origin(q - hit.p);
+                Ray::new(origin, q - origin, 1.0 - SHADOW_EPSILON)
             }
+            Shadow::Along { dir, max_distance } => Ray::new(hit.spawn_origin(dir), dir, max_distance),
+        };
+        match term {
+            Term::Ambient => self.rays.ao += 1,
+            Term::Diffuse => self.rays.shadow += 1,
         }
-        let e = light.intensity * if light.falloff { cos / dist2 } else { cos };
-        m.cd * (m.kd * FRAC_1_PI) * e
+        scene.geometry.occluded(&ray, &mut self.stack)
     }
 }

@@ -6,9 +6,9 @@ use std::time::Instant;
 use bevy_ecs::{prelude::*, system::SystemParam};
 
 use crate::{
-    components::{
-        AmbientOccluder, Camera, Cuboid, Matte, OrthographicCamera, Plane, PointLight, Sphere, Transform, TriangleMesh,
-    },
+    camera::Cameras,
+    components::{Camera, Cuboid, Matte, OrthographicCamera, Plane, Sphere, ThinLensCamera, Transform, TriangleMesh},
+    light::LightRegistry,
     resources::{Accumulation, RenderSettings, SceneProblems},
     stats::FrameStats,
 };
@@ -22,11 +22,11 @@ type SceneChanged = Or<(
     Changed<Matte>,
     Changed<Camera>,
     Changed<OrthographicCamera>,
-    Changed<AmbientOccluder>,
-    Changed<PointLight>,
+    Changed<ThinLensCamera>,
 )>;
 
-/// Removals of any scene component (including despawns) since the last frame.
+/// Removals of any scene component (including despawns) since the last frame. Lights are
+/// watched by the systems their registration adds ([`crate::light::register_light`]).
 #[derive(SystemParam)]
 pub struct SceneRemovals<'w, 's> {
     transform: RemovedComponents<'w, 's, Transform>,
@@ -37,8 +37,7 @@ pub struct SceneRemovals<'w, 's> {
     matte: RemovedComponents<'w, 's, Matte>,
     camera: RemovedComponents<'w, 's, Camera>,
     orthographic: RemovedComponents<'w, 's, OrthographicCamera>,
-    occluder: RemovedComponents<'w, 's, AmbientOccluder>,
-    light: RemovedComponents<'w, 's, PointLight>,
+    lens: RemovedComponents<'w, 's, ThinLensCamera>,
 }
 
 impl SceneRemovals<'_, '_> {
@@ -53,8 +52,7 @@ impl SceneRemovals<'_, '_> {
             self.matte.read().count(),
             self.camera.read().count(),
             self.orthographic.read().count(),
-            self.occluder.read().count(),
-            self.light.read().count(),
+            self.lens.read().count(),
         ];
         counts.iter().any(|&c| c > 0)
     }
@@ -66,10 +64,8 @@ pub fn detect_scene_changes(
     changed: Query<(), SceneChanged>,
     mut removed: SceneRemovals,
     settings: Res<RenderSettings>,
-    cameras: Query<&Camera>,
-    orthographic: Query<&OrthographicCamera>,
-    occluders: Query<&AmbientOccluder>,
-    lights: Query<(&PointLight, &Transform)>,
+    cameras: Cameras,
+    mut lights: ResMut<LightRegistry>,
     mut accumulation: ResMut<Accumulation>,
     mut problems: ResMut<SceneProblems>,
     mut stats: ResMut<FrameStats>,
@@ -77,9 +73,10 @@ pub fn detect_scene_changes(
     let start = Instant::now();
     let removed_any = removed.any();
     let resized = accumulation.width != settings.width || accumulation.height != settings.height;
-    let dirty = !changed.is_empty() || removed_any || settings.is_changed() || resized;
+    let lights_changed = lights.take_changed();
+    let dirty = !changed.is_empty() || removed_any || lights_changed || settings.is_changed() || resized;
     if dirty {
-        problems.view = validate_view(&settings, &cameras, &orthographic, &occluders, &lights);
+        problems.view = validate_view(&settings, &cameras, &lights);
         // Never allocate for settings that were refused (e.g. an absurd image size).
         match settings.validate() {
             Ok(()) => accumulation.reset(settings.width, settings.height),
@@ -90,25 +87,19 @@ pub fn detect_scene_changes(
     stats.record("scene_changes", start.elapsed(), note);
 }
 
-fn validate_view(
-    settings: &RenderSettings,
-    cameras: &Query<&Camera>,
-    orthographic: &Query<&OrthographicCamera>,
-    occluders: &Query<&AmbientOccluder>,
-    lights: &Query<(&PointLight, &Transform)>,
-) -> Vec<String> {
+fn validate_view(settings: &RenderSettings, cameras: &Cameras, lights: &LightRegistry) -> Vec<String> {
     let mut problems = Vec::new();
     if let Err(e) = settings.validate() {
         problems.push(e);
     }
-    match cameras.iter().count() + orthographic.iter().count() {
+    match cameras.pinhole.iter().count() + cameras.orthographic.iter().count() + cameras.lens.iter().count() {
         0 => problems.push("the scene has no Camera".into()),
         1 => {}
         n => problems.push(format!("the scene has {n} cameras; exactly one is rendered")),
     }
-    problems.extend(cameras.iter().filter_map(|c| c.validate().err()));
-    problems.extend(orthographic.iter().filter_map(|c| c.validate().err()));
-    problems.extend(occluders.iter().filter_map(|o| o.validate().err()));
-    problems.extend(lights.iter().filter_map(|(l, t)| l.validate(t.translation).err()));
+    problems.extend(cameras.pinhole.iter().filter_map(|c| c.validate().err()));
+    problems.extend(cameras.orthographic.iter().filter_map(|c| c.validate().err()));
+    problems.extend(cameras.lens.iter().filter_map(|c| c.validate().err()));
+    problems.extend(lights.problems().cloned());
     problems
 }

@@ -1,21 +1,21 @@
 //! Stage 4: traces this frame's samples, tile-parallel with rayon. Each pixel sample is a
-//! primary ray, one AO ray per occluder and one shadow ray per point light that can light the
-//! point; every random number comes from (pixel, sample index, dimension), so the image does
+//! primary ray, then every registered light group shades the hit (one AO ray per occluder, one
+//! shadow ray per light that can light the point); every random number comes from (pixel, sample index, dimension), so the image does
 //! not depend on tile order or thread count.
 
 use std::time::Instant;
 
 use bevy_ecs::prelude::*;
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 use crate::{
-    components::{AmbientOccluder, Camera, OrthographicCamera, PointLight, Transform},
+    camera::{ActiveCamera, CameraRays, Cameras},
     geometry::SceneGeometry,
-    projection::PrimaryRays,
+    light::{LightGroup, LightRegistry},
     resources::{Accumulation, FrameSamples, RenderSettings, SceneProblems},
     sampling::{SampleSets, dims},
-    shading::{LightSample, RayCounts, Scene, Tracer},
+    shading::{RayCounts, Scene, Tracer},
     stats::FrameStats,
 };
 
@@ -44,17 +44,15 @@ pub fn trace(
     sets: Res<SampleSets>,
     problems: Res<SceneProblems>,
     accumulation: Res<Accumulation>,
-    cameras: Query<&Camera>,
-    orthographic: Query<&OrthographicCamera>,
-    occluders: Query<(Entity, &AmbientOccluder)>,
-    lights: Query<(Entity, &PointLight, &Transform)>,
+    cameras: Cameras,
+    lights: Res<LightRegistry>,
     mut frame: ResMut<FrameSamples>,
     mut stats: ResMut<FrameStats>,
 ) {
     let start = Instant::now();
     let remaining = settings.max_spp.map_or(u32::MAX, |max| max.saturating_sub(accumulation.spp));
     let count = settings.samples_per_frame.min(remaining);
-    let camera = PrimaryRays::single(cameras.iter(), orthographic.iter(), settings.width, settings.height);
+    let camera = cameras.active(settings.width, settings.height);
     let (Some(camera), None, true) = (camera, problems.first(), count > 0) else {
         if frame.samples_per_pixel != 0 {
             frame.samples_per_pixel = 0;
@@ -64,21 +62,22 @@ pub fn trace(
         return;
     };
 
-    // Entity order fixes which sample dimension each occluder uses.
-    let mut occ: Vec<(Entity, AmbientOccluder)> = occluders.iter().map(|(e, o)| (e, *o)).collect();
-    occ.sort_by_key(|o| o.0);
-    let occ: Vec<AmbientOccluder> = occ.into_iter().map(|o| o.1).collect();
-    let mut lit: Vec<(Entity, LightSample)> =
-        lights.iter().filter_map(|(e, l, t)| LightSample::new(l, t.translation).map(|s| (e, s))).collect();
-    lit.sort_by_key(|l| l.0);
-    let lit: Vec<LightSample> = lit.into_iter().map(|l| l.1).collect();
-    let scene =
-        Scene { geometry: &geometry, occluders: &occ, lights: &lit, sets: &sets, background: settings.background };
+    // Registration order, then entity order, fixes which sample dimensions each light uses.
+    let groups: Vec<(u32, &dyn LightGroup)> = lights.groups().filter(|(_, g)| g.count() > 0).collect();
+    let scene = Scene { geometry: &geometry, lights: &groups, sets: &sets, background: settings.background };
 
     let first = accumulation.spp;
     let tiles = tiles(settings.width, settings.height, settings.tile_size);
-    let results: Vec<TileResult> =
-        tiles.par_iter().map(|tile| trace_tile(&scene, &camera, *tile, settings.width, first, count)).collect();
+    let width = settings.width;
+    let results: Vec<TileResult> = match camera {
+        ActiveCamera::Pinhole(c) => tiles.par_iter().map(|t| trace_tile(&scene, &c, *t, width, first, count)).collect(),
+        ActiveCamera::ThinLens(c) => {
+            tiles.par_iter().map(|t| trace_tile(&scene, &c, *t, width, first, count)).collect()
+        }
+        ActiveCamera::Orthographic(c) => {
+            tiles.par_iter().map(|t| trace_tile(&scene, &c, *t, width, first, count)).collect()
+        }
+    };
 
     let frame = &mut *frame;
     frame.sums.resize(settings.pixel_count(), Vec3::ZERO);
@@ -96,7 +95,7 @@ pub fn trace(
     }
     stats.rays = rays;
     stats.samples_traced = count;
-    let note = format!("{} tiles, {count} spp, {} occluders, {} lights", tiles.len(), occ.len(), lit.len());
+    let note = format!("{} tiles, {count} spp, {}", tiles.len(), lights.summary());
     stats.record("trace", start.elapsed(), note);
 }
 
@@ -111,7 +110,7 @@ fn tiles(width: u32, height: u32, size: u32) -> Vec<Tile> {
     tiles
 }
 
-fn trace_tile(scene: &Scene, camera: &PrimaryRays, tile: Tile, width: u32, first: u32, count: u32) -> TileResult {
+fn trace_tile<C: CameraRays>(scene: &Scene, camera: &C, tile: Tile, width: u32, first: u32, count: u32) -> TileResult {
     let mut tracer = Tracer::default();
     let mut nonfinite = 0;
     let mut sums = Vec::with_capacity(((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize);
@@ -120,7 +119,8 @@ fn trace_tile(scene: &Scene, camera: &PrimaryRays, tile: Tile, width: u32, first
             let pixel = y * width + x;
             let mut sum = Vec3::ZERO;
             for index in first..first + count {
-                let ray = camera.ray(x, y, scene.sets.sample(pixel, index, dims::PIXEL));
+                let lens = if C::USES_LENS { scene.sets.sample(pixel, index, dims::LENS) } else { Vec2::ZERO };
+                let ray = camera.ray(x, y, scene.sets.sample(pixel, index, dims::PIXEL), lens);
                 let l = tracer.radiance(scene, &ray, pixel, index);
                 if l.is_finite() {
                     sum += l;

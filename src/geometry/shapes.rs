@@ -28,10 +28,12 @@ impl Triangle {
         let [kx, ky, kz] = ray.axes;
         let s = ray.shear;
         // Translate to the ray origin, permute so the ray runs along +z, shear.
-        let v = self.p.map(|p| {
+        // (Three explicit calls: `array::map` is not always inlined into the traversal loops.)
+        let f = |p: Vec3A| {
             let q = p - ray.origin;
             Vec3A::new(q[kx] + s.x * q[kz], q[ky] + s.y * q[kz], q[kz])
-        });
+        };
+        let v = [f(self.p[0]), f(self.p[1]), f(self.p[2])];
         let mut e0 = v[1].x * v[2].y - v[1].y * v[2].x;
         let mut e1 = v[2].x * v[0].y - v[2].y * v[0].x;
         let mut e2 = v[0].x * v[1].y - v[0].y * v[1].x;

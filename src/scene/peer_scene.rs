@@ -107,7 +107,7 @@ impl PeerScene {
             seed: json.seed,
         };
         scene.camera.validate().map_err(fail)?;
-        if !(scene.max_distance > 0.0) {
+        if scene.max_distance.is_nan() || scene.max_distance <= 0.0 {
             return Err(fail(format!("ao.max_distance {} must be positive or null", scene.max_distance)));
         }
         if let Some((p, i)) =

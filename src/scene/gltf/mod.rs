@@ -36,9 +36,11 @@ use glam::{Affine3A, Mat4, Quat, Vec3};
 use crate::{
     animation::{Channel, Clip, Influences, Interpolation, Keys, Node, NodeGraph, NodeLink, Skin},
     components::{
-        AmbientOccluder, Camera, Deforming, Matte, Mesh, OrthographicCamera, PointLight, Transform, TriangleMesh,
+        AmbientOccluder, Camera, Deforming, DirectionalLight, Matte, Mesh, OrthographicCamera, PointLight, SpotLight,
+        Transform, TriangleMesh,
     },
     error::HemiError,
+    light::Light,
     resources::Time,
 };
 
@@ -101,12 +103,25 @@ pub struct GltfScene {
     pub meshes: Vec<Vec<Primitive>>,
     /// Cameras of the scene, in hierarchy order.
     pub cameras: Vec<CameraNode>,
-    /// Point lights of the scene: (node, light).
-    pub lights: Vec<(usize, PointLight)>,
+    /// `KHR_lights_punctual` lights of the scene: (node, light).
+    pub lights: Vec<(usize, GltfLight)>,
     /// What was skipped or approximated, one line each.
     pub warnings: Vec<String>,
     placements: Vec<Placement>,
     skins: Vec<SkinData>,
+}
+
+/// A `KHR_lights_punctual` light mapped to hemi's component: point and spot intensities are
+/// in candela (hemi's `ls`, with inverse-square falloff), directional ones in lux (irradiance
+/// at normal incidence). Spot and directional lights shine down their node's −Z axis.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum GltfLight {
+    /// A point light.
+    Point(PointLight),
+    /// A spot light with glTF's cone angles.
+    Spot(SpotLight),
+    /// A directional (sun) light.
+    Directional(DirectionalLight),
 }
 
 /// Which camera and animation to use, and the start time.
@@ -164,7 +179,7 @@ fn parse(bytes: &[u8], base: &Path) -> Result<GltfScene, String> {
     };
     let mut mesh_read = vec![false; doc.meshes().len()];
     let mut skin_slot: HashMap<usize, usize> = HashMap::new();
-    let (mut skipped_prims, mut textured, mut other_lights) = (0, 0, Vec::new());
+    let (mut skipped_prims, mut textured) = (0, 0);
 
     // Walk the scene's nodes in hierarchy order.
     let mut order: Vec<(usize, ::gltf::Node)> =
@@ -216,17 +231,22 @@ fn parse(bytes: &[u8], base: &Path) -> Result<GltfScene, String> {
         }
         if let Some(light) = node.light() {
             let light_label = label("light", light.index(), light.name());
-            match light.kind() {
-                LightKind::Point => {
-                    let [r, gr, b] = light.color();
-                    let l =
-                        PointLight { ls: light.intensity(), color: Vec3::new(r, gr, b), shadows: true, falloff: true };
-                    l.validate(Vec3::ZERO).map_err(|e| format!("{light_label}: {e}"))?;
-                    scene.lights.push((g, l));
+            let [r, gr, b] = light.color();
+            let (ls, color) = (light.intensity(), Vec3::new(r, gr, b));
+            let mapped = match light.kind() {
+                LightKind::Point => GltfLight::Point(PointLight { ls, color, shadows: true, falloff: true }),
+                LightKind::Directional => GltfLight::Directional(DirectionalLight { ls, color, shadows: true }),
+                LightKind::Spot { inner_cone_angle, outer_cone_angle } => {
+                    GltfLight::Spot(SpotLight { ls, color, inner_cone_angle, outer_cone_angle, shadows: true })
                 }
-                LightKind::Directional => other_lights.push(format!("{light_label} (directional)")),
-                LightKind::Spot { .. } => other_lights.push(format!("{light_label} (spot)")),
-            }
+            };
+            let checked = match &mapped {
+                GltfLight::Point(l) => l.validate(&Transform::IDENTITY),
+                GltfLight::Spot(l) => l.validate(&Transform::IDENTITY),
+                GltfLight::Directional(l) => l.validate(&Transform::IDENTITY),
+            };
+            checked.map_err(|e| format!("{light_label}: {e}"))?;
+            scene.lights.push((g, mapped));
         }
     }
     for animation in doc.animations() {
@@ -248,9 +268,6 @@ fn parse(bytes: &[u8], base: &Path) -> Result<GltfScene, String> {
         warnings.push(format!(
             "{textured} primitives use a base-color texture; hemi does not sample textures yet and uses baseColorFactor"
         ));
-    }
-    if !other_lights.is_empty() {
-        warnings.push(format!("hemi has no spot or directional lights yet; not rendered: {}", other_lights.join(", ")));
     }
     scene.warnings = warnings;
     Ok(scene)
@@ -592,13 +609,17 @@ impl GltfScene {
             return Ok(());
         }
         for &(node, light) in &self.lights {
-            let t = Transform::from_translation(graph.world[node].translation.into());
-            world.spawn((
-                light,
+            let t = Transform::from_affine(&graph.world[node]);
+            let mut entity = world.spawn((
                 t,
                 NodeLink { node, offset: Affine3A::IDENTITY },
                 Name::new(graph.nodes[node].name.clone()),
             ));
+            match light {
+                GltfLight::Point(l) => entity.insert(l),
+                GltfLight::Spot(l) => entity.insert(l),
+                GltfLight::Directional(l) => entity.insert(l),
+            };
         }
         match camera {
             Some(c) => {

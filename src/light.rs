@@ -1,0 +1,308 @@
+//! The light extension point. A light is an ECS component implementing [`Light`]; once per
+//! change it is *placed* in world space ([`Light::place`]), and for every shading point the
+//! placed light ([`PlacedLight::sample`]) returns what arrives there and the shadow ray that
+//! decides whether it does. Registering a light type is one call,
+//! [`Renderer::add_light`](crate::Renderer::add_light) (or [`register_light`] on a bare world
+//! and schedule): it adds a system that notices changes to that component (restarting
+//! accumulation), validates it and keeps the placed lights ready for the trace system.
+//!
+//! The core never looks at light kinds: it multiplies what a light returns by the material
+//! reflectance the light names ([`Term`]), traces the shadow ray (offsetting its origin past the
+//! surface's error bound), and counts it. Every built-in light, the ambient occluder included,
+//! goes through exactly this path.
+//!
+//! Sample dimensions: dimension [`dims::LIGHTS`](crate::sampling::dims::LIGHTS) onwards is
+//! dealt out in registration order, then entity order, [`PlacedLight::DIMS`] per light, so
+//! every light's random numbers are a pure function of (pixel, sample index, dimension).
+
+use std::any::TypeId;
+
+use bevy_ecs::prelude::*;
+use glam::{Vec2, Vec3, Vec3A};
+
+use crate::{
+    components::{Matte, Transform},
+    geometry::SurfaceHit,
+    sampling::SampleSets,
+    shading::{Scene, Tracer},
+    systems::{FrameStage, scene_changes::detect_scene_changes},
+};
+
+/// The reflectance a light's samples are multiplied by.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Term {
+    /// RTGU's ambient BRDF `ka·cd`: the light returns radiance. Its shadow rays count as AO rays.
+    Ambient,
+    /// The Lambertian BRDF `kd·cd/π`: the light returns an irradiance estimate `L·cos θ / pdf`.
+    /// Its shadow rays count as shadow rays.
+    Diffuse,
+}
+
+impl Term {
+    /// The material's reflectance for this term.
+    #[inline]
+    pub fn reflectance(self, m: &Matte) -> Vec3 {
+        match self {
+            Term::Ambient => m.cd * m.ka,
+            Term::Diffuse => m.cd * (m.kd * std::f32::consts::FRAC_1_PI),
+        }
+    }
+}
+
+/// The surface point being lit.
+#[derive(Clone, Copy, Debug)]
+pub struct ShadingPoint {
+    /// Position.
+    pub p: Vec3A,
+    /// Unit geometric normal, facing the side the camera ray came from.
+    pub normal: Vec3A,
+    /// Material at the point.
+    pub material: Matte,
+}
+
+/// The segment a shadow ray tests. The core starts it just off the surface.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Shadow {
+    /// Towards a point on the light: blocked by anything strictly between surface and point.
+    ToPoint(Vec3A),
+    /// Along a unit direction, up to a distance (`f32::INFINITY` for lights at infinity).
+    Along {
+        /// Unit direction towards the light.
+        dir: Vec3A,
+        /// Blockers farther than this do not count.
+        max_distance: f32,
+    },
+}
+
+/// One light sample at a shading point: what arrives when the shadow ray is clear and when it
+/// is blocked (non-zero only for lights with a floor, like the ambient occluder's
+/// `min_amount`). The core multiplies the chosen value by the reflectance of the light's
+/// [`Term`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightSample {
+    /// Contribution when the shadow ray is clear (or when there is none).
+    pub unoccluded: Vec3,
+    /// Contribution when the shadow ray is blocked.
+    pub occluded: Vec3,
+    /// The visibility test; `None`: always unoccluded. No ray is traced either when the two
+    /// values are equal.
+    pub shadow: Option<Shadow>,
+}
+
+/// The 2-D sample values of one light at one shading point, computed on demand.
+#[derive(Clone, Copy, Debug)]
+pub struct LightSamples<'a> {
+    source: Source<'a>,
+}
+
+#[derive(Clone, Copy, Debug)]
+enum Source<'a> {
+    Sets { sets: &'a SampleSets, pixel: u32, index: u32, first_dim: u32, last: u32 },
+    Fixed(Vec2),
+}
+
+impl<'a> LightSamples<'a> {
+    /// The samples the renderer uses: dimensions `first_dim .. first_dim + dims`.
+    #[inline]
+    pub fn from_sets(sets: &'a SampleSets, pixel: u32, index: u32, first_dim: u32, dims: u32) -> Self {
+        LightSamples { source: Source::Sets { sets, pixel, index, first_dim, last: dims.saturating_sub(1) } }
+    }
+
+    /// The same value for every dimension (for testing a light directly).
+    pub fn fixed(u: Vec2) -> Self {
+        LightSamples { source: Source::Fixed(u) }
+    }
+
+    /// Sample `k` in [0, 1)², `k < DIMS`; larger `k` repeats the light's last dimension
+    /// rather than reading another light's.
+    #[inline]
+    pub fn get(&self, k: u32) -> Vec2 {
+        match self.source {
+            Source::Sets { sets, pixel, index, first_dim, last } => sets.sample(pixel, index, first_dim + k.min(last)),
+            Source::Fixed(u) => u,
+        }
+    }
+}
+
+/// A light resolved to world space: what the tracer samples at every shading point.
+pub trait PlacedLight: Send + Sync + 'static {
+    /// 2-D sample dimensions used per shading point (0 for lights that need no random numbers).
+    const DIMS: u32 = 1;
+    /// The reflectance the samples feed.
+    const TERM: Term = Term::Diffuse;
+
+    /// The light arriving at `at` for the sample values `u`, or `None` when this sample
+    /// contributes nothing (behind the surface, outside a cone, …): then no shadow ray is traced.
+    fn sample(&self, at: &ShadingPoint, u: &LightSamples) -> Option<LightSample>;
+}
+
+/// A light component. Implement it, then register the type once with
+/// [`Renderer::add_light`](crate::Renderer::add_light).
+pub trait Light: Component + Sized {
+    /// The world-space form the tracer samples.
+    type Placed: PlacedLight;
+    /// What the light is called in statistics.
+    const NAME: &'static str;
+
+    /// A one-line description of the first unusable parameter (the frame is then refused).
+    /// `transform` is the entity's, or the identity when it has none.
+    fn validate(&self, transform: &Transform) -> Result<(), String>;
+
+    /// The light placed by `transform`, or `None` when it can never contribute (e.g. zero
+    /// intensity): it is then skipped entirely.
+    fn place(&self, transform: &Transform) -> Option<Self::Placed>;
+}
+
+/// The placed lights of one registered type, behind one virtual call per shading point.
+pub trait LightGroup: Send + Sync {
+    /// Lights in the group.
+    fn count(&self) -> usize;
+    /// Sample dimensions the group uses, in all.
+    fn dims(&self) -> u32;
+    /// Sum of the group's reflected radiance at `hit`, tracing shadow rays with `tracer`.
+    #[allow(clippy::too_many_arguments)]
+    fn shade(
+        &self,
+        tracer: &mut Tracer,
+        scene: &Scene,
+        hit: &SurfaceHit,
+        at: &ShadingPoint,
+        pixel: u32,
+        index: u32,
+        first_dim: u32,
+    ) -> Vec3;
+}
+
+struct Group<P>(Vec<P>);
+
+impl<P: PlacedLight> LightGroup for Group<P> {
+    fn count(&self) -> usize {
+        self.0.len()
+    }
+
+    fn dims(&self) -> u32 {
+        self.0.len() as u32 * P::DIMS
+    }
+
+    #[inline]
+    fn shade(
+        &self,
+        tracer: &mut Tracer,
+        scene: &Scene,
+        hit: &SurfaceHit,
+        at: &ShadingPoint,
+        pixel: u32,
+        index: u32,
+        first_dim: u32,
+    ) -> Vec3 {
+        tracer.shade_lights(scene, hit, at, &self.0, pixel, index, first_dim)
+    }
+}
+
+/// One registered light type.
+struct Slot {
+    type_id: TypeId,
+    name: &'static str,
+    group: Box<dyn LightGroup>,
+    problems: Vec<String>,
+}
+
+/// Registered light types, in registration order, with their placed lights and problems.
+#[derive(Resource, Default)]
+pub struct LightRegistry {
+    slots: Vec<Slot>,
+    changed: bool,
+}
+
+impl LightRegistry {
+    /// Whether `L` is registered.
+    pub fn contains<L: Light>(&self) -> bool {
+        self.slots.iter().any(|s| s.type_id == TypeId::of::<L>())
+    }
+
+    /// Placed light groups in registration order, each with its first sample dimension.
+    pub fn groups(&self) -> impl Iterator<Item = (u32, &dyn LightGroup)> {
+        let mut dim = crate::sampling::dims::LIGHTS;
+        self.slots.iter().map(move |s| {
+            let first = dim;
+            dim += s.group.dims();
+            (first, &*s.group)
+        })
+    }
+
+    /// Problems found in registered lights, in registration order.
+    pub fn problems(&self) -> impl Iterator<Item = &String> {
+        self.slots.iter().flat_map(|s| &s.problems)
+    }
+
+    /// "2 point light, 1 ambient occluder": the non-empty groups.
+    pub fn summary(&self) -> String {
+        let parts: Vec<String> = self
+            .slots
+            .iter()
+            .filter(|s| s.group.count() > 0)
+            .map(|s| format!("{} {}", s.group.count(), s.name))
+            .collect();
+        if parts.is_empty() { "no lights".into() } else { parts.join(", ") }
+    }
+
+    /// Whether any light was added, changed or removed since the last call; clears the flag.
+    pub fn take_changed(&mut self) -> bool {
+        std::mem::take(&mut self.changed)
+    }
+
+    fn slot_mut<L: Light>(&mut self) -> Option<&mut Slot> {
+        self.slots.iter_mut().find(|s| s.type_id == TypeId::of::<L>())
+    }
+}
+
+/// Registers light type `L` on a world and its frame schedule: its lights are validated,
+/// placed and traced from the next frame on, and any change to them restarts accumulation.
+/// Returns `false` (and does nothing) if `L` was already registered.
+pub fn register_light<L: Light>(world: &mut World, schedule: &mut Schedule) -> bool {
+    let mut registry = world.get_resource_or_init::<LightRegistry>();
+    if registry.contains::<L>() {
+        return false;
+    }
+    registry.slots.push(Slot {
+        type_id: TypeId::of::<L>(),
+        name: L::NAME,
+        group: Box::new(Group::<L::Placed>(Vec::new())),
+        problems: Vec::new(),
+    });
+    schedule.add_systems(update_lights::<L>.in_set(FrameStage::SceneChanges).before(detect_scene_changes));
+    true
+}
+
+/// Re-validates and re-places all lights of type `L` when any of them (or its transform) was
+/// added, changed or removed, and flags the change for the accumulation reset.
+fn update_lights<L: Light>(
+    lights: Query<(Entity, Ref<L>, Option<Ref<Transform>>)>,
+    mut removed: RemovedComponents<L>,
+    mut removed_transforms: RemovedComponents<Transform>,
+    mut registry: ResMut<LightRegistry>,
+) {
+    let removed_any = removed.read().count() > 0;
+    let moved_any = removed_transforms.read().any(|e| lights.contains(e));
+    let changed = lights.iter().any(|(_, l, t)| l.is_changed() || t.is_some_and(|t| t.is_changed()));
+    if !(removed_any || moved_any || changed) {
+        return;
+    }
+    let mut found: Vec<_> = lights.iter().collect();
+    found.sort_by_key(|(e, ..)| *e);
+    let mut placed = Vec::with_capacity(found.len());
+    let mut problems = Vec::new();
+    for (_, light, transform) in found {
+        let transform = transform.map_or(Transform::IDENTITY, |t| *t);
+        match light.validate(&transform) {
+            Ok(()) => placed.extend(light.place(&transform)),
+            Err(e) => problems.push(e),
+        }
+    }
+    let registry = &mut *registry;
+    registry.changed = true;
+    if let Some(slot) = registry.slot_mut::<L>() {
+        slot.group = Box::new(Group(placed));
+        slot.problems = problems;
+    }
+}

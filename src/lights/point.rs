@@ -1,0 +1,86 @@
+//! The point light, written on the light extension point like any other light.
+
+use bevy_ecs::prelude::Component;
+use glam::{Vec3, Vec3A};
+
+use crate::{
+    components::Transform,
+    light::{Light, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow},
+};
+
+/// A point light at the entity's translation. With `falloff` it is glTF's
+/// `KHR_lights_punctual` point light: `ls·color` is the intensity in candela (W/sr in hemi's
+/// units), irradiance I·cos θ/d².
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
+#[require(Transform)]
+pub struct PointLight {
+    /// Intensity scale.
+    pub ls: f32,
+    /// Light colour (linear RGB).
+    pub color: Vec3,
+    /// Trace a shadow ray for every lit point.
+    pub shadows: bool,
+    /// Divide by the squared distance (physical falloff); RTGU's default has none.
+    pub falloff: bool,
+}
+
+impl Default for PointLight {
+    fn default() -> Self {
+        PointLight { ls: 1.0, color: Vec3::ONE, shadows: true, falloff: true }
+    }
+}
+
+/// A [`PointLight`] placed in world space.
+#[derive(Clone, Copy, Debug)]
+pub struct PlacedPoint {
+    position: Vec3A,
+    intensity: Vec3,
+    shadows: bool,
+    falloff: bool,
+}
+
+impl Light for PointLight {
+    type Placed = PlacedPoint;
+    const NAME: &'static str = "point light";
+
+    fn validate(&self, transform: &Transform) -> Result<(), String> {
+        if !(self.ls.is_finite() && self.ls >= 0.0 && self.color.is_finite() && self.color.min_element() >= 0.0) {
+            return Err(format!("point light ls {} color {} must be finite and non-negative", self.ls, self.color));
+        }
+        if !transform.translation.is_finite() {
+            return Err(format!("point light position {} is not finite", transform.translation));
+        }
+        Ok(())
+    }
+
+    fn place(&self, transform: &Transform) -> Option<PlacedPoint> {
+        let intensity = self.color * self.ls;
+        (intensity.max_element() > 0.0).then_some(PlacedPoint {
+            position: transform.translation.into(),
+            intensity,
+            shadows: self.shadows,
+            falloff: self.falloff,
+        })
+    }
+}
+
+impl PlacedLight for PlacedPoint {
+    const DIMS: u32 = 0;
+
+    /// Irradiance `I·cos θ/d²` (`I·cos θ` without falloff); nothing behind the surface.
+    #[inline]
+    fn sample(&self, at: &ShadingPoint, _: &LightSamples) -> Option<LightSample> {
+        let to_light = self.position - at.p;
+        let dist2 = to_light.length_squared();
+        let cos = at.normal.dot(to_light);
+        if cos <= 0.0 || dist2 == 0.0 {
+            return None;
+        }
+        let cos = cos / dist2.sqrt();
+        Some(LightSample {
+            unoccluded: self.intensity * if self.falloff { cos / dist2 } else { cos },
+            occluded: Vec3::ZERO,
+            shadow: self.shadows.then_some(Shadow::ToPoint(self.position)),
+        })
+    }
+}
