@@ -6,8 +6,13 @@ use clap::{Parser, Subcommand, error::ErrorKind};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use crate::{
-    Renderer, error::HemiError, film::OutputFile, resources::RenderSettings, sampling::SamplerKind,
-    scene::gltf::SpawnOptions, shading::RayCounts,
+    Renderer,
+    error::HemiError,
+    film::OutputFile,
+    resources::{Aov, RenderSettings},
+    sampling::SamplerKind,
+    scene::{gltf::SpawnOptions, peer_scene::PeerScene},
+    shading::RayCounts,
 };
 
 /// hemi: ambient occlusion + direct lighting by CPU ray tracing on bevy_ecs.
@@ -24,6 +29,25 @@ enum Command {
     Render(RenderArgs),
     /// Measure RMSE against run time and spp for every sampler (CSV + log-log plot).
     Error(ErrorArgs),
+    /// Compare AO with the peer renderers' references: bias and RMSE per scene.
+    Compare(CompareArgs),
+}
+
+/// Options of `hemi compare`.
+#[derive(clap::Args, Debug)]
+struct CompareArgs {
+    /// Peer scene files (`../shared/peers/scenes/*.json`); references are read from `../refs`.
+    #[arg(required = true)]
+    scenes: Vec<PathBuf>,
+    /// Samples per pixel.
+    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..=65_536))]
+    spp: u32,
+    /// Sample pattern.
+    #[arg(long, default_value = "cmj", value_parser = parse_sampler)]
+    sampler: SamplerKind,
+    /// Worker threads (default: one per core).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    threads: Option<u32>,
 }
 
 /// Options of `hemi error`.
@@ -57,7 +81,7 @@ struct ErrorArgs {
 /// Options of `hemi render`.
 #[derive(clap::Args, Debug)]
 struct RenderArgs {
-    /// A .gltf or .glb scene (default: the built-in scene).
+    /// A .gltf/.glb scene, or a peer scene .json (default: the built-in scene).
     scene: Option<PathBuf>,
     /// Output image: .png (8-bit sRGB) or .exr (linear f32, unclamped). With --frames it must
     /// hold a frame-number placeholder, `{:04}` (zero-padded) or `{}`.
@@ -83,18 +107,20 @@ struct RenderArgs {
     /// Scene time in seconds of a single image.
     #[arg(long, default_value_t = 0.0, value_parser = parse_time)]
     time: f32,
-    /// Total samples per pixel, reached progressively over frames.
-    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
-    spp: u32,
+    /// Total samples per pixel, reached progressively over frames [default: 16, or a peer
+    /// scene's ao.samples].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    spp: Option<u32>,
     /// Samples per pixel traced by each frame.
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=65_536))]
     spf: u32,
-    /// Image size, WIDTHxHEIGHT.
-    #[arg(long, default_value = "640x360", value_parser = parse_size)]
-    size: (u32, u32),
-    /// Seed of every random decision: the same seed gives the same image bit for bit.
-    #[arg(long, default_value_t = 0)]
-    seed: u64,
+    /// Image size, WIDTHxHEIGHT [default: 640x360, or a peer scene's own].
+    #[arg(long, value_parser = parse_size)]
+    size: Option<(u32, u32)>,
+    /// Seed of every random decision: the same seed gives the same image bit for bit
+    /// [default: 0, or a peer scene's seed].
+    #[arg(long)]
+    seed: Option<u64>,
     /// Sample pattern: regular, random, jittered, n-rooks, multi-jittered, hammersley, cmj, zsobol.
     #[arg(long, default_value = "cmj", value_parser = parse_sampler)]
     sampler: SamplerKind,
@@ -104,6 +130,17 @@ struct RenderArgs {
     /// Print a per-system timing table for every frame.
     #[arg(long)]
     stats: bool,
+    /// Also write these AOVs (comma-separated: ao, direct, albedo, normal, depth) as linear EXR
+    /// files `<stem>.<name>.exr` beside the image.
+    #[arg(long, value_delimiter = ',', value_parser = parse_aov)]
+    aov: Vec<Aov>,
+}
+
+fn parse_aov(s: &str) -> Result<Aov, String> {
+    Aov::from_name(s).ok_or_else(|| {
+        let names: Vec<&str> = Aov::ALL.iter().map(|a| a.name()).collect();
+        format!("unknown AOV '{s}' (expected one of: {})", names.join(", "))
+    })
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -194,7 +231,32 @@ where
     match cli.command {
         Command::Render(args) => render(args),
         Command::Error(args) => error_study(args),
+        Command::Compare(args) => compare(args),
     }
+}
+
+fn compare(args: CompareArgs) -> Result<(), HemiError> {
+    println!(
+        "{:<14} {:>6} {:>9} {:>10} {:>10} {:>10} {:>12} {:>8} {:>9}",
+        "scene", "spp", "hit px", "bias", "rmse", "predicted", "hit mismatch", "seconds", "Mrays/s"
+    );
+    for path in &args.scenes {
+        let scene = PeerScene::load(path)?;
+        let c = crate::scene::peer_compare::compare(&scene, args.spp, args.sampler, args.threads.map(|t| t as usize))?;
+        println!(
+            "{:<14} {:>6} {:>9} {:>+10.2e} {:>10.3e} {:>10.3e} {:>12} {:>8.2} {:>9.2}",
+            c.scene,
+            c.spp,
+            c.hit_pixels,
+            c.bias,
+            c.rmse,
+            c.predicted_rmse,
+            c.hit_mismatches,
+            c.seconds,
+            c.rays as f64 / c.seconds / 1e6
+        );
+    }
+    Ok(())
 }
 
 fn error_study(args: ErrorArgs) -> Result<(), HemiError> {
@@ -328,25 +390,49 @@ fn render(args: RenderArgs) -> Result<(), HemiError> {
             std::fs::create_dir_all(dir).ok();
         }
         OutputFile::create(path)?;
+        for &aov in &args.aov {
+            OutputFile::create(&aov_path(path, aov))?;
+        }
     }
+    let peer = match &args.scene {
+        Some(path) if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("json")) => {
+            if args.camera.is_some() || args.animation.is_some() || args.frames.is_some() {
+                return Err(HemiError::Usage("--camera, --animation and --frames need a glTF scene".into()));
+            }
+            Some(PeerScene::load(path)?)
+        }
+        _ => None,
+    };
+    let size = args.size.or(peer.as_ref().map(|p| (p.width, p.height))).unwrap_or((640, 360));
+    let spp = args.spp.or(peer.as_ref().map(|p| p.samples)).unwrap_or(16);
     let settings = RenderSettings {
-        width: args.size.0,
-        height: args.size.1,
+        width: size.0,
+        height: size.1,
         samples_per_frame: args.spf,
-        samples_per_set: args.spp.min(4096),
-        max_spp: Some(args.spp),
-        seed: args.seed,
+        samples_per_set: spp.min(4096),
+        max_spp: Some(spp),
+        seed: args.seed.or(peer.as_ref().map(|p| p.seed)).unwrap_or(0),
         sampler: args.sampler,
+        // The peers' contract: one primary ray through each pixel centre.
+        jitter: peer.is_none(),
+        aovs: !args.aov.is_empty(),
         ..Default::default()
     };
-    let mut renderer = match &args.scene {
-        None => {
+    let mut renderer = match (&args.scene, peer) {
+        (None, _) => {
             if args.camera.is_some() || args.animation.is_some() {
                 return Err(HemiError::Usage("--camera and --animation need a glTF scene".into()));
             }
             Renderer::with_default_scene(settings)
         }
-        Some(path) => {
+        (Some(_), Some(peer)) => {
+            let mut r = Renderer::new(settings);
+            for w in peer.spawn(r.world_mut())? {
+                eprintln!("hemi: warning: {w}");
+            }
+            r
+        }
+        (Some(path), None) => {
             let scene = crate::scene::gltf::load(path)?;
             for w in &scene.warnings {
                 eprintln!("hemi: warning: {}: {w}", path.display());
@@ -373,22 +459,24 @@ fn render(args: RenderArgs) -> Result<(), HemiError> {
     match frames {
         None => {
             renderer.set_time(args.time);
-            render_image(&mut renderer, &args, &mut totals)?;
+            render_image(&mut renderer, spp, args.stats, &mut totals)?;
             OutputFile::create(&args.out)?.write(renderer.image())?;
-            report(&args, &renderer, &totals, start, &args.out.display().to_string());
+            write_aovs(renderer.image(), &args.out, &args.aov)?;
+            report(size, &renderer, &totals, start, &args.out.display().to_string());
         }
         Some(list) => {
             for &frame in &list {
                 let out = frame_path(&args.out, frame).unwrap_or_else(|| args.out.clone());
                 let file = OutputFile::create(&out)?;
                 renderer.set_time((frame as f64 / args.fps) as f32);
-                render_image(&mut renderer, &args, &mut totals)?;
+                render_image(&mut renderer, spp, args.stats, &mut totals)?;
                 file.write(renderer.image())?;
+                write_aovs(renderer.image(), &out, &args.aov)?;
                 if !args.stats {
                     eprintln!("hemi: frame {frame} -> {}", out.display());
                 }
             }
-            report(&args, &renderer, &totals, start, &format!("{} frames", list.len()));
+            report(size, &renderer, &totals, start, &format!("{} frames", list.len()));
         }
     }
     Ok(())
@@ -403,13 +491,13 @@ struct Totals {
 }
 
 /// Runs frames until the current scene state reaches `--spp`.
-fn render_image(renderer: &mut Renderer, args: &RenderArgs, totals: &mut Totals) -> Result<(), HemiError> {
-    let progress = ProgressBar::with_draw_target(Some(args.spp as u64), ProgressDrawTarget::stderr());
+fn render_image(renderer: &mut Renderer, spp: u32, print_stats: bool, totals: &mut Totals) -> Result<(), HemiError> {
+    let progress = ProgressBar::with_draw_target(Some(spp as u64), ProgressDrawTarget::stderr());
     progress.set_style(
         ProgressStyle::with_template("{spinner} [{elapsed_precise}] {wide_bar} {pos}/{len} spp ({eta} left)")
             .expect("valid template"),
     );
-    renderer.settings_mut().max_spp = Some(args.spp);
+    renderer.settings_mut().max_spp = Some(spp);
     let mut first = true;
     while first || !renderer.converged() {
         first = false;
@@ -417,7 +505,7 @@ fn render_image(renderer: &mut Renderer, args: &RenderArgs, totals: &mut Totals)
         totals.rays.add(&stats.rays);
         totals.trace_secs += stats.time_of("trace").as_secs_f64();
         totals.frames += 1;
-        if args.stats {
+        if print_stats {
             progress.suspend(|| print!("{}", stats.table()));
         }
         progress.set_position(stats.spp as u64);
@@ -426,11 +514,28 @@ fn render_image(renderer: &mut Renderer, args: &RenderArgs, totals: &mut Totals)
     Ok(())
 }
 
-fn report(args: &RenderArgs, renderer: &Renderer, totals: &Totals, start: Instant, what: &str) {
+/// `<stem>.<name>.exr` beside `out`: where an AOV of that image goes.
+fn aov_path(out: &std::path::Path, aov: Aov) -> PathBuf {
+    let stem = out.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    out.with_file_name(format!("{stem}.{}.exr", aov.name()))
+}
+
+/// Writes the requested AOVs of `image` beside `out`.
+fn write_aovs(image: &crate::resources::Image, out: &std::path::Path, aovs: &[Aov]) -> Result<(), HemiError> {
+    for &aov in aovs {
+        let pixels = image.aov(aov).unwrap_or_default();
+        let layer =
+            crate::resources::Image { width: image.width, height: image.height, linear: pixels, ..Default::default() };
+        OutputFile::create(&aov_path(out, aov))?.write(&layer)?;
+    }
+    Ok(())
+}
+
+fn report(size: (u32, u32), renderer: &Renderer, totals: &Totals, start: Instant, what: &str) {
     eprintln!(
         "hemi: {}x{} at {} spp in {:.2} s ({} frames, {:.1} M rays, {:.2} Mrays/s while tracing) -> {}",
-        args.size.0,
-        args.size.1,
+        size.0,
+        size.1,
         renderer.spp(),
         start.elapsed().as_secs_f64(),
         totals.frames,

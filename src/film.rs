@@ -153,7 +153,7 @@ mod tests {
     fn exr_round_trips_linear_values_exactly() {
         use glam::Vec3;
         let linear = vec![Vec3::new(0.25, 1.5, 1e-3), Vec3::new(7.0, 0.0, 0.125)];
-        let image = Image { width: 2, height: 1, srgb: vec![0; 6], linear: linear.clone() };
+        let image = Image { width: 2, height: 1, srgb: vec![0; 6], linear: linear.clone(), aovs: vec![] };
         let mut buf = std::io::Cursor::new(Vec::new());
         write_image(&image, OutputFormat::Exr, &mut buf).unwrap();
         let back = image::load_from_memory_with_format(buf.get_ref(), ImageFormat::OpenExr).unwrap().into_rgb32f();

@@ -159,7 +159,10 @@ pub trait LightGroup: Send + Sync {
     fn count(&self) -> usize;
     /// Sample dimensions the group uses, in all.
     fn dims(&self) -> u32;
-    /// Sum of the group's reflected radiance at `hit`, tracing shadow rays with `tracer`.
+    /// The reflectance the group's light is multiplied by.
+    fn term(&self) -> Term;
+    /// Sum of the group's light arriving at `hit` (before the material's reflectance),
+    /// tracing shadow rays with `tracer`.
     #[allow(clippy::too_many_arguments)]
     fn shade(
         &self,
@@ -182,6 +185,10 @@ impl<P: PlacedLight> LightGroup for Group<P> {
 
     fn dims(&self) -> u32 {
         self.0.len() as u32 * P::DIMS
+    }
+
+    fn term(&self) -> Term {
+        P::TERM
     }
 
     #[inline]

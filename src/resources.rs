@@ -27,6 +27,11 @@ pub struct RenderSettings {
     pub tile_size: u32,
     /// Radiance of rays that hit nothing (linear RGB).
     pub background: Vec3,
+    /// Jitter primary rays inside their pixel (anti-aliasing); `false` shoots them through pixel
+    /// centres, as the peer renderers' contract does.
+    pub jitter: bool,
+    /// Accumulate the AOVs ([`Aov`]) beside the beauty image.
+    pub aovs: bool,
 }
 
 impl Default for RenderSettings {
@@ -41,6 +46,8 @@ impl Default for RenderSettings {
             sampler: SamplerKind::default(),
             tile_size: 16,
             background: Vec3::ZERO,
+            jitter: true,
+            aovs: false,
         }
     }
 }
@@ -84,6 +91,61 @@ impl RenderSettings {
     }
 }
 
+/// Arbitrary output variables: per-pixel quantities written beside the beauty image (as
+/// `<stem>.<name>.exr`), for comparisons with other renderers and for denoisers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Aov {
+    /// Ambient light arriving: with one white unit occluder and `min_amount` 0 (the default),
+    /// the raw AO estimate (1/π)∫V cos θ dω; 0 where the camera ray misses.
+    Ao,
+    /// Reflected radiance of the diffuse-term lights (point, spot, directional, disk).
+    Direct,
+    /// The material's `cd`.
+    Albedo,
+    /// Unit geometric normal facing the camera (world space, xyz as rgb).
+    Normal,
+    /// Distance from the camera to the hit.
+    Depth,
+}
+
+/// Floats per pixel holding every AOV: ao 1, direct 3, albedo 3, normal 3, depth 1.
+pub const AOV_FLOATS: usize = 11;
+
+/// All AOVs of one pixel (sums or means), laid out as [`Aov::range`] says.
+pub type AovValues = [f32; AOV_FLOATS];
+
+impl Aov {
+    /// Every AOV.
+    pub const ALL: [Aov; 5] = [Aov::Ao, Aov::Direct, Aov::Albedo, Aov::Normal, Aov::Depth];
+
+    /// Command-line and file-name name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Aov::Ao => "ao",
+            Aov::Direct => "direct",
+            Aov::Albedo => "albedo",
+            Aov::Normal => "normal",
+            Aov::Depth => "depth",
+        }
+    }
+
+    /// Parses a name.
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|a| a.name() == name)
+    }
+
+    /// Where the AOV sits in [`AovValues`].
+    pub fn range(self) -> std::ops::Range<usize> {
+        match self {
+            Aov::Ao => 0..1,
+            Aov::Direct => 1..4,
+            Aov::Albedo => 4..7,
+            Aov::Normal => 7..10,
+            Aov::Depth => 10..11,
+        }
+    }
+}
+
 /// The samples traced by the current frame, per pixel (written by the trace system).
 #[derive(Resource, Clone, Debug, Default)]
 pub struct FrameSamples {
@@ -93,6 +155,8 @@ pub struct FrameSamples {
     pub samples_per_pixel: u32,
     /// Sample index of this frame's first sample in every pixel.
     pub first_index: u32,
+    /// Per-pixel AOV sums (empty unless `RenderSettings::aovs`).
+    pub aovs: Vec<AovValues>,
 }
 
 /// Running sums over frames; reset whenever the scene or the settings change.
@@ -106,6 +170,8 @@ pub struct Accumulation {
     pub sums: Vec<DVec3>,
     /// Samples accumulated per pixel.
     pub counts: Vec<u32>,
+    /// Per-pixel AOV sums (empty unless `RenderSettings::aovs`), in f64.
+    pub aovs: Vec<[f64; AOV_FLOATS]>,
     /// Samples per pixel accumulated so far (every pixel has the same count).
     pub spp: u32,
     /// How many times the buffer has been reset.
@@ -122,6 +188,7 @@ impl Accumulation {
         self.sums.resize(n, DVec3::ZERO);
         self.counts.clear();
         self.counts.resize(n, 0);
+        self.aovs.clear();
         self.spp = 0;
         self.resets += 1;
     }
@@ -136,11 +203,31 @@ pub struct Image {
     pub height: u32,
     /// Mean radiance per pixel, linear RGB, row-major, top row first. Always finite.
     pub linear: Vec<Vec3>,
-    /// The same image clamped to [0,1] and sRGB-encoded, 3 bytes per pixel.
+    /// The same image clamped to \[0, 1\] and sRGB-encoded, 3 bytes per pixel.
     pub srgb: Vec<u8>,
+    /// Per-pixel AOV means (empty unless `RenderSettings::aovs`). Always finite.
+    pub aovs: Vec<AovValues>,
 }
 
 impl Image {
+    /// One AOV as an RGB image (single-channel AOVs repeated in r, g, b); `None` when AOVs
+    /// were not accumulated.
+    pub fn aov(&self, aov: Aov) -> Option<Vec<Vec3>> {
+        if self.aovs.len() != self.linear.len() || self.aovs.is_empty() {
+            return None;
+        }
+        let r = aov.range();
+        Some(
+            self.aovs
+                .iter()
+                .map(|v| match r.len() {
+                    1 => Vec3::splat(v[r.start]),
+                    _ => Vec3::new(v[r.start], v[r.start + 1], v[r.start + 2]),
+                })
+                .collect(),
+        )
+    }
+
     /// Linear radiance at pixel (x, y).
     pub fn pixel(&self, x: u32, y: u32) -> Vec3 {
         self.linear[(y * self.width + x) as usize]

@@ -7,6 +7,7 @@ use glam::Vec3;
 use crate::{
     geometry::{Ray, SceneGeometry, SurfaceHit},
     light::{LightGroup, LightSamples, PlacedLight, ShadingPoint, Shadow, Term},
+    resources::AovValues,
     sampling::SampleSets,
 };
 
@@ -47,6 +48,35 @@ pub struct Scene<'a> {
     pub background: Vec3,
 }
 
+/// What one camera sample saw, for the beauty image and the AOVs.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SampleResult {
+    /// Radiance (the beauty image).
+    pub radiance: Vec3,
+    /// Ambient light arriving (channel mean of Σ occluders' `ls·color·(min + (1 − min)·V·w)`):
+    /// for one white unit occluder with `min_amount` 0 the raw AO estimate of (1/π)∫V cos θ dω.
+    pub ao: f32,
+    /// Reflected radiance of the diffuse-term lights (point, spot, directional, disk, …).
+    pub direct: Vec3,
+    /// The material's `cd`.
+    pub albedo: Vec3,
+    /// Unit geometric normal facing the camera.
+    pub normal: Vec3,
+    /// Distance from the camera ray's origin to the hit.
+    pub depth: f32,
+    /// Whether the camera ray hit anything (AOVs are 0 where it did not).
+    pub hit: bool,
+}
+
+impl SampleResult {
+    /// The AOVs in the [`AovValues`] layout.
+    #[inline]
+    pub fn aov_values(&self) -> AovValues {
+        let (d, a, n) = (self.direct, self.albedo, self.normal);
+        [self.ao, d.x, d.y, d.z, a.x, a.y, a.z, n.x, n.y, n.z, self.depth]
+    }
+}
+
 /// Per-thread scratch state and counters.
 #[derive(Default)]
 pub struct Tracer {
@@ -59,24 +89,42 @@ pub struct Tracer {
 const SHADOW_EPSILON: f32 = 1e-4;
 
 impl Tracer {
-    /// Radiance along one camera ray for sample `index` of `pixel`.
+    /// What the camera ray sees for sample `index` of `pixel`. `skip_black` lets lights whose
+    /// reflectance is zero at the hit be skipped (no rays); AOVs need them traced.
     #[inline(always)]
-    pub fn radiance(&mut self, scene: &Scene, ray: &Ray, pixel: u32, index: u32) -> Vec3 {
+    pub fn sample(&mut self, scene: &Scene, ray: &Ray, pixel: u32, index: u32, skip_black: bool) -> SampleResult {
         self.rays.primary += 1;
         let Some(hit) = scene.geometry.intersect(ray, &mut self.stack) else {
-            return scene.background;
+            return SampleResult { radiance: scene.background, ..Default::default() };
         };
         let material = scene.geometry.objects[hit.object as usize].material;
         let at = ShadingPoint { p: hit.p, normal: hit.normal, material };
-        let mut l = Vec3::ZERO;
+        let mut out = SampleResult {
+            albedo: material.cd,
+            normal: hit.normal.into(),
+            depth: hit.t * ray.dir.length(),
+            hit: true,
+            ..Default::default()
+        };
         for &(first_dim, group) in scene.lights {
-            l += group.shade(self, scene, &hit, &at, pixel, index, first_dim);
+            let term = group.term();
+            let reflectance = term.reflectance(&material);
+            if skip_black && reflectance.max_element() <= 0.0 {
+                continue;
+            }
+            let arriving = group.shade(self, scene, &hit, &at, pixel, index, first_dim);
+            let reflected = reflectance * arriving;
+            out.radiance += reflected;
+            match term {
+                Term::Ambient => out.ao += arriving.element_sum() / 3.0,
+                Term::Diffuse => out.direct += reflected,
+            }
         }
-        l
+        out
     }
 
-    /// Reflected radiance from `lights` (all of one type) at a hit: each light's sample,
-    /// its shadow ray when it can matter, times the reflectance of the light's term.
+    /// Light arriving from `lights` (all of one type) at a hit: each light's sample, with its
+    /// shadow ray when it can matter.
     #[inline]
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn shade_lights<P: PlacedLight>(
@@ -89,10 +137,6 @@ impl Tracer {
         index: u32,
         first_dim: u32,
     ) -> Vec3 {
-        let reflectance = P::TERM.reflectance(&at.material);
-        if reflectance.max_element() <= 0.0 {
-            return Vec3::ZERO;
-        }
         let mut sum = Vec3::ZERO;
         let mut dim = first_dim;
         for light in lights {
@@ -111,7 +155,7 @@ impl Tracer {
                 _ => s.unoccluded,
             };
         }
-        reflectance * sum
+        sum
     }
 
     /// Traces a shadow segment from the hit, counted by the light's term; true if blocked.

@@ -6,7 +6,7 @@ use bevy_ecs::prelude::*;
 use rayon::prelude::*;
 
 use crate::{
-    resources::{Accumulation, FrameSamples},
+    resources::{AOV_FLOATS, Accumulation, FrameSamples},
     stats::FrameStats,
 };
 
@@ -26,6 +26,12 @@ pub fn accumulate(frame: Res<FrameSamples>, mut accumulation: ResMut<Accumulatio
             *count += spp;
         },
     );
+    if !frame.aovs.is_empty() {
+        acc.aovs.resize(frame.aovs.len(), [0.0; AOV_FLOATS]);
+        acc.aovs.par_iter_mut().zip(frame.aovs.par_iter()).for_each(|(sum, add)| {
+            sum.iter_mut().zip(add).for_each(|(s, a)| *s += *a as f64);
+        });
+    }
     acc.spp += spp;
     stats.spp = acc.spp;
     stats.record("accumulate", start.elapsed(), format!("+{spp} spp"));

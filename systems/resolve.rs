@@ -9,7 +9,7 @@ use rayon::prelude::*;
 
 use crate::{
     film::linear_to_srgb8,
-    resources::{Accumulation, Image},
+    resources::{AOV_FLOATS, Accumulation, Image},
     stats::FrameStats,
 };
 
@@ -34,5 +34,18 @@ pub fn resolve(accumulation: Res<Accumulation>, mut image: ResMut<Image>, mut st
                 *c = linear_to_srgb8(v);
             }
         });
+    image.aovs.clear();
+    if accumulation.aovs.len() == n {
+        image.aovs.par_extend(accumulation.aovs.par_iter().zip(accumulation.counts.par_iter()).map(|(sum, &count)| {
+            let mut mean = [0.0f32; AOV_FLOATS];
+            if count > 0 {
+                for (m, s) in mean.iter_mut().zip(sum) {
+                    let v = (*s / count as f64) as f32;
+                    *m = if v.is_finite() { v } else { 0.0 };
+                }
+            }
+            mean
+        }));
+    }
     stats.record("resolve", start.elapsed(), format!("{} spp", accumulation.spp));
 }

@@ -13,7 +13,7 @@ use crate::{
     camera::{ActiveCamera, CameraRays, Cameras},
     geometry::SceneGeometry,
     light::{LightGroup, LightRegistry},
-    resources::{Accumulation, FrameSamples, RenderSettings, SceneProblems},
+    resources::{AOV_FLOATS, Accumulation, AovValues, FrameSamples, RenderSettings, SceneProblems},
     sampling::{SampleSets, dims},
     shading::{RayCounts, Scene, Tracer},
     stats::FrameStats,
@@ -31,6 +31,7 @@ struct Tile {
 /// What one tile produced.
 struct TileResult {
     sums: Vec<Vec3>,
+    aovs: Vec<AovValues>,
     rays: RayCounts,
     nonfinite: u64,
 }
@@ -68,19 +69,16 @@ pub fn trace(
 
     let first = accumulation.spp;
     let tiles = tiles(settings.width, settings.height, settings.tile_size);
-    let width = settings.width;
+    let job = Job { width: settings.width, first, count, jitter: settings.jitter, aovs: settings.aovs };
     let results: Vec<TileResult> = match camera {
-        ActiveCamera::Pinhole(c) => tiles.par_iter().map(|t| trace_tile(&scene, &c, *t, width, first, count)).collect(),
-        ActiveCamera::ThinLens(c) => {
-            tiles.par_iter().map(|t| trace_tile(&scene, &c, *t, width, first, count)).collect()
-        }
-        ActiveCamera::Orthographic(c) => {
-            tiles.par_iter().map(|t| trace_tile(&scene, &c, *t, width, first, count)).collect()
-        }
+        ActiveCamera::Pinhole(c) => tiles.par_iter().map(|t| trace_tile(&scene, &c, *t, &job)).collect(),
+        ActiveCamera::ThinLens(c) => tiles.par_iter().map(|t| trace_tile(&scene, &c, *t, &job)).collect(),
+        ActiveCamera::Orthographic(c) => tiles.par_iter().map(|t| trace_tile(&scene, &c, *t, &job)).collect(),
     };
 
     let frame = &mut *frame;
     frame.sums.resize(settings.pixel_count(), Vec3::ZERO);
+    frame.aovs.resize(if settings.aovs { settings.pixel_count() } else { 0 }, [0.0; AOV_FLOATS]);
     frame.samples_per_pixel = count;
     frame.first_index = first;
     let mut rays = RayCounts::default();
@@ -89,6 +87,9 @@ pub fn trace(
         for (row, y) in (tile.y0..tile.y1).enumerate() {
             let dst = (y * settings.width + tile.x0) as usize;
             frame.sums[dst..dst + w].copy_from_slice(&result.sums[row * w..(row + 1) * w]);
+            if settings.aovs {
+                frame.aovs[dst..dst + w].copy_from_slice(&result.aovs[row * w..(row + 1) * w]);
+            }
         }
         rays.add(&result.rays);
         stats.nonfinite_samples += result.nonfinite;
@@ -110,26 +111,46 @@ fn tiles(width: u32, height: u32, size: u32) -> Vec<Tile> {
     tiles
 }
 
-fn trace_tile<C: CameraRays>(scene: &Scene, camera: &C, tile: Tile, width: u32, first: u32, count: u32) -> TileResult {
+/// What every tile of this frame traces.
+struct Job {
+    width: u32,
+    first: u32,
+    count: u32,
+    jitter: bool,
+    aovs: bool,
+}
+
+fn trace_tile<C: CameraRays>(scene: &Scene, camera: &C, tile: Tile, job: &Job) -> TileResult {
     let mut tracer = Tracer::default();
     let mut nonfinite = 0;
-    let mut sums = Vec::with_capacity(((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize);
+    let pixels = ((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize;
+    let mut sums = Vec::with_capacity(pixels);
+    let mut aovs = Vec::with_capacity(if job.aovs { pixels } else { 0 });
     for y in tile.y0..tile.y1 {
         for x in tile.x0..tile.x1 {
-            let pixel = y * width + x;
+            let pixel = y * job.width + x;
             let mut sum = Vec3::ZERO;
-            for index in first..first + count {
+            let mut aov = [0.0; AOV_FLOATS];
+            for index in job.first..job.first + job.count {
                 let lens = if C::USES_LENS { scene.sets.sample(pixel, index, dims::LENS) } else { Vec2::ZERO };
-                let ray = camera.ray(x, y, scene.sets.sample(pixel, index, dims::PIXEL), lens);
-                let l = tracer.radiance(scene, &ray, pixel, index);
-                if l.is_finite() {
-                    sum += l;
+                let film = if job.jitter { scene.sets.sample(pixel, index, dims::PIXEL) } else { Vec2::splat(0.5) };
+                let ray = camera.ray(x, y, film, lens);
+                let s = tracer.sample(scene, &ray, pixel, index, !job.aovs);
+                let values = s.aov_values();
+                if s.radiance.is_finite() && (!job.aovs || values.iter().all(|v| v.is_finite())) {
+                    sum += s.radiance;
+                    if job.aovs {
+                        aov.iter_mut().zip(values).for_each(|(a, v)| *a += v);
+                    }
                 } else {
                     nonfinite += 1;
                 }
             }
             sums.push(sum);
+            if job.aovs {
+                aovs.push(aov);
+            }
         }
     }
-    TileResult { sums, rays: tracer.rays, nonfinite }
+    TileResult { sums, aovs, rays: tracer.rays, nonfinite }
 }

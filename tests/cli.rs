@@ -78,9 +78,32 @@ fn error_study_writes_csv_and_plot() {
 }
 
 #[test]
+fn peer_scene_with_aovs_writes_one_exr_per_aov() {
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/peers/scenes/cornell.json");
+    let out = temp("cornell.exr");
+    let args = ["render", scene, "--spp", "2", "--size", "32x32", "--aov", "ao,direct,albedo,normal,depth", "--out"];
+    let (code, _, err) = hemi(&[&args[..], &[out.to_str().unwrap()]].concat());
+    assert_eq!(code, 0, "{err}");
+    for name in ["ao", "direct", "albedo", "normal", "depth"] {
+        let img = image::open(temp(&format!("cornell.{name}.exr"))).unwrap().into_rgb32f();
+        assert_eq!(img.dimensions(), (32, 32), "{name}");
+        assert!(img.pixels().all(|p| p.0.iter().all(|v| v.is_finite())), "{name}");
+    }
+    // Normals are unit length wherever the camera sees the box (everywhere here).
+    let normals = image::open(temp("cornell.normal.exr")).unwrap().into_rgb32f();
+    for p in normals.pixels() {
+        let len = (p.0[0] * p.0[0] + p.0[1] * p.0[1] + p.0[2] * p.0[2]).sqrt();
+        assert!((len - 1.0).abs() < 1e-3, "normal length {len}");
+    }
+    let ao = image::open(temp("cornell.ao.exr")).unwrap().into_rgb32f();
+    assert!(ao.pixels().all(|p| (0.0..=1.0).contains(&p.0[0])));
+}
+
+#[test]
 fn bad_arguments_give_one_line_and_a_non_zero_exit() {
     let unwritable = "/nonexistent-dir/x.png";
-    let cases: [(&[&str], &str); 8] = [
+    let cases: [(&[&str], &str); 9] = [
+        (&["render", "--aov", "shadows"], "unknown AOV 'shadows'"),
         (&["render", "--bogus"], "--bogus"),
         (&["render", "--size", "0x0"], "empty"),
         (&["render", "--size", "12"], "WIDTHxHEIGHT"),

@@ -19,6 +19,8 @@ pub fn settings(width: u32, height: u32, spp: u32, sampler: SamplerKind) -> Rend
         sampler,
         tile_size: 8,
         background: Vec3::ZERO,
+        jitter: true,
+        aovs: false,
     }
 }
 
