@@ -130,6 +130,10 @@ struct RenderArgs {
     /// Print a per-system timing table for every frame.
     #[arg(long)]
     stats: bool,
+    /// Write every frame's statistics and the totals as JSON (throughput of AO rays under
+    /// `ao_mrays_per_s`).
+    #[arg(long)]
+    stats_json: Option<PathBuf>,
     /// Also write these AOVs (comma-separated: ao, direct, albedo, normal, depth) as linear EXR
     /// files `<stem>.<name>.exr` beside the image.
     #[arg(long, value_delimiter = ',', value_parser = parse_aov)]
@@ -454,8 +458,9 @@ fn render(args: RenderArgs) -> Result<(), HemiError> {
     if let Some(threads) = args.threads {
         renderer = renderer.with_threads(threads as usize)?;
     }
+    let stats_file = args.stats_json.as_deref().map(OutputFile::create_any).transpose()?;
     let start = Instant::now();
-    let mut totals = Totals::default();
+    let mut totals = Totals { json: stats_file.is_some().then(Vec::new), ..Default::default() };
     match frames {
         None => {
             renderer.set_time(args.time);
@@ -479,6 +484,9 @@ fn render(args: RenderArgs) -> Result<(), HemiError> {
             report(size, &renderer, &totals, start, &format!("{} frames", list.len()));
         }
     }
+    if let Some(file) = stats_file {
+        file.write_text(&totals.to_json(start.elapsed().as_secs_f64()).to_string())?;
+    }
     Ok(())
 }
 
@@ -488,6 +496,26 @@ struct Totals {
     rays: RayCounts,
     trace_secs: f64,
     frames: u32,
+    /// Per-frame JSON records, kept only for `--stats-json`.
+    json: Option<Vec<serde_json::Value>>,
+}
+
+impl Totals {
+    /// The `--stats-json` document: every frame, then the totals.
+    fn to_json(&self, seconds: f64) -> serde_json::Value {
+        let per_s = |rays: u64| if self.trace_secs > 0.0 { rays as f64 / self.trace_secs / 1e6 } else { 0.0 };
+        serde_json::json!({
+            "frames": self.json.clone().unwrap_or_default(),
+            "total": {
+                "seconds": seconds,
+                "trace_seconds": self.trace_secs,
+                "frames": self.frames,
+                "rays": { "primary": self.rays.primary, "ao": self.rays.ao, "shadow": self.rays.shadow },
+                "mrays_per_s": per_s(self.rays.total()),
+                "ao_mrays_per_s": per_s(self.rays.ao),
+            }
+        })
+    }
 }
 
 /// Runs frames until the current scene state reaches `--spp`.
@@ -505,6 +533,9 @@ fn render_image(renderer: &mut Renderer, spp: u32, print_stats: bool, totals: &m
         totals.rays.add(&stats.rays);
         totals.trace_secs += stats.time_of("trace").as_secs_f64();
         totals.frames += 1;
+        if let Some(records) = &mut totals.json {
+            records.push(stats.to_json());
+        }
         if print_stats {
             progress.suspend(|| print!("{}", stats.table()));
         }

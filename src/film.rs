@@ -85,6 +85,19 @@ impl OutputFile {
 }
 
 impl OutputFile {
+    /// Creates any output file (no image-format check), failing early if it is unwritable.
+    pub fn create_any(path: &Path) -> Result<Self, HemiError> {
+        let file = File::create(path).map_err(|e| io_error(path, "cannot create output file", e))?;
+        Ok(OutputFile { path: path.to_path_buf(), format: OutputFormat::Png, file })
+    }
+
+    /// Writes text (e.g. JSON statistics).
+    pub fn write_text(self, text: &str) -> Result<(), HemiError> {
+        let path = self.path.clone();
+        let mut out = BufWriter::new(self.file);
+        out.write_all(text.as_bytes()).and_then(|()| out.flush()).map_err(|e| io_error(&path, "cannot write", e))
+    }
+
     /// Writes an 8-bit RGB picture (plots and the like) as PNG, whatever the extension says.
     pub fn write_rgb8(self, rgb: &RgbImage) -> Result<(), HemiError> {
         let path = self.path.clone();

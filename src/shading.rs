@@ -77,6 +77,27 @@ impl SampleResult {
     }
 }
 
+/// Which lights [`Tracer::shade`] evaluates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Lights {
+    /// Every light.
+    All,
+    /// Lights that use no random numbers (e.g. point lights): the same at a given hit for
+    /// every sample, so evaluated once when samples share a hit.
+    Fixed,
+    /// Lights that draw samples (occluders, area lights).
+    Sampled,
+}
+
+/// A camera ray's first hit.
+#[derive(Clone, Copy, Debug)]
+pub struct PrimaryHit {
+    /// The surface hit.
+    pub hit: SurfaceHit,
+    /// Distance from the ray's origin.
+    pub depth: f32,
+}
+
 /// Per-thread scratch state and counters.
 #[derive(Default)]
 pub struct Tracer {
@@ -93,26 +114,53 @@ impl Tracer {
     /// reflectance is zero at the hit be skipped (no rays); AOVs need them traced.
     #[inline(always)]
     pub fn sample(&mut self, scene: &Scene, ray: &Ray, pixel: u32, index: u32, skip_black: bool) -> SampleResult {
+        match self.primary(scene, ray) {
+            Some(hit) => self.shade(scene, &hit, pixel, index, skip_black, Lights::All),
+            None => SampleResult { radiance: scene.background, ..Default::default() },
+        }
+    }
+
+    /// The camera ray's first hit (one primary ray), with the distance it travelled.
+    #[inline(always)]
+    pub fn primary(&mut self, scene: &Scene, ray: &Ray) -> Option<PrimaryHit> {
         self.rays.primary += 1;
-        let Some(hit) = scene.geometry.intersect(ray, &mut self.stack) else {
-            return SampleResult { radiance: scene.background, ..Default::default() };
-        };
+        let hit = scene.geometry.intersect(ray, &mut self.stack)?;
+        Some(PrimaryHit { hit, depth: hit.t * ray.dir.length() })
+    }
+
+    /// Light reflected at a primary hit for sample `index` of `pixel` (each light's own
+    /// sample dimensions), from the lights `which` selects; several samples may share one hit.
+    #[inline(always)]
+    pub fn shade(
+        &mut self,
+        scene: &Scene,
+        primary: &PrimaryHit,
+        pixel: u32,
+        index: u32,
+        skip_black: bool,
+        which: Lights,
+    ) -> SampleResult {
+        let hit = &primary.hit;
         let material = scene.geometry.objects[hit.object as usize].material;
         let at = ShadingPoint { p: hit.p, normal: hit.normal, material };
         let mut out = SampleResult {
             albedo: material.cd,
             normal: hit.normal.into(),
-            depth: hit.t * ray.dir.length(),
+            depth: primary.depth,
             hit: true,
             ..Default::default()
         };
         for &(first_dim, group) in scene.lights {
+            let fixed = group.dims() == 0;
+            if (which == Lights::Fixed && !fixed) || (which == Lights::Sampled && fixed) {
+                continue;
+            }
             let term = group.term();
             let reflectance = term.reflectance(&material);
             if skip_black && reflectance.max_element() <= 0.0 {
                 continue;
             }
-            let arriving = group.shade(self, scene, &hit, &at, pixel, index, first_dim);
+            let arriving = group.shade(self, scene, hit, &at, pixel, index, first_dim);
             let reflected = reflectance * arriving;
             out.radiance += reflected;
             match term {

@@ -68,6 +68,42 @@ impl FrameStats {
         if t > 0.0 { self.rays.total() as f64 / t / 1e6 } else { 0.0 }
     }
 
+    /// AO rays per second of the trace system's wall time, in millions: a conservative AO
+    /// throughput (the trace time also holds primary and shadow rays and shading).
+    pub fn ao_mrays_per_second(&self) -> f64 {
+        let t = self.time_of("trace").as_secs_f64();
+        if t > 0.0 { self.rays.ao as f64 / t / 1e6 } else { 0.0 }
+    }
+
+    /// This frame as JSON (the `--stats-json` record of one frame).
+    pub fn to_json(&self) -> serde_json::Value {
+        let systems: Vec<serde_json::Value> = self
+            .systems
+            .iter()
+            .map(|s| serde_json::json!({ "name": s.name, "ms": s.time.as_secs_f64() * 1e3, "note": s.note }))
+            .collect();
+        serde_json::json!({
+            "frame": self.frame,
+            "spp": self.spp,
+            "samples_traced": self.samples_traced,
+            "ms": self.total_time().as_secs_f64() * 1e3,
+            "systems": systems,
+            "rays": { "primary": self.rays.primary, "ao": self.rays.ao, "shadow": self.rays.shadow },
+            "mrays_per_s": self.mrays_per_second(),
+            "ao_mrays_per_s": self.ao_mrays_per_second(),
+            "bvh": {
+                "blas_built": self.bvh_work.blas_built,
+                "blas_refit": self.bvh_work.blas_refit,
+                "tlas_built": self.bvh_work.tlas_built,
+                "nodes": self.bvh_nodes,
+                "prims": self.bvh_prims,
+                "bytes": self.bvh_bytes,
+            },
+            "buffer_bytes": self.buffer_bytes,
+            "nonfinite_samples": self.nonfinite_samples,
+        })
+    }
+
     /// A human-readable table of this frame.
     pub fn table(&self) -> String {
         let mut s = String::new();

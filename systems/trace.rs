@@ -15,7 +15,7 @@ use crate::{
     light::{LightGroup, LightRegistry},
     resources::{AOV_FLOATS, Accumulation, AovValues, FrameSamples, RenderSettings, SceneProblems},
     sampling::{SampleSets, dims},
-    shading::{RayCounts, Scene, Tracer},
+    shading::{Lights, RayCounts, SampleResult, Scene, Tracer},
     stats::FrameStats,
 };
 
@@ -131,11 +131,30 @@ fn trace_tile<C: CameraRays>(scene: &Scene, camera: &C, tile: Tile, job: &Job) -
             let pixel = y * job.width + x;
             let mut sum = Vec3::ZERO;
             let mut aov = [0.0; AOV_FLOATS];
+            // Without jitter or lens every sample's camera ray is the same: trace it once, and
+            // evaluate the lights that draw no samples (point lights) once too.
+            let shared = (!job.jitter && !C::USES_LENS)
+                .then(|| tracer.primary(scene, &camera.ray(x, y, Vec2::splat(0.5), Vec2::ZERO)));
+            let fixed = match &shared {
+                Some(Some(hit)) => tracer.shade(scene, hit, pixel, job.first, !job.aovs, Lights::Fixed),
+                _ => SampleResult::default(),
+            };
             for index in job.first..job.first + job.count {
-                let lens = if C::USES_LENS { scene.sets.sample(pixel, index, dims::LENS) } else { Vec2::ZERO };
-                let film = if job.jitter { scene.sets.sample(pixel, index, dims::PIXEL) } else { Vec2::splat(0.5) };
-                let ray = camera.ray(x, y, film, lens);
-                let s = tracer.sample(scene, &ray, pixel, index, !job.aovs);
+                let s = match &shared {
+                    Some(Some(hit)) => {
+                        let mut s = tracer.shade(scene, hit, pixel, index, !job.aovs, Lights::Sampled);
+                        s.radiance += fixed.radiance;
+                        s.direct += fixed.direct;
+                        s
+                    }
+                    Some(None) => SampleResult { radiance: scene.background, ..Default::default() },
+                    None => {
+                        let lens = if C::USES_LENS { scene.sets.sample(pixel, index, dims::LENS) } else { Vec2::ZERO };
+                        let film =
+                            if job.jitter { scene.sets.sample(pixel, index, dims::PIXEL) } else { Vec2::splat(0.5) };
+                        tracer.sample(scene, &camera.ray(x, y, film, lens), pixel, index, !job.aovs)
+                    }
+                };
                 let values = s.aov_values();
                 if s.radiance.is_finite() && (!job.aovs || values.iter().all(|v| v.is_finite())) {
                     sum += s.radiance;

@@ -1,0 +1,66 @@
+#!/usr/bin/env bash
+# Runs hemi, Embree 4 (embreex) and Mitsuba 3 (llvm_ad_rgb) on the same peer scenes, one after
+# the other in one session, and prints AO-ray throughput, render time and the ratios.
+#
+#   scripts/compare-peers.sh [--spp N] [--threads N] [SCENE ...]     (default: all five scenes)
+#
+# SCENE is a name from ../shared/peers/scenes (cornell, sphere_plane, many_spheres, dragon,
+# sponza). The peers run from a writable copy in $HEMI_PEERS_DIR (default /tmp/hemi-peers) with
+# their own venv, set up on first use as ../shared/peers/README.md describes (Mitsuba's llvm
+# variant needs libLLVM 19 from Debian: installed with apt-get when missing and run as root).
+set -euo pipefail
+root="$(cd "$(dirname "$0")/.." && pwd)"
+peers_src="$root/../shared/peers"
+work="${HEMI_PEERS_DIR:-/tmp/hemi-peers}"
+spp=256
+threads=2
+scenes=()
+while [ $# -gt 0 ]; do
+    case "$1" in
+        --spp) spp="$2"; shift 2 ;;
+        --threads) threads="$2"; shift 2 ;;
+        -h|--help) sed -n '2,11p' "$0"; exit 0 ;;
+        *) scenes+=("$1"); shift ;;
+    esac
+done
+[ ${#scenes[@]} -gt 0 ] || scenes=(sphere_plane cornell many_spheres dragon sponza)
+[ -d "$peers_src" ] || { echo "compare-peers: $peers_src not found (../shared must sit beside the repo)" >&2; exit 1; }
+
+if [ ! -x "$work/.venv/bin/python" ]; then
+    echo "compare-peers: setting up the peers in $work (pip install, a few minutes)" >&2
+    rm -rf "$work" && cp -r "$peers_src" "$work" && chmod -R u+w "$work"
+    python3 -m venv "$work/.venv"
+    "$work/.venv/bin/pip" install -q -r "$work/requirements.txt"
+fi
+llvm=/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1
+if [ ! -e "$llvm" ] && [ "$(id -u)" = 0 ]; then
+    apt-get install -y -q libllvm19 >/dev/null 2>&1 || { apt-get update -q >/dev/null && apt-get install -y -q libllvm19 >/dev/null; }
+fi
+export DRJIT_LIBLLVM_PATH="$llvm"
+
+(cd "$root" && cargo build --release -q)
+hemi="$root/target/release/hemi"
+out="$(mktemp -d)"
+json() { python3 -c "import json,sys; d=json.loads(sys.stdin.read().strip().splitlines()[-1]); print($1)"; }
+
+printf '%-13s %5s | %-28s | %-28s | %-28s | %s\n' scene spp "hemi: s, AO Mrays/s" "embree: s, AO Mrays/s" "mitsuba: s, AO Mrays/s" "hemi/mitsuba, hemi/embree (AO rate)"
+for s in "${scenes[@]}"; do
+    "$hemi" render "$peers_src/scenes/$s.json" --spp "$spp" --threads "$threads" --out "$out/$s.png" \
+        --stats-json "$out/$s.json" 2>/dev/null
+    h_s=$(json "round(d['total']['seconds'],2)" < "$out/$s.json")
+    h_ao=$(json "round(d['total']['ao_mrays_per_s'],2)" < "$out/$s.json")
+    e_line=$(cd "$work" && .venv/bin/python embree_ao.py "scenes/$s.json" --spp "$spp" --threads "$threads" --out "$out/$s.embree" 2>/dev/null | tail -1)
+    e_s=$(echo "$e_line" | json "d['render_s']")
+    e_ao=$(echo "$e_line" | json "d['ao_incl_gen_mrays_s']")
+    m_line=$(cd "$work" && .venv/bin/python mitsuba_ao.py "scenes/$s.json" --spp "$spp" --threads "$threads" --repeat 2 --out "$out/$s.mitsuba" 2>/dev/null | tail -1 || true)
+    if [ -n "$m_line" ]; then
+        m_s=$(echo "$m_line" | json "d['all_runs_render_s'][-1] if d.get('all_runs_render_s') else d['render_s']")
+        m_ao=$(echo "$m_line" | json "d['ao_mrays_s']")
+    else
+        m_s=nan; m_ao=nan
+    fi
+    ratio=$(python3 -c "print(f'{$h_ao/$m_ao:.2f}x, {$h_ao/$e_ao:.2f}x')" 2>/dev/null || echo "-")
+    printf '%-13s %5s | %10s s %12s       | %10s s %12s       | %10s s %12s       | %s\n' "$s" "$spp" "$h_s" "$h_ao" "$e_s" "$e_ao" "$m_s" "$m_ao" "$ratio"
+done
+echo "AO Mrays/s: hemi = AO rays / trace-system wall time (primary and shadow rays and shading included);"
+echo "embree = ao_incl_gen_mrays_s (numpy ray generation + occlusion); mitsuba = ao_mrays_s (whole AO kernel, warm run)."
