@@ -130,6 +130,10 @@ struct RenderArgs {
     /// Print a per-system timing table for every frame.
     #[arg(long)]
     stats: bool,
+    /// Adaptive sampling: stop sampling each pixel once the standard error of its mean
+    /// luminance is at most E (after at least 16 samples; `--spp` stays the upper bound).
+    #[arg(long, value_name = "E")]
+    target_error: Option<f32>,
     /// Write every frame's statistics and the totals as JSON (throughput of AO rays under
     /// `ao_mrays_per_s`).
     #[arg(long)]
@@ -420,8 +424,10 @@ fn render(args: RenderArgs) -> Result<(), HemiError> {
         // The peers' contract: one primary ray through each pixel centre.
         jitter: peer.is_none(),
         aovs: !args.aov.is_empty(),
+        target_error: args.target_error,
         ..Default::default()
     };
+    settings.validate().map_err(HemiError::Usage)?;
     let mut renderer = match (&args.scene, peer) {
         (None, _) => {
             if args.camera.is_some() || args.animation.is_some() {
@@ -468,6 +474,14 @@ fn render(args: RenderArgs) -> Result<(), HemiError> {
             OutputFile::create(&args.out)?.write(renderer.image())?;
             write_aovs(renderer.image(), &args.out, &args.aov)?;
             report(size, &renderer, &totals, start, &args.out.display().to_string());
+            if args.target_error.is_some() {
+                let (taken, uniform) =
+                    renderer.world().resource::<crate::resources::Accumulation>().samples_against_uniform();
+                eprintln!(
+                    "hemi: adaptive sampling took {taken} samples; uniform sampling needs {uniform:.0} for the same RMS error ({:.2}x)",
+                    uniform / taken.max(1) as f64
+                );
+            }
         }
         Some(list) => {
             for &frame in &list {

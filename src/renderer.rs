@@ -170,10 +170,15 @@ impl Renderer {
         Ok(frames)
     }
 
-    /// Whether the accumulation has reached `max_spp` (never true without a target).
+    /// Whether tracing has stopped: the accumulation reached `max_spp`, or, with a
+    /// `target_error`, the last frame found every pixel done (never true without a target).
     pub fn converged(&self) -> bool {
-        let spp = self.world.resource::<Accumulation>().spp;
-        self.settings().max_spp.is_some_and(|max| spp >= max)
+        let acc = self.world.resource::<Accumulation>();
+        let settings = self.settings();
+        let spp_done = settings.max_spp.is_some_and(|max| acc.spp >= max);
+        let error_done =
+            settings.target_error.is_some() && acc.spp > 0 && self.world.resource::<FrameSamples>().active_pixels == 0;
+        spp_done || error_done
     }
 
     /// Samples per pixel accumulated so far.

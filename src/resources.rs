@@ -32,6 +32,10 @@ pub struct RenderSettings {
     pub jitter: bool,
     /// Accumulate the AOVs ([`Aov`]) beside the beauty image.
     pub aovs: bool,
+    /// Adaptive sampling: a pixel stops being traced once it has at least
+    /// [`RenderSettings::ADAPTIVE_MIN_SPP`] samples and the standard error of its mean
+    /// luminance is at most this (`None`: every pixel gets every sample).
+    pub target_error: Option<f32>,
 }
 
 impl Default for RenderSettings {
@@ -48,11 +52,15 @@ impl Default for RenderSettings {
             background: Vec3::ZERO,
             jitter: true,
             aovs: false,
+            target_error: None,
         }
     }
 }
 
 impl RenderSettings {
+    /// Samples a pixel takes before adaptive sampling may judge its error.
+    pub const ADAPTIVE_MIN_SPP: u32 = 16;
+
     /// Largest image hemi accepts, in pixels (8192 × 4096); buffers take about 60 bytes each.
     pub const MAX_PIXELS: u64 = 1 << 25;
 
@@ -78,6 +86,11 @@ impl RenderSettings {
         }
         if self.tile_size == 0 {
             return Err("tile size must be at least 1".into());
+        }
+        if let Some(e) = self.target_error
+            && !(e.is_finite() && e > 0.0)
+        {
+            return Err(format!("target error {e} must be positive and finite"));
         }
         if !self.background.is_finite() || self.background.min_element() < 0.0 {
             return Err(format!("background {} must be finite and non-negative", self.background));
@@ -151,8 +164,15 @@ impl Aov {
 pub struct FrameSamples {
     /// Sum of this frame's radiance samples per pixel, row-major.
     pub sums: Vec<Vec3>,
-    /// Samples per pixel traced this frame (0 when the frame traced nothing).
+    /// Samples per pixel traced this frame (0 when the frame traced nothing); pixels that
+    /// adaptive sampling retired got none (see `counts`).
     pub samples_per_pixel: u32,
+    /// Samples traced per pixel this frame.
+    pub counts: Vec<u32>,
+    /// Sum of the squared luminance of this frame's samples per pixel (for the variance).
+    pub sq_sums: Vec<f32>,
+    /// Pixels traced this frame.
+    pub active_pixels: usize,
     /// Sample index of this frame's first sample in every pixel.
     pub first_index: u32,
     /// Per-pixel AOV sums (empty unless `RenderSettings::aovs`).
@@ -170,6 +190,8 @@ pub struct Accumulation {
     pub sums: Vec<DVec3>,
     /// Samples accumulated per pixel.
     pub counts: Vec<u32>,
+    /// Sum of squared sample luminance per pixel.
+    pub sq_sums: Vec<f64>,
     /// Per-pixel AOV sums (empty unless `RenderSettings::aovs`), in f64.
     pub aovs: Vec<[f64; AOV_FLOATS]>,
     /// Samples per pixel accumulated so far (every pixel has the same count).
@@ -178,7 +200,51 @@ pub struct Accumulation {
     pub resets: u64,
 }
 
+/// Luminance (Rec. 709) of linear RGB.
+#[inline]
+pub fn luminance(c: Vec3) -> f32 {
+    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
+}
+
 impl Accumulation {
+    /// Standard error of pixel `i`'s mean luminance from its samples so far (∞ below 2).
+    pub fn standard_error(&self, i: usize) -> f64 {
+        let n = self.counts[i] as f64;
+        if n < 2.0 {
+            return f64::INFINITY;
+        }
+        let mean = luminance(self.sums[i].as_vec3()) as f64 / n;
+        let var = ((self.sq_sums[i] / n - mean * mean) * n / (n - 1.0)).max(0.0);
+        (var / n).sqrt()
+    }
+
+    /// Samples taken in all, and the samples uniform sampling would need for the same RMS of
+    /// the pixels' standard errors (N = mean variance / RMS², the same N in every pixel).
+    pub fn samples_against_uniform(&self) -> (u64, f64) {
+        let (mut taken, mut var_sum, mut err2_sum, mut n) = (0u64, 0.0f64, 0.0f64, 0usize);
+        for i in 0..self.counts.len() {
+            let e = self.standard_error(i);
+            if !e.is_finite() {
+                continue;
+            }
+            taken += self.counts[i] as u64;
+            var_sum += e * e * self.counts[i] as f64;
+            err2_sum += e * e;
+            n += 1;
+        }
+        if n == 0 || err2_sum == 0.0 {
+            return (taken, taken as f64);
+        }
+        let uniform_spp = (var_sum / n as f64) / (err2_sum / n as f64);
+        (taken, uniform_spp * n as f64)
+    }
+
+    /// Whether adaptive sampling has retired pixel `i` for target error `e`.
+    #[inline]
+    pub fn pixel_done(&self, i: usize, target: Option<f32>) -> bool {
+        target.is_some_and(|e| self.counts[i] >= RenderSettings::ADAPTIVE_MIN_SPP && self.standard_error(i) <= e as f64)
+    }
+
     /// Empties the buffer and sizes it for `width × height`.
     pub fn reset(&mut self, width: u32, height: u32) {
         let n = width as usize * height as usize;
@@ -188,6 +254,8 @@ impl Accumulation {
         self.sums.resize(n, DVec3::ZERO);
         self.counts.clear();
         self.counts.resize(n, 0);
+        self.sq_sums.clear();
+        self.sq_sums.resize(n, 0.0);
         self.aovs.clear();
         self.spp = 0;
         self.resets += 1;

@@ -20,12 +20,16 @@ pub fn accumulate(frame: Res<FrameSamples>, mut accumulation: ResMut<Accumulatio
         return;
     }
     let acc = &mut *accumulation;
-    acc.sums.par_iter_mut().zip(acc.counts.par_iter_mut()).zip(frame.sums.par_iter()).for_each(
-        |((sum, count), add)| {
+    acc.sums
+        .par_iter_mut()
+        .zip(acc.counts.par_iter_mut())
+        .zip(acc.sq_sums.par_iter_mut())
+        .zip(frame.sums.par_iter().zip(frame.counts.par_iter()).zip(frame.sq_sums.par_iter()))
+        .for_each(|(((sum, count), sq), ((add, n), add_sq))| {
             *sum += add.as_dvec3();
-            *count += spp;
-        },
-    );
+            *count += n;
+            *sq += *add_sq as f64;
+        });
     if !frame.aovs.is_empty() {
         acc.aovs.resize(frame.aovs.len(), [0.0; AOV_FLOATS]);
         acc.aovs.par_iter_mut().zip(frame.aovs.par_iter()).for_each(|(sum, add)| {

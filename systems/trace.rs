@@ -13,7 +13,7 @@ use crate::{
     camera::{ActiveCamera, CameraRays, Cameras},
     geometry::SceneGeometry,
     light::{LightGroup, LightRegistry},
-    resources::{AOV_FLOATS, Accumulation, AovValues, FrameSamples, RenderSettings, SceneProblems},
+    resources::{AOV_FLOATS, Accumulation, AovValues, FrameSamples, RenderSettings, SceneProblems, luminance},
     sampling::{SampleSets, dims},
     shading::{Lights, RayCounts, SampleResult, Scene, Tracer},
     stats::FrameStats,
@@ -31,6 +31,8 @@ struct Tile {
 /// What one tile produced.
 struct TileResult {
     sums: Vec<Vec3>,
+    counts: Vec<u32>,
+    sq_sums: Vec<f32>,
     aovs: Vec<AovValues>,
     rays: RayCounts,
     nonfinite: u64,
@@ -69,24 +71,34 @@ pub fn trace(
 
     let first = accumulation.spp;
     let tiles = tiles(settings.width, settings.height, settings.tile_size);
-    let job = Job { width: settings.width, first, count, jitter: settings.jitter, aovs: settings.aovs };
+    let job = Job { width: settings.width, count, jitter: settings.jitter, aovs: settings.aovs };
+    let acc = &*accumulation;
+    let target = settings.target_error;
     let results: Vec<TileResult> = match camera {
-        ActiveCamera::Pinhole(c) => tiles.par_iter().map(|t| trace_tile(&scene, &c, *t, &job)).collect(),
-        ActiveCamera::ThinLens(c) => tiles.par_iter().map(|t| trace_tile(&scene, &c, *t, &job)).collect(),
-        ActiveCamera::Orthographic(c) => tiles.par_iter().map(|t| trace_tile(&scene, &c, *t, &job)).collect(),
+        ActiveCamera::Pinhole(c) => tiles.par_iter().map(|t| trace_tile(&scene, &c, *t, &job, acc, target)).collect(),
+        ActiveCamera::ThinLens(c) => tiles.par_iter().map(|t| trace_tile(&scene, &c, *t, &job, acc, target)).collect(),
+        ActiveCamera::Orthographic(c) => {
+            tiles.par_iter().map(|t| trace_tile(&scene, &c, *t, &job, acc, target)).collect()
+        }
     };
 
     let frame = &mut *frame;
     frame.sums.resize(settings.pixel_count(), Vec3::ZERO);
+    frame.counts.resize(settings.pixel_count(), 0);
+    frame.sq_sums.resize(settings.pixel_count(), 0.0);
     frame.aovs.resize(if settings.aovs { settings.pixel_count() } else { 0 }, [0.0; AOV_FLOATS]);
     frame.samples_per_pixel = count;
     frame.first_index = first;
+    frame.active_pixels = results.iter().map(|r| r.counts.iter().filter(|&&c| c > 0).count()).sum();
     let mut rays = RayCounts::default();
     for (tile, result) in tiles.iter().zip(&results) {
         let w = (tile.x1 - tile.x0) as usize;
         for (row, y) in (tile.y0..tile.y1).enumerate() {
             let dst = (y * settings.width + tile.x0) as usize;
-            frame.sums[dst..dst + w].copy_from_slice(&result.sums[row * w..(row + 1) * w]);
+            let src = row * w..(row + 1) * w;
+            frame.sums[dst..dst + w].copy_from_slice(&result.sums[src.clone()]);
+            frame.counts[dst..dst + w].copy_from_slice(&result.counts[src.clone()]);
+            frame.sq_sums[dst..dst + w].copy_from_slice(&result.sq_sums[src]);
             if settings.aovs {
                 frame.aovs[dst..dst + w].copy_from_slice(&result.aovs[row * w..(row + 1) * w]);
             }
@@ -114,32 +126,54 @@ fn tiles(width: u32, height: u32, size: u32) -> Vec<Tile> {
 /// What every tile of this frame traces.
 struct Job {
     width: u32,
-    first: u32,
     count: u32,
     jitter: bool,
     aovs: bool,
 }
 
-fn trace_tile<C: CameraRays>(scene: &Scene, camera: &C, tile: Tile, job: &Job) -> TileResult {
+fn trace_tile<C: CameraRays>(
+    scene: &Scene,
+    camera: &C,
+    tile: Tile,
+    job: &Job,
+    acc: &Accumulation,
+    target: Option<f32>,
+) -> TileResult {
     let mut tracer = Tracer::default();
     let mut nonfinite = 0;
     let pixels = ((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize;
     let mut sums = Vec::with_capacity(pixels);
+    let mut counts = Vec::with_capacity(pixels);
+    let mut sq_sums = Vec::with_capacity(pixels);
     let mut aovs = Vec::with_capacity(if job.aovs { pixels } else { 0 });
     for y in tile.y0..tile.y1 {
         for x in tile.x0..tile.x1 {
             let pixel = y * job.width + x;
             let mut sum = Vec3::ZERO;
+            let mut sq_sum = 0.0;
             let mut aov = [0.0; AOV_FLOATS];
+            // A pixel's samples are numbered 0, 1, … whatever the others do (adaptive sampling
+            // retires pixels independently).
+            let first = acc.counts[pixel as usize];
+            let count = if acc.pixel_done(pixel as usize, target) { 0 } else { job.count };
+            if count == 0 {
+                sums.push(sum);
+                counts.push(0);
+                sq_sums.push(0.0);
+                if job.aovs {
+                    aovs.push(aov);
+                }
+                continue;
+            }
             // Without jitter or lens every sample's camera ray is the same: trace it once, and
             // evaluate the lights that draw no samples (point lights) once too.
             let shared = (!job.jitter && !C::USES_LENS)
                 .then(|| tracer.primary(scene, &camera.ray(x, y, Vec2::splat(0.5), Vec2::ZERO)));
             let fixed = match &shared {
-                Some(Some(hit)) => tracer.shade(scene, hit, pixel, job.first, !job.aovs, Lights::Fixed),
+                Some(Some(hit)) => tracer.shade(scene, hit, pixel, first, !job.aovs, Lights::Fixed),
                 _ => SampleResult::default(),
             };
-            for index in job.first..job.first + job.count {
+            for index in first..first + count {
                 let s = match &shared {
                     Some(Some(hit)) => {
                         let mut s = tracer.shade(scene, hit, pixel, index, !job.aovs, Lights::Sampled);
@@ -158,6 +192,7 @@ fn trace_tile<C: CameraRays>(scene: &Scene, camera: &C, tile: Tile, job: &Job) -
                 let values = s.aov_values();
                 if s.radiance.is_finite() && (!job.aovs || values.iter().all(|v| v.is_finite())) {
                     sum += s.radiance;
+                    sq_sum += luminance(s.radiance).powi(2);
                     if job.aovs {
                         aov.iter_mut().zip(values).for_each(|(a, v)| *a += v);
                     }
@@ -166,10 +201,12 @@ fn trace_tile<C: CameraRays>(scene: &Scene, camera: &C, tile: Tile, job: &Job) -
                 }
             }
             sums.push(sum);
+            counts.push(count);
+            sq_sums.push(sq_sum);
             if job.aovs {
                 aovs.push(aov);
             }
         }
     }
-    TileResult { sums, aovs, rays: tracer.rays, nonfinite }
+    TileResult { sums, counts, sq_sums, aovs, rays: tracer.rays, nonfinite }
 }

@@ -222,3 +222,42 @@ fn moving_a_mesh_instance_rebuilds_only_the_top_level() {
     assert_eq!(stats.bvh_work, BvhWork { blas_built: 0, blas_refit: 0, tlas_built: true });
     assert_eq!(stats.spp, 2, "accumulation restarted");
 }
+
+#[test]
+fn adaptive_sampling_retires_converged_pixels_and_saves_samples() {
+    let settings = RenderSettings {
+        width: 48,
+        height: 27,
+        samples_per_frame: 8,
+        samples_per_set: 8,
+        max_spp: Some(1024),
+        target_error: Some(0.02),
+        ..Default::default()
+    };
+    let mut r = Renderer::with_default_scene(settings.clone());
+    let mut frames = 0;
+    while !r.converged() {
+        r.run_frame().unwrap();
+        frames += 1;
+    }
+    let acc = r.world().resource::<hemi::resources::Accumulation>();
+    // Sky pixels have no variance: they stop at the minimum; noisy ones go on.
+    let min = *acc.counts.iter().min().unwrap();
+    let max = *acc.counts.iter().max().unwrap();
+    assert_eq!(min, RenderSettings::ADAPTIVE_MIN_SPP);
+    assert!(max > 4 * min, "noisy pixels should keep sampling ({min}..{max})");
+    // Every pixel stopped before the cap, meeting the target.
+    for i in 0..acc.counts.len() {
+        assert!(acc.counts[i] < 1024 && acc.standard_error(i) <= 0.02, "pixel {i}: error {}", acc.standard_error(i));
+    }
+    let (taken, uniform) = acc.samples_against_uniform();
+    assert!(uniform > 1.5 * taken as f64, "adaptive {taken} vs uniform {uniform}");
+    assert!(frames < 1024 / 8, "stopped before the cap");
+    // Still deterministic whatever the thread count.
+    let image = r.image().clone();
+    let mut one = Renderer::with_default_scene(settings).with_threads(1).unwrap();
+    while !one.converged() {
+        one.run_frame().unwrap();
+    }
+    assert_eq!(one.image(), &image);
+}

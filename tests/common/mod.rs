@@ -21,6 +21,7 @@ pub fn settings(width: u32, height: u32, spp: u32, sampler: SamplerKind) -> Rend
         background: Vec3::ZERO,
         jitter: true,
         aovs: false,
+        target_error: None,
     }
 }
 
