@@ -65,7 +65,7 @@ fn system_sample_sets(bencher: Bencher, kind: SamplerKind) {
 }
 
 /// BVH build over n triangles (copies of a torus knot on a grid).
-#[divan::bench(args = [10_000, 100_000], sample_count = 5)]
+#[divan::bench(args = [10_000, 100_000, 1_000_000], sample_count = 3)]
 fn system_bvh_build(bencher: Bencher, triangles: usize) {
     let knot = Arc::new(torus_knot(2, 3, 0.8, 0.2, 250, 20)); // 10,000 triangles
     let copies = triangles.div_ceil(knot.triangle_count());
