@@ -53,7 +53,8 @@ struct CompareArgs {
 /// Options of `hemi error`.
 #[derive(clap::Args, Debug)]
 struct ErrorArgs {
-    /// Scene: `sphere-over-plane` or `wall` (analytic references), or `default` (needs --reference).
+    /// Scene: `sphere-over-plane` or `wall` (analytic references), a peer scene `.json` (its
+    /// `ao` against `../refs/<name>.ao.npy` over hit pixels), or `default` (needs --reference).
     scene: String,
     /// Reference image (linear EXR of the same size), e.g. `hemi render --spp 4096 --out ref.exr`.
     #[arg(long)]
@@ -273,49 +274,62 @@ fn error_study(args: ErrorArgs) -> Result<(), HemiError> {
 
     let plot_file = OutputFile::create(&args.plot)?;
     let analytic = AnalyticScene::from_name(&args.scene);
-    let (width, height) = match (args.size, analytic) {
-        (Some(size), _) => size,
-        (None, Some(a)) => a.size(),
-        (None, None) => (160, 90),
+    let peer = if args.scene.ends_with(".json") { Some(PeerScene::load(std::path::Path::new(&args.scene))?) } else { None };
+    let (width, height) = match (args.size, analytic, &peer) {
+        (Some(size), _, _) => size,
+        (None, Some(a), _) => a.size(),
+        (None, None, Some(p)) => (p.width, p.height),
+        (None, None, None) => (160, 90),
     };
-    let base = RenderSettings { width, height, seed: args.seed, ..Default::default() };
-    let reference: Vec<Vec3> = match (analytic, &args.reference) {
-        (_, Some(path)) => read_reference(path, width, height)?,
-        (Some(a), None) => {
+    let mut base = RenderSettings { width, height, seed: args.seed, ..Default::default() };
+    let mut mask = None;
+    let reference: Vec<Vec3> = match (analytic, &peer, &args.reference) {
+        (_, _, Some(path)) => read_reference(path, width, height)?,
+        (Some(a), _, None) => {
             let mut probe = Renderer::new(base.clone());
             let camera = a.spawn(probe.world_mut(), 1.0, Vec3::ZERO);
-            a.reference(&camera, width, height, 1.0, Vec3::ZERO)
-                .map_err(HemiError::InvalidScene)?
-                .into_iter()
-                .map(Vec3::splat)
-                .collect()
+            a.reference(&camera, width, height, 1.0, Vec3::ZERO).map_err(HemiError::InvalidScene)?.into_iter().map(Vec3::splat).collect()
         }
-        (None, None) if args.scene == "default" => {
+        (None, Some(p), None) => {
+            if (width, height) != (p.width, p.height) {
+                return Err(HemiError::Usage(format!("peer references are {}x{}: drop --size", p.width, p.height)));
+            }
+            let (ao, hit) = p.reference_paths();
+            base.jitter = false;
+            mask = Some(crate::npy::read_bool(&hit)?.data);
+            crate::npy::read_f32(&ao)?.data.into_iter().map(Vec3::splat).collect()
+        }
+        (None, None, None) if args.scene == "default" => {
             return Err(HemiError::Usage(
-                "scene 'default' needs --reference FILE.exr (e.g. hemi render --size 160x90 --spp 4096 --out ref.exr)"
-                    .into(),
+                "scene 'default' needs --reference FILE.exr (e.g. hemi render --size 160x90 --spp 4096 --out ref.exr)".into(),
             ));
         }
-        (None, None) => {
+        (None, None, None) => {
             return Err(HemiError::Usage(format!(
-                "unknown scene '{}' (expected sphere-over-plane, wall or default)",
+                "unknown scene '{}' (expected sphere-over-plane, wall, a peer .json or default)",
                 args.scene
             )));
         }
     };
     let build = |settings: RenderSettings| -> Result<Renderer, HemiError> {
-        Ok(match analytic {
-            Some(a) => {
+        Ok(match (analytic, &peer) {
+            (Some(a), _) => {
                 let mut r = Renderer::new(settings);
                 a.spawn(r.world_mut(), 1.0, Vec3::ZERO);
                 r
             }
-            None => Renderer::with_default_scene(settings),
+            (None, Some(p)) => {
+                let mut r = Renderer::new(settings);
+                p.spawn(r.world_mut())?;
+                r
+            }
+            (None, None) => Renderer::with_default_scene(settings),
         })
     };
     let samplers = if args.samplers.is_empty() { SamplerKind::ALL.to_vec() } else { args.samplers.clone() };
     let tty = std::io::stderr().is_terminal();
-    let points = convergence::study(build, &base, &samplers, args.max_spp, &reference, None, |p| {
+    let aov = peer.as_ref().map(|_| Aov::Ao);
+    let points = convergence::study(build, &base, &samplers, args.max_spp, &reference, mask.as_deref(), aov, |p| {
         if tty {
             eprint!("\r{:>15} {:>6} spp  rmse {:.3e}   ", p.sampler.name(), p.spp, p.rmse);
         }

@@ -5,7 +5,12 @@ use std::{fmt::Write, time::Duration};
 
 use glam::Vec3;
 
-use crate::{Renderer, error::HemiError, resources::RenderSettings, sampling::SamplerKind};
+use crate::{
+    Renderer,
+    error::HemiError,
+    resources::{Aov, RenderSettings},
+    sampling::SamplerKind,
+};
 
 /// One render of the study.
 #[derive(Clone, Debug, PartialEq)]
@@ -44,8 +49,19 @@ pub fn rmse(image: &[Vec3], reference: &[Vec3], mask: Option<&[bool]>) -> (f64, 
     (rmse, if mean > 0.0 { rmse / mean } else { 0.0 })
 }
 
+/// What a study compares with its reference: the beauty image, or one AOV.
+pub fn measured(renderer: &Renderer, aov: Option<Aov>) -> Vec<Vec3> {
+    match aov {
+        Some(a) => renderer.image().aov(a).unwrap_or_default(),
+        None => renderer.image().linear.clone(),
+    }
+}
+
 /// Renders with every sampler at spp = 1, 2, 4, … up to `max_spp`. `scene` builds a fresh
 /// renderer holding the scene; each spp is one frame with sample sets of exactly that size.
+/// The beauty image (or the AOV `aov`, which turns AOVs on) is compared with `reference`
+/// over the pixels `mask` keeps.
+#[allow(clippy::too_many_arguments)]
 pub fn study(
     scene: impl Fn(RenderSettings) -> Result<Renderer, HemiError>,
     base: &RenderSettings,
@@ -53,11 +69,12 @@ pub fn study(
     max_spp: u32,
     reference: &[Vec3],
     mask: Option<&[bool]>,
+    aov: Option<Aov>,
     mut progress: impl FnMut(&ErrorPoint),
 ) -> Result<Vec<ErrorPoint>, HemiError> {
     let mut points = Vec::new();
     for &sampler in samplers {
-        let mut renderer = scene(RenderSettings { sampler, ..base.clone() })?;
+        let mut renderer = scene(RenderSettings { sampler, aovs: base.aovs || aov.is_some(), ..base.clone() })?;
         // Warm-up frame: builds the BVH so that it is not charged to the first spp.
         renderer.run_frame()?;
         let mut spp = 1;
@@ -71,7 +88,7 @@ pub fn study(
             let stats = renderer.run_frame()?;
             let seconds = stats.total_time().as_secs_f64();
             let rays = stats.rays.total();
-            let (rmse, relative_rmse) = rmse(&renderer.image().linear, reference, mask);
+            let (rmse, relative_rmse) = rmse(&measured(&renderer, aov), reference, mask);
             let point = ErrorPoint { sampler, spp, seconds, rays, rmse, relative_rmse };
             progress(&point);
             points.push(point);
