@@ -24,7 +24,8 @@ fn print_rows(scene: &str, samplers: &[SamplerKind], points: &[ErrorPoint], targ
     for &k in samplers {
         let (s_spp, s_time) = convergence::slopes(points, k);
         let ms = |target| {
-            convergence::time_to_error(points, k, target).map_or("-".into(), |d| format!("{:.2}", d.as_secs_f64() * 1e3))
+            convergence::time_to_error(points, k, target)
+                .map_or("-".into(), |d| format!("{:.2}", d.as_secs_f64() * 1e3))
         };
         println!(
             "{:<18} {:<15} {:>11.3} {:>11.3} {:>14} {:>14}",
@@ -62,7 +63,8 @@ fn main() {
             convergence::study(build, &base, &SamplerKind::ALL, max_spp, &reference, None, None, |_| {}).unwrap();
         print_rows(scene.name(), &SamplerKind::ALL, &points, [1e-2, 3e-3]);
     }
-    let samplers = [SamplerKind::Random, SamplerKind::Jittered, SamplerKind::CorrelatedMultiJittered, SamplerKind::ZSobol];
+    let samplers =
+        [SamplerKind::Random, SamplerKind::Jittered, SamplerKind::CorrelatedMultiJittered, SamplerKind::ZSobol];
     for name in ["cornell", "sphere_plane"] {
         let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("../shared/peers/scenes/{name}.json"));
         let peer = PeerScene::load(&path).unwrap();

@@ -1,7 +1,7 @@
 //! Primary ray generation: the pinhole, thin-lens and orthographic cameras.
 
 use bevy_ecs::{prelude::Query, system::SystemParam};
-use glam::{Vec2, Vec3A};
+use glam::{Vec2, Vec3, Vec3A};
 
 use crate::{
     components::{Camera, OrthographicCamera, ThinLensCamera},
@@ -18,6 +18,20 @@ pub trait CameraRays: Sync {
     /// The ray through film position (x + u.x, y + u.y), pixel (0, 0) being the top-left one,
     /// leaving the lens at the point `lens` in [0, 1)² maps to.
     fn ray(&self, x: u32, y: u32, u: Vec2, lens: Vec2) -> Ray;
+}
+
+/// The camera frame (forward, right, up) from eye, target and an up hint.
+fn view_basis(eye: Vec3, target: Vec3, up_hint: Vec3) -> (Vec3, Vec3, Vec3) {
+    let forward = (target - eye).normalize();
+    let right = forward.cross(up_hint).normalize();
+    (forward, right, right.cross(forward))
+}
+
+/// Film coordinates in [−1, 1]² (x right, y up) of film position (x + u.x, y + u.y), pixel
+/// (0, 0) being the top-left one.
+#[inline]
+fn film_xy(x: u32, y: u32, u: Vec2, inv_width: f32, inv_height: f32) -> (f32, f32) {
+    (2.0 * (x as f32 + u.x) * inv_width - 1.0, 1.0 - 2.0 * (y as f32 + u.y) * inv_height)
 }
 
 /// A pinhole camera prepared for one image size.
@@ -39,9 +53,7 @@ impl PinholeRays {
     /// Prepares `camera` for a `width × height` image; `Err` names what makes it unusable.
     pub fn new(camera: &Camera, width: u32, height: u32) -> Result<Self, String> {
         camera.validate()?;
-        let forward = (camera.target - camera.eye).normalize();
-        let right = forward.cross(camera.up).normalize();
-        let up = right.cross(forward);
+        let (forward, right, up) = view_basis(camera.eye, camera.target, camera.up);
         let tan_half = (camera.vfov_degrees.to_radians() * 0.5).tan();
         let aspect = width as f32 / height as f32;
         Ok(PinholeRays {
@@ -59,8 +71,7 @@ impl PinholeRays {
     /// The unnormalised direction through film position (x + u.x, y + u.y), of unit depth.
     #[inline]
     fn film_dir(&self, x: u32, y: u32, u: Vec2) -> Vec3A {
-        let sx = 2.0 * (x as f32 + u.x) * self.inv_width - 1.0;
-        let sy = 1.0 - 2.0 * (y as f32 + u.y) * self.inv_height;
+        let (sx, sy) = film_xy(x, y, u, self.inv_width, self.inv_height);
         self.forward + self.right * sx + self.up * sy
     }
 
@@ -127,9 +138,7 @@ impl OrthographicRays {
     /// Prepares `camera` for a `width × height` image; `Err` names what makes it unusable.
     pub fn new(camera: &OrthographicCamera, width: u32, height: u32) -> Result<Self, String> {
         camera.validate()?;
-        let forward = (camera.target - camera.eye).normalize();
-        let right = forward.cross(camera.up).normalize();
-        let up = right.cross(forward);
+        let (forward, right, up) = view_basis(camera.eye, camera.target, camera.up);
         let aspect = width as f32 / height as f32;
         Ok(OrthographicRays {
             eye: camera.eye.into(),
@@ -144,8 +153,7 @@ impl OrthographicRays {
     /// The ray through film position (x + u.x, y + u.y), pixel (0, 0) being the top-left one.
     #[inline]
     pub fn ray(&self, x: u32, y: u32, u: Vec2) -> Ray {
-        let sx = 2.0 * (x as f32 + u.x) * self.inv_width - 1.0;
-        let sy = 1.0 - 2.0 * (y as f32 + u.y) * self.inv_height;
+        let (sx, sy) = film_xy(x, y, u, self.inv_width, self.inv_height);
         Ray::new(self.eye + self.right * sx + self.up * sy, self.forward, f32::INFINITY)
     }
 }

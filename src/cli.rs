@@ -274,7 +274,8 @@ fn error_study(args: ErrorArgs) -> Result<(), HemiError> {
 
     let plot_file = OutputFile::create(&args.plot)?;
     let analytic = AnalyticScene::from_name(&args.scene);
-    let peer = if args.scene.ends_with(".json") { Some(PeerScene::load(std::path::Path::new(&args.scene))?) } else { None };
+    let peer =
+        if args.scene.ends_with(".json") { Some(PeerScene::load(std::path::Path::new(&args.scene))?) } else { None };
     let (width, height) = match (args.size, analytic, &peer) {
         (Some(size), _, _) => size,
         (None, Some(a), _) => a.size(),
@@ -288,7 +289,11 @@ fn error_study(args: ErrorArgs) -> Result<(), HemiError> {
         (Some(a), _, None) => {
             let mut probe = Renderer::new(base.clone());
             let camera = a.spawn(probe.world_mut(), 1.0, Vec3::ZERO);
-            a.reference(&camera, width, height, 1.0, Vec3::ZERO).map_err(HemiError::InvalidScene)?.into_iter().map(Vec3::splat).collect()
+            a.reference(&camera, width, height, 1.0, Vec3::ZERO)
+                .map_err(HemiError::InvalidScene)?
+                .into_iter()
+                .map(Vec3::splat)
+                .collect()
         }
         (None, Some(p), None) => {
             if (width, height) != (p.width, p.height) {
@@ -301,7 +306,8 @@ fn error_study(args: ErrorArgs) -> Result<(), HemiError> {
         }
         (None, None, None) if args.scene == "default" => {
             return Err(HemiError::Usage(
-                "scene 'default' needs --reference FILE.exr (e.g. hemi render --size 160x90 --spp 4096 --out ref.exr)".into(),
+                "scene 'default' needs --reference FILE.exr (e.g. hemi render --size 160x90 --spp 4096 --out ref.exr)"
+                    .into(),
             ));
         }
         (None, None, None) => {
