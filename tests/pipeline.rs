@@ -261,3 +261,16 @@ fn adaptive_sampling_retires_converged_pixels_and_saves_samples() {
     }
     assert_eq!(one.image(), &image);
 }
+
+#[test]
+fn pixels_that_miss_cost_one_ray() {
+    // Looking up at the empty sky, with two occluders and a light in the scene: every sample
+    // traces its camera ray and nothing else.
+    let mut r = floor_scene(2, Some((PointLight::default(), Vec3::new(0.0, 3.0, 0.0))));
+    let mut cams = r.world_mut().query::<&mut Camera>();
+    *cams.single_mut(r.world_mut()).unwrap() =
+        Camera::look_at(Vec3::new(0.0, 3.0, 3.0), Vec3::new(0.0, 30.0, 3.5), 60.0);
+    let stats = r.run_frame().unwrap();
+    assert_eq!(stats.rays.primary, 16 * 16 * 2);
+    assert_eq!(stats.rays.total(), stats.rays.primary, "{:?}", stats.rays);
+}
