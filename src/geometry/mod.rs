@@ -1,6 +1,7 @@
 //! Geometry: rays, primitive intersection with error bounds, and the acceleration structure.
 
 pub mod accel;
+pub mod bvh4;
 pub mod hit;
 pub mod ray;
 pub mod shapes;
