@@ -28,6 +28,7 @@ use super::{
     hit::SurfaceHit,
     ray::Ray,
     shapes::{PlanePrim, SpherePrim, Triangle},
+    tri4::{RayTri4, Tri4},
 };
 use crate::{
     components::{Matte, Mesh},
@@ -87,8 +88,11 @@ fn hit_prim(prim: &Prim, ray: &Ray) -> Option<(f32, f32, f32)> {
 #[derive(Clone)]
 pub struct Blas {
     bvh: Bvh2,
-    /// The BVH2 collapsed to four children per node, which traversal uses.
+    /// The BVH2 collapsed to four children per node, which traversal uses. Its leaves are
+    /// ranges of `packets` when every primitive is a triangle, else ranges of `prims`.
     bvh4: Bvh4,
+    /// Each leaf's triangles in packets of four, when every primitive is a triangle.
+    packets: Vec<Tri4>,
     prims: Vec<Prim>,
     /// Triangles stored.
     pub triangle_count: usize,
@@ -110,8 +114,40 @@ impl Blas {
         };
         let prims = bvh.primitive_indices.iter().map(|&i| prims[i as usize]).collect();
         let depth = subtree_depth(&bvh.nodes);
-        let bvh4 = Bvh4::from_bvh2(&bvh.nodes);
-        Blas { bvh, bvh4, prims, triangle_count, degenerate_triangles: 0, depth }
+        let mut blas = Blas {
+            bvh,
+            bvh4: Bvh4::default(),
+            packets: Vec::new(),
+            prims,
+            triangle_count,
+            degenerate_triangles: 0,
+            depth,
+        };
+        blas.build_bvh4();
+        blas
+    }
+
+    /// Collapses the BVH2 into the BVH4 and, for an all-triangle BLAS, packs each leaf's
+    /// triangles into packets of four.
+    fn build_bvh4(&mut self) {
+        self.bvh4 = Bvh4::from_bvh2(&self.bvh.nodes);
+        self.packets.clear();
+        let tris: Option<Vec<Triangle>> = self
+            .prims
+            .iter()
+            .map(|p| match p.shape {
+                Shape::Triangle(t) => Some(t),
+                Shape::Sphere(_) => None,
+            })
+            .collect();
+        let Some(tris) = tris.filter(|t| !t.is_empty()) else { return };
+        let packets = &mut self.packets;
+        self.bvh4.map_leaves(|first, count| {
+            let start = packets.len() as u32;
+            let leaf: Vec<(u32, Triangle)> = (first..first + count).map(|k| (k, tris[k as usize])).collect();
+            packets.extend(leaf.chunks(4).map(Tri4::pack));
+            (start, packets.len() as u32 - start)
+        });
     }
 
     /// A mesh's triangles in its own frame; zero-area triangles are counted and skipped.
@@ -157,7 +193,7 @@ impl Blas {
             }
         }
         self.bvh.refit_all();
-        self.bvh4 = Bvh4::from_bvh2(&self.bvh.nodes);
+        self.build_bvh4();
     }
 
     /// Bounds of everything in this BLAS.
@@ -179,6 +215,7 @@ impl Blas {
     pub fn memory_bytes(&self) -> usize {
         self.bvh.nodes.len() * size_of::<Bvh2Node>()
             + self.bvh4.len() * size_of::<super::bvh4::Node4>()
+            + self.packets.len() * size_of::<Tri4>()
             + self.prims.len() * (size_of::<Prim>() + 4)
     }
 
@@ -188,6 +225,19 @@ impl Blas {
     fn closest(&self, ray: &mut Ray, stack: &mut Vec<(u32, f32)>) -> Option<(u32, f32, f32)> {
         let prims = &self.prims;
         let mut best = None;
+        if !self.packets.is_empty() {
+            let r = RayTri4::new(ray);
+            self.bvh4.closest(ray, stack, |first, count, ray, _| {
+                for packet in &self.packets[first as usize..(first + count) as usize] {
+                    self.packet_hits(packet, &r, ray, |slot, (t, b1, b2), ray| {
+                        ray.tmax = t;
+                        best = Some((slot, b1, b2));
+                        false
+                    });
+                }
+            });
+            return best;
+        }
         self.bvh4.closest(ray, stack, |first, count, ray, _| {
             for k in first..first + count {
                 if let Some((t, b1, b2)) = hit_prim(&prims[k as usize], ray) {
@@ -203,9 +253,50 @@ impl Blas {
     #[inline]
     fn occluded(&self, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool {
         let prims = &self.prims;
+        if !self.packets.is_empty() {
+            let r = RayTri4::new(ray);
+            let mut local = *ray;
+            return self.bvh4.occluded(ray, stack, |first, count, _| {
+                self.packets[first as usize..(first + count) as usize]
+                    .iter()
+                    .any(|packet| self.packet_hits(packet, &r, &mut local, |_, _, _| true))
+            });
+        }
         self.bvh4.occluded(ray, stack, |first, count, _| {
             prims[first as usize..(first + count) as usize].iter().any(|p| hit_prim(p, ray).is_some())
         })
+    }
+
+    /// Tests the triangles of `packet` in lane order, calling `hit(slot, (t, b1, b2), ray)` for
+    /// each hit in (0, ray.tmax) (the callback may shrink `ray.tmax`); stops and returns true as
+    /// soon as `hit` does. Gives exactly the hits of the scalar test in the same order.
+    #[inline(always)]
+    fn packet_hits(
+        &self,
+        packet: &Tri4,
+        r: &RayTri4,
+        ray: &mut Ray,
+        mut hit: impl FnMut(u32, (f32, f32, f32), &mut Ray) -> bool,
+    ) -> bool {
+        let lanes = packet.edges(r);
+        let mut todo = lanes.pass | lanes.exact;
+        while todo != 0 {
+            let i = todo.trailing_zeros() as usize;
+            todo &= todo - 1;
+            let slot = packet.slot[i];
+            let Some(Prim { shape: Shape::Triangle(tri), .. }) = self.prims.get(slot as usize) else { continue };
+            let found = if lanes.exact & (1 << i) != 0 {
+                tri.intersect(ray)
+            } else {
+                tri.finish(ray, lanes.e[0][i], lanes.e[1][i], lanes.e[2][i])
+            };
+            if let Some(h) = found
+                && hit(slot, h, ray)
+            {
+                return true;
+            }
+        }
+        false
     }
 
     fn surface(&self, slot: u32, ray: &Ray, b1: f32, b2: f32, object: u32) -> SurfaceHit {

@@ -46,12 +46,13 @@ impl Ray4 {
         let o = ray.origin;
         let inv = ray.inv_dir;
         // inv_dir is never ±0 or NaN for a finite direction; its sign picks the near plane.
-        let near = [0, 1, 2].map(|a| if inv[a] < 0.0 { a + 3 } else { a });
+        let (nx, ny, nz) =
+            (usize::from(inv.x < 0.0) * 3, 1 + usize::from(inv.y < 0.0) * 3, 2 + usize::from(inv.z < 0.0) * 3);
         Ray4 {
             origin: [Vec4::splat(o.x), Vec4::splat(o.y), Vec4::splat(o.z)],
             inv_dir: [Vec4::splat(inv.x), Vec4::splat(inv.y), Vec4::splat(inv.z)],
-            near,
-            far: near.map(|p| if p >= 3 { p - 3 } else { p + 3 }),
+            near: [nx, ny, nz],
+            far: [(nx + 3) % 6, (ny + 3) % 6, (nz + 3) % 6],
         }
     }
 }
@@ -172,6 +173,17 @@ impl Bvh4 {
             }
         }
         Bvh4 { nodes }
+    }
+
+    /// Replaces every leaf's (first, count) by `f(first, count)`, visiting leaves in node order.
+    pub fn map_leaves(&mut self, mut f: impl FnMut(u32, u32) -> (u32, u32)) {
+        for node in &mut self.nodes {
+            for slot in 0..4 {
+                if node.count[slot] > 0 {
+                    (node.child[slot], node.count[slot]) = f(node.child[slot], node.count[slot]);
+                }
+            }
+        }
     }
 
     /// Number of nodes.

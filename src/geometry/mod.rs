@@ -5,6 +5,7 @@ pub mod bvh4;
 pub mod hit;
 pub mod ray;
 pub mod shapes;
+pub mod tri4;
 pub mod world_space;
 
 pub use accel::{Object, Prim, SceneGeometry, Shape};
