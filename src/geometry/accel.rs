@@ -24,9 +24,11 @@ use obvhs::{
 };
 
 use super::{
+    bvh4::Bvh4,
     hit::SurfaceHit,
     ray::Ray,
     shapes::{PlanePrim, SpherePrim, Triangle},
+    tri4::{RayTri4, Tri4},
 };
 use crate::{
     components::{Matte, Mesh},
@@ -73,22 +75,6 @@ pub struct Object {
     pub material: Matte,
 }
 
-/// Entry distance of the ray into `aabb`, if it enters before `tmax`.
-/// A zero direction component gives 0·∞ = NaN exactly when the origin lies on that slab's
-/// plane; such a bound is replaced by the infinity that leaves the slab unbounded, so rays
-/// running inside a box face are not culled. The far distance is widened by 2γ(3)
-/// (Ize 2013) so rounding never culls a true hit.
-#[inline(always)]
-fn enter(aabb: &Aabb, ray: &Ray, tmax: f32) -> Option<f32> {
-    let t1 = (aabb.min - ray.origin) * ray.inv_dir;
-    let t2 = (aabb.max - ray.origin) * ray.inv_dir;
-    let t1 = Vec3A::select(t1.is_nan_mask(), -ray.inv_dir, t1);
-    let t2 = Vec3A::select(t2.is_nan_mask(), ray.inv_dir, t2);
-    let near = t1.min(t2).max_element().max(0.0);
-    let far = t1.max(t2).min_element() * (1.0 + 2.0 * gamma(3));
-    (near <= far.min(tmax)).then_some(near)
-}
-
 /// Intersects one primitive: (t, b1, b2).
 #[inline(always)]
 fn hit_prim(prim: &Prim, ray: &Ray) -> Option<(f32, f32, f32)> {
@@ -102,6 +88,11 @@ fn hit_prim(prim: &Prim, ray: &Ray) -> Option<(f32, f32, f32)> {
 #[derive(Clone)]
 pub struct Blas {
     bvh: Bvh2,
+    /// The BVH2 collapsed to four children per node, which traversal uses. Its leaves are
+    /// ranges of `packets` when every primitive is a triangle, else ranges of `prims`.
+    bvh4: Bvh4,
+    /// Each leaf's triangles in packets of four, when every primitive is a triangle.
+    packets: Vec<Tri4>,
     prims: Vec<Prim>,
     /// Triangles stored.
     pub triangle_count: usize,
@@ -123,7 +114,40 @@ impl Blas {
         };
         let prims = bvh.primitive_indices.iter().map(|&i| prims[i as usize]).collect();
         let depth = subtree_depth(&bvh.nodes);
-        Blas { bvh, prims, triangle_count, degenerate_triangles: 0, depth }
+        let mut blas = Blas {
+            bvh,
+            bvh4: Bvh4::default(),
+            packets: Vec::new(),
+            prims,
+            triangle_count,
+            degenerate_triangles: 0,
+            depth,
+        };
+        blas.build_bvh4();
+        blas
+    }
+
+    /// Collapses the BVH2 into the BVH4 and, for an all-triangle BLAS, packs each leaf's
+    /// triangles into packets of four.
+    fn build_bvh4(&mut self) {
+        self.bvh4 = Bvh4::from_bvh2(&self.bvh.nodes);
+        self.packets.clear();
+        let tris: Option<Vec<Triangle>> = self
+            .prims
+            .iter()
+            .map(|p| match p.shape {
+                Shape::Triangle(t) => Some(t),
+                Shape::Sphere(_) => None,
+            })
+            .collect();
+        let Some(tris) = tris.filter(|t| !t.is_empty()) else { return };
+        let packets = &mut self.packets;
+        self.bvh4.map_leaves(|first, count| {
+            let start = packets.len() as u32;
+            let leaf: Vec<(u32, Triangle)> = (first..first + count).map(|k| (k, tris[k as usize])).collect();
+            packets.extend(leaf.chunks(4).map(Tri4::pack));
+            (start, packets.len() as u32 - start)
+        });
     }
 
     /// A mesh's triangles in its own frame; zero-area triangles are counted and skipped.
@@ -169,6 +193,7 @@ impl Blas {
             }
         }
         self.bvh.refit_all();
+        self.build_bvh4();
     }
 
     /// Bounds of everything in this BLAS.
@@ -188,111 +213,90 @@ impl Blas {
 
     /// Bytes held by nodes and primitives.
     pub fn memory_bytes(&self) -> usize {
-        self.bvh.nodes.len() * size_of::<Bvh2Node>() + self.prims.len() * (size_of::<Prim>() + 4)
+        self.bvh.nodes.len() * size_of::<Bvh2Node>()
+            + self.bvh4.len() * size_of::<super::bvh4::Node4>()
+            + self.packets.len() * size_of::<Tri4>()
+            + self.prims.len() * (size_of::<Prim>() + 4)
     }
 
     /// Front-to-back traversal; shrinks `ray.tmax` to the closest hit and returns the
     /// primitive slot and barycentrics. Uses `stack` above its current length only.
     #[inline]
     fn closest(&self, ray: &mut Ray, stack: &mut Vec<(u32, f32)>) -> Option<(u32, f32, f32)> {
-        let nodes = &self.bvh.nodes;
-        let root = nodes.first()?;
-        enter(root.aabb(), ray, ray.tmax)?;
-        let base = stack.len();
+        let prims = &self.prims;
         let mut best = None;
-        let mut node = root;
-        loop {
-            if node.prim_count > 0 {
-                let first = node.first_index as usize;
-                let leaf = &self.prims[first..first + node.prim_count as usize];
-                for (k, prim) in leaf.iter().enumerate() {
-                    if let Some((t, b1, b2)) = hit_prim(prim, ray) {
+        if !self.packets.is_empty() {
+            let r = RayTri4::new(ray);
+            self.bvh4.closest(ray, stack, |first, count, ray, _| {
+                for packet in &self.packets[first as usize..(first + count) as usize] {
+                    self.packet_hits(packet, &r, ray, |slot, (t, b1, b2), ray| {
                         ray.tmax = t;
-                        best = Some(((first + k) as u32, b1, b2));
-                    }
+                        best = Some((slot, b1, b2));
+                        false
+                    });
                 }
-            } else {
-                let (li, ri) = (node.first_index, node.first_index + 1);
-                let left = &nodes[li as usize];
-                let right = &nodes[ri as usize];
-                match (enter(left.aabb(), ray, ray.tmax), enter(right.aabb(), ray, ray.tmax)) {
-                    (Some(dl), Some(dr)) => {
-                        let (near, far, dfar) = if dl <= dr { (left, ri, dr) } else { (right, li, dl) };
-                        stack.push((far, dfar));
-                        node = near;
-                        continue;
-                    }
-                    (Some(_), None) => {
-                        node = left;
-                        continue;
-                    }
-                    (None, Some(_)) => {
-                        node = right;
-                        continue;
-                    }
-                    (None, None) => {}
-                }
-            }
-            loop {
-                if stack.len() == base {
-                    return best;
-                }
-                match stack.pop() {
-                    Some((i, d)) if d <= ray.tmax => {
-                        node = &nodes[i as usize];
-                        break;
-                    }
-                    _ => continue,
-                }
-            }
+            });
+            return best;
         }
+        self.bvh4.closest(ray, stack, |first, count, ray, _| {
+            for k in first..first + count {
+                if let Some((t, b1, b2)) = hit_prim(&prims[k as usize], ray) {
+                    ray.tmax = t;
+                    best = Some((k, b1, b2));
+                }
+            }
+        });
+        best
     }
 
     /// Whether any primitive blocks `ray` in (0, tmax). Uses `stack` above its current length.
     #[inline]
     fn occluded(&self, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool {
-        let nodes = &self.bvh.nodes;
-        let Some(root) = nodes.first() else { return false };
-        if enter(root.aabb(), ray, ray.tmax).is_none() {
-            return false;
+        let prims = &self.prims;
+        if !self.packets.is_empty() {
+            let r = RayTri4::new(ray);
+            let mut local = *ray;
+            return self.bvh4.occluded(ray, stack, |first, count, _| {
+                self.packets[first as usize..(first + count) as usize]
+                    .iter()
+                    .any(|packet| self.packet_hits(packet, &r, &mut local, |_, _, _| true))
+            });
         }
-        let base = stack.len();
-        let mut node = root;
-        loop {
-            if node.prim_count > 0 {
-                let first = node.first_index as usize;
-                if self.prims[first..first + node.prim_count as usize].iter().any(|p| hit_prim(p, ray).is_some()) {
-                    stack.truncate(base);
-                    return true;
-                }
+        self.bvh4.occluded(ray, stack, |first, count, _| {
+            prims[first as usize..(first + count) as usize].iter().any(|p| hit_prim(p, ray).is_some())
+        })
+    }
+
+    /// Tests the triangles of `packet` in lane order, calling `hit(slot, (t, b1, b2), ray)` for
+    /// each hit in (0, ray.tmax) (the callback may shrink `ray.tmax`); stops and returns true as
+    /// soon as `hit` does. Gives exactly the hits of the scalar test in the same order.
+    #[inline(always)]
+    fn packet_hits(
+        &self,
+        packet: &Tri4,
+        r: &RayTri4,
+        ray: &mut Ray,
+        mut hit: impl FnMut(u32, (f32, f32, f32), &mut Ray) -> bool,
+    ) -> bool {
+        let lanes = packet.edges(r);
+        let mut todo = lanes.pass | lanes.exact;
+        while todo != 0 {
+            let i = todo.trailing_zeros() as usize;
+            todo &= todo - 1;
+            let slot = packet.slot[i];
+            let Some(Prim { shape: Shape::Triangle(tri), .. }) = self.prims.get(slot as usize) else { continue };
+            let found = if lanes.exact & (1 << i) != 0 {
+                tri.intersect(ray)
             } else {
-                let left = &nodes[node.first_index as usize];
-                let right = &nodes[node.first_index as usize + 1];
-                match (enter(left.aabb(), ray, ray.tmax), enter(right.aabb(), ray, ray.tmax)) {
-                    (Some(_), Some(_)) => {
-                        stack.push((node.first_index + 1, 0.0));
-                        node = left;
-                        continue;
-                    }
-                    (Some(_), None) => {
-                        node = left;
-                        continue;
-                    }
-                    (None, Some(_)) => {
-                        node = right;
-                        continue;
-                    }
-                    (None, None) => {}
-                }
-            }
-            if stack.len() == base {
-                return false;
-            }
-            match stack.pop() {
-                Some((i, _)) => node = &nodes[i as usize],
-                None => return false,
+                tri.finish(ray, lanes.e[0][i], lanes.e[1][i], lanes.e[2][i])
+            };
+            if let Some(h) = found
+                && hit(slot, h, ray)
+            {
+                return true;
             }
         }
+        false
     }
 
     fn surface(&self, slot: u32, ray: &Ray, b1: f32, b2: f32, object: u32) -> SurfaceHit {
@@ -452,6 +456,7 @@ pub struct SceneGeometry {
     blases: Vec<Arc<Blas>>,
     instances: Vec<Instance>,
     tlas: Vec<Bvh2Node>,
+    tlas4: Bvh4,
     planes: Vec<PlanePrim>,
     /// Objects, indexed by `SurfaceHit::object`.
     pub objects: Vec<Object>,
@@ -506,6 +511,7 @@ impl SceneGeometry {
         SceneGeometry {
             blases,
             instances,
+            tlas4: Bvh4::from_bvh2(&tlas),
             tlas,
             planes,
             objects,
@@ -615,61 +621,25 @@ impl SceneGeometry {
     /// returns (instance, primitive slot, b1, b2).
     #[inline]
     fn closest_instance(&self, ray: &mut Ray, stack: &mut Vec<(u32, f32)>) -> Option<(u32, u32, f32, f32)> {
-        let root = self.tlas.first()?;
-        enter(root.aabb(), ray, ray.tmax)?;
         stack.clear();
         let mut best = None;
-        let mut node = root;
-        loop {
-            if node.prim_count > 0 {
-                let first = node.first_index as usize;
-                for k in first..first + node.prim_count as usize {
-                    let inst = &self.instances[k];
-                    let blas = &self.blases[inst.blas as usize];
-                    if inst.identity {
-                        if let Some((slot, b1, b2)) = blas.closest(ray, stack) {
-                            best = Some((k as u32, slot, b1, b2));
-                        }
-                    } else if let Some((mut local, dt)) = inst.local_ray(ray)
-                        && let Some((slot, b1, b2)) = blas.closest(&mut local, stack)
-                    {
-                        ray.tmax = ray.tmax.min(local.tmax + dt);
-                        best = Some((k as u32, slot, b1, b2));
+        self.tlas4.closest(ray, stack, |first, count, ray, stack| {
+            for k in first..first + count {
+                let inst = &self.instances[k as usize];
+                let blas = &self.blases[inst.blas as usize];
+                if inst.identity {
+                    if let Some((slot, b1, b2)) = blas.closest(ray, stack) {
+                        best = Some((k, slot, b1, b2));
                     }
-                }
-            } else {
-                let (li, ri) = (node.first_index, node.first_index + 1);
-                let left = &self.tlas[li as usize];
-                let right = &self.tlas[ri as usize];
-                match (enter(left.aabb(), ray, ray.tmax), enter(right.aabb(), ray, ray.tmax)) {
-                    (Some(dl), Some(dr)) => {
-                        let (near, far, dfar) = if dl <= dr { (left, ri, dr) } else { (right, li, dl) };
-                        stack.push((far, dfar));
-                        node = near;
-                        continue;
-                    }
-                    (Some(_), None) => {
-                        node = left;
-                        continue;
-                    }
-                    (None, Some(_)) => {
-                        node = right;
-                        continue;
-                    }
-                    (None, None) => {}
+                } else if let Some((mut local, dt)) = inst.local_ray(ray)
+                    && let Some((slot, b1, b2)) = blas.closest(&mut local, stack)
+                {
+                    ray.tmax = ray.tmax.min(local.tmax + dt);
+                    best = Some((k, slot, b1, b2));
                 }
             }
-            loop {
-                match stack.pop() {
-                    Some((i, d)) if d <= ray.tmax => {
-                        node = &self.tlas[i as usize];
-                        break;
-                    }
-                    Some(_) => continue,
-                    None => return best,
-                }
-            }
-        }
+        });
+        best
     }
 
     /// Whether anything blocks `ray` in (0, tmax); stops at the first blocker found.
@@ -678,51 +648,17 @@ impl SceneGeometry {
         if self.planes.iter().any(|p| p.intersect(ray).is_some()) {
             return true;
         }
-        let Some(root) = self.tlas.first() else { return false };
-        if enter(root.aabb(), ray, ray.tmax).is_none() {
-            return false;
-        }
         stack.clear();
-        let mut node = root;
-        loop {
-            if node.prim_count > 0 {
-                let first = node.first_index as usize;
-                for inst in &self.instances[first..first + node.prim_count as usize] {
-                    let blas = &self.blases[inst.blas as usize];
-                    let blocked = if inst.identity {
-                        blas.occluded(ray, stack)
-                    } else {
-                        inst.local_ray(ray).is_some_and(|(local, _)| blas.occluded(&local, stack))
-                    };
-                    if blocked {
-                        return true;
-                    }
+        self.tlas4.occluded(ray, stack, |first, count, stack| {
+            self.instances[first as usize..(first + count) as usize].iter().any(|inst| {
+                let blas = &self.blases[inst.blas as usize];
+                if inst.identity {
+                    blas.occluded(ray, stack)
+                } else {
+                    inst.local_ray(ray).is_some_and(|(local, _)| blas.occluded(&local, stack))
                 }
-            } else {
-                let left = &self.tlas[node.first_index as usize];
-                let right = &self.tlas[node.first_index as usize + 1];
-                match (enter(left.aabb(), ray, ray.tmax), enter(right.aabb(), ray, ray.tmax)) {
-                    (Some(_), Some(_)) => {
-                        stack.push((node.first_index + 1, 0.0));
-                        node = left;
-                        continue;
-                    }
-                    (Some(_), None) => {
-                        node = left;
-                        continue;
-                    }
-                    (None, Some(_)) => {
-                        node = right;
-                        continue;
-                    }
-                    (None, None) => {}
-                }
-            }
-            match stack.pop() {
-                Some((i, _)) => node = &self.tlas[i as usize],
-                None => return false,
-            }
-        }
+            })
+        })
     }
 
     /// Intersects one world-space primitive: (t, b1, b2).

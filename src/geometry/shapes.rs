@@ -47,6 +47,13 @@ impl Triangle {
         if (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0) {
             return None;
         }
+        self.finish(ray, e0, e1, e2)
+    }
+
+    /// The rest of [`Triangle::intersect`] once the edge functions (e0, e1, e2) of `ray` have
+    /// passed the sign test: the determinant, `t` from the triangle's plane, the barycentrics.
+    #[inline(always)]
+    pub fn finish(&self, ray: &Ray, e0: f32, e1: f32, e2: f32) -> Option<(f32, f32, f32)> {
         let det = e0 + e1 + e2;
         if det == 0.0 {
             return None;
