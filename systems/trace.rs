@@ -71,7 +71,13 @@ pub fn trace(
 
     let first = accumulation.spp;
     let tiles = tiles(settings.width, settings.height, settings.tile_size);
-    let job = Job { width: settings.width, count, jitter: settings.jitter, aovs: settings.aovs };
+    let job = Job {
+        width: settings.width,
+        count,
+        jitter: settings.jitter,
+        aovs: settings.aovs,
+        adaptive: settings.target_error.is_some(),
+    };
     let acc = &*accumulation;
     let target = settings.target_error;
     let results: Vec<TileResult> = match camera {
@@ -129,6 +135,7 @@ struct Job {
     count: u32,
     jitter: bool,
     aovs: bool,
+    adaptive: bool,
 }
 
 fn trace_tile<C: CameraRays>(
@@ -189,15 +196,17 @@ fn trace_tile<C: CameraRays>(
                         tracer.sample(scene, &camera.ray(x, y, film, lens), pixel, index, !job.aovs)
                     }
                 };
-                let values = s.aov_values();
-                if s.radiance.is_finite() && (!job.aovs || values.iter().all(|v| v.is_finite())) {
-                    sum += s.radiance;
-                    sq_sum += luminance(s.radiance).powi(2);
-                    if job.aovs {
-                        aov.iter_mut().zip(values).for_each(|(a, v)| *a += v);
-                    }
-                } else {
+                let values = job.aovs.then(|| s.aov_values());
+                if !s.radiance.is_finite() || values.is_some_and(|v| v.iter().any(|x| !x.is_finite())) {
                     nonfinite += 1;
+                    continue;
+                }
+                sum += s.radiance;
+                if job.adaptive {
+                    sq_sum += luminance(s.radiance).powi(2);
+                }
+                if let Some(values) = values {
+                    aov.iter_mut().zip(values).for_each(|(a, v)| *a += v);
                 }
             }
             sums.push(sum);
