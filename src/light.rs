@@ -28,6 +28,33 @@ use crate::{
     systems::{FrameStage, scene_changes::detect_scene_changes},
 };
 
+/// Checks a light's `ls` and `color`: finite and non-negative. `name` starts the message.
+pub fn check_emission(name: &str, ls: f32, color: Vec3) -> Result<(), String> {
+    if ls.is_finite() && ls >= 0.0 && color.is_finite() && color.min_element() >= 0.0 {
+        Ok(())
+    } else {
+        Err(format!("{name} ls {ls} color {color} must be finite and non-negative"))
+    }
+}
+
+/// Checks that a light's transform places it at a finite position.
+pub fn check_position(name: &str, transform: &Transform) -> Result<(), String> {
+    if transform.translation.is_finite() {
+        Ok(())
+    } else {
+        Err(format!("{name} position {} is not finite", transform.translation))
+    }
+}
+
+/// Checks that a light's transform gives it a direction (its local −Z).
+pub fn check_direction(name: &str, transform: &Transform) -> Result<(), String> {
+    if transform.forward() == Vec3::ZERO {
+        Err(format!("{name} rotation {} gives no direction", transform.rotation))
+    } else {
+        Ok(())
+    }
+}
+
 /// The reflectance a light's samples are multiplied by.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Term {

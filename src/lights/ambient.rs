@@ -5,7 +5,7 @@ use glam::{Vec3, Vec3A};
 
 use crate::{
     components::Transform,
-    light::{Light, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term},
+    light::{Light, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term, check_emission},
     math::Onb,
     sampling::warp::cosine_power_hemisphere,
 };
@@ -37,12 +37,7 @@ impl Default for AmbientOccluder {
 impl AmbientOccluder {
     /// A one-line description of the first unusable parameter.
     pub fn validate(&self) -> Result<(), String> {
-        if !(self.ls.is_finite() && self.ls >= 0.0 && self.color.is_finite() && self.color.min_element() >= 0.0) {
-            return Err(format!(
-                "ambient occluder ls {} color {} must be finite and non-negative",
-                self.ls, self.color
-            ));
-        }
+        check_emission("ambient occluder", self.ls, self.color)?;
         if !(0.0..=1.0).contains(&self.min_amount) {
             return Err(format!("ambient occluder min_amount {} is outside [0, 1]", self.min_amount));
         }

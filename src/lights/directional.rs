@@ -5,7 +5,7 @@ use glam::{Vec3, Vec3A};
 
 use crate::{
     components::Transform,
-    light::{Light, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow},
+    light::{Light, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, check_direction, check_emission},
 };
 
 /// A light at infinity shining along the entity's local −Z axis (its rotation; position and
@@ -41,16 +41,8 @@ impl Light for DirectionalLight {
     const NAME: &'static str = "directional light";
 
     fn validate(&self, transform: &Transform) -> Result<(), String> {
-        if !(self.ls.is_finite() && self.ls >= 0.0 && self.color.is_finite() && self.color.min_element() >= 0.0) {
-            return Err(format!(
-                "directional light ls {} color {} must be finite and non-negative",
-                self.ls, self.color
-            ));
-        }
-        if transform.forward() == Vec3::ZERO {
-            return Err(format!("directional light rotation {} gives no direction", transform.rotation));
-        }
-        Ok(())
+        check_emission(Self::NAME, self.ls, self.color)?;
+        check_direction(Self::NAME, transform)
     }
 
     fn place(&self, transform: &Transform) -> Option<PlacedDirectional> {

@@ -7,7 +7,10 @@ use glam::{Vec3, Vec3A};
 
 use crate::{
     components::Transform,
-    light::{Light, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow},
+    light::{
+        Light, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, check_direction, check_emission,
+        check_position,
+    },
     math::Onb,
     sampling::warp::concentric_disk,
 };
@@ -55,19 +58,12 @@ impl Light for DiskLight {
     const NAME: &'static str = "disk light";
 
     fn validate(&self, transform: &Transform) -> Result<(), String> {
-        if !(self.ls.is_finite() && self.ls >= 0.0 && self.color.is_finite() && self.color.min_element() >= 0.0) {
-            return Err(format!("disk light ls {} color {} must be finite and non-negative", self.ls, self.color));
-        }
+        check_emission(Self::NAME, self.ls, self.color)?;
         if !(self.radius.is_finite() && self.radius > 0.0) {
             return Err(format!("disk light radius {} must be finite and positive", self.radius));
         }
-        if !transform.translation.is_finite() {
-            return Err(format!("disk light position {} is not finite", transform.translation));
-        }
-        if transform.forward() == Vec3::ZERO {
-            return Err(format!("disk light rotation {} gives no direction", transform.rotation));
-        }
-        Ok(())
+        check_position(Self::NAME, transform)?;
+        check_direction(Self::NAME, transform)
     }
 
     fn place(&self, transform: &Transform) -> Option<PlacedDisk> {

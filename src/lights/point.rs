@@ -5,7 +5,7 @@ use glam::{Vec3, Vec3A};
 
 use crate::{
     components::Transform,
-    light::{Light, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow},
+    light::{Light, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, check_emission, check_position},
 };
 
 /// A point light at the entity's translation. With `falloff` it is glTF's
@@ -44,13 +44,8 @@ impl Light for PointLight {
     const NAME: &'static str = "point light";
 
     fn validate(&self, transform: &Transform) -> Result<(), String> {
-        if !(self.ls.is_finite() && self.ls >= 0.0 && self.color.is_finite() && self.color.min_element() >= 0.0) {
-            return Err(format!("point light ls {} color {} must be finite and non-negative", self.ls, self.color));
-        }
-        if !transform.translation.is_finite() {
-            return Err(format!("point light position {} is not finite", transform.translation));
-        }
-        Ok(())
+        check_emission(Self::NAME, self.ls, self.color)?;
+        check_position(Self::NAME, transform)
     }
 
     fn place(&self, transform: &Transform) -> Option<PlacedPoint> {

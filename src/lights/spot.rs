@@ -7,7 +7,10 @@ use glam::{Vec3, Vec3A};
 
 use crate::{
     components::Transform,
-    light::{Light, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow},
+    light::{
+        Light, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, check_direction, check_emission,
+        check_position,
+    },
 };
 
 /// A spot light at the entity's translation shining along its local −Z axis, with glTF
@@ -70,20 +73,13 @@ impl Light for SpotLight {
     const NAME: &'static str = "spot light";
 
     fn validate(&self, transform: &Transform) -> Result<(), String> {
-        if !(self.ls.is_finite() && self.ls >= 0.0 && self.color.is_finite() && self.color.min_element() >= 0.0) {
-            return Err(format!("spot light ls {} color {} must be finite and non-negative", self.ls, self.color));
-        }
+        check_emission(Self::NAME, self.ls, self.color)?;
         let (inner, outer) = (self.inner_cone_angle, self.outer_cone_angle);
         if !(inner >= 0.0 && inner < outer && outer <= FRAC_PI_2) {
             return Err(format!("spot light cone angles {inner} and {outer} must satisfy 0 ≤ inner < outer ≤ π/2"));
         }
-        if !transform.translation.is_finite() {
-            return Err(format!("spot light position {} is not finite", transform.translation));
-        }
-        if transform.forward() == Vec3::ZERO {
-            return Err(format!("spot light rotation {} gives no direction", transform.rotation));
-        }
-        Ok(())
+        check_position(Self::NAME, transform)?;
+        check_direction(Self::NAME, transform)
     }
 
     fn place(&self, transform: &Transform) -> Option<PlacedSpot> {
