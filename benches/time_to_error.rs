@@ -13,7 +13,6 @@ use hemi::{
     Renderer,
     analytic::AnalyticScene,
     convergence::{self, ErrorPoint},
-    npy,
     resources::{Aov, RenderSettings},
     sampling::SamplerKind,
     scene::peer_scene::PeerScene,
@@ -50,8 +49,7 @@ fn main() {
     for scene in AnalyticScene::ALL {
         let (width, height) = scene.size();
         let base = RenderSettings { width, height, ..Default::default() };
-        let mut probe = Renderer::new(base.clone());
-        let camera = scene.spawn(probe.world_mut(), 1.0, Vec3::ZERO);
+        let camera = scene.camera(1.0, Vec3::ZERO);
         let reference: Vec<Vec3> =
             scene.reference(&camera, width, height, 1.0, Vec3::ZERO).unwrap().into_iter().map(Vec3::splat).collect();
         let build = |s: RenderSettings| {
@@ -68,9 +66,8 @@ fn main() {
     for name in ["cornell", "sphere_plane"] {
         let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("../shared/peers/scenes/{name}.json"));
         let peer = PeerScene::load(&path).unwrap();
-        let (ao, hit) = peer.reference_paths();
-        let reference: Vec<Vec3> = npy::read_f32(&ao).unwrap().data.into_iter().map(Vec3::splat).collect();
-        let mask = npy::read_bool(&hit).unwrap().data;
+        let (ao, mask) = peer.read_reference().unwrap();
+        let reference: Vec<Vec3> = ao.into_iter().map(Vec3::splat).collect();
         let base = RenderSettings { width: peer.width, height: peer.height, jitter: false, ..Default::default() };
         let build = |s: RenderSettings| {
             let mut r = Renderer::new(s);

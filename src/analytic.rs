@@ -49,32 +49,40 @@ impl AnalyticScene {
         let at = |p: Vec3| Transform::from_translation(offset + p * scale);
         world.spawn((Plane::default(), at(Vec3::ZERO), white));
         world.spawn(AmbientOccluder::default());
-        let camera = match self {
+        match self {
             AnalyticScene::SphereOverPlane => {
                 world.spawn((Sphere { radius: scale }, at(Vec3::new(0.0, 1.5, 0.0)), white));
-                // Straight down at floor points x ∈ [~1.1, ~4.9]: no line of sight meets the sphere.
-                Camera {
-                    eye: Vec3::new(3.0, 30.0, 0.0),
-                    target: Vec3::new(3.0, 0.0, 0.0),
-                    up: Vec3::NEG_Z,
-                    vfov_degrees: 1.8,
-                }
             }
             AnalyticScene::Wall => {
                 // A 4000-long, 0.01-thick wall whose face is the plane z = 0.
                 let half = Vec3::new(2000.0, 0.5, 0.005) * scale;
                 world.spawn((Cuboid { half_extents: half }, at(Vec3::new(0.0, 0.5, -0.005)), white));
-                Camera {
-                    eye: Vec3::new(0.0, 40.0, 1.6),
-                    target: Vec3::new(0.0, 0.0, 1.6),
-                    up: Vec3::NEG_X,
-                    vfov_degrees: 0.6,
-                }
             }
-        };
-        let camera = Camera { eye: offset + camera.eye * scale, target: offset + camera.target * scale, ..camera };
+        }
+        let camera = self.camera(scale, offset);
         world.spawn(camera);
         camera
+    }
+
+    /// The scene's camera, scaled by `scale` and moved by `offset` with the scene.
+    pub fn camera(self, scale: f32, offset: Vec3) -> Camera {
+        let camera = match self {
+            // Straight down at floor points x ∈ [~1.1, ~4.9]: no line of sight meets the sphere.
+            AnalyticScene::SphereOverPlane => Camera {
+                eye: Vec3::new(3.0, 30.0, 0.0),
+                target: Vec3::new(3.0, 0.0, 0.0),
+                up: Vec3::NEG_Z,
+                vfov_degrees: 1.8,
+            },
+            // Straight down at the floor in front of the wall's face.
+            AnalyticScene::Wall => Camera {
+                eye: Vec3::new(0.0, 40.0, 1.6),
+                target: Vec3::new(0.0, 0.0, 1.6),
+                up: Vec3::NEG_X,
+                vfov_degrees: 0.6,
+            },
+        };
+        Camera { eye: offset + camera.eye * scale, target: offset + camera.target * scale, ..camera }
     }
 
     /// AO at a floor point given in scene units (before scale and offset).

@@ -8,7 +8,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use crate::{
     Renderer,
     error::HemiError,
-    film::OutputFile,
+    film::{OutputFile, OutputFormat},
     resources::{Aov, RenderSettings},
     sampling::SamplerKind,
     scene::{gltf::SpawnOptions, peer_scene::PeerScene},
@@ -272,6 +272,9 @@ fn error_study(args: ErrorArgs) -> Result<(), HemiError> {
     use crate::{analytic::AnalyticScene, convergence, plot};
     use glam::Vec3;
 
+    if OutputFormat::from_path(&args.plot)? != OutputFormat::Png {
+        return Err(HemiError::Usage(format!("--plot {}: plots are written as .png", args.plot.display())));
+    }
     let plot_file = OutputFile::create(&args.plot)?;
     let analytic = AnalyticScene::from_name(&args.scene);
     let peer =
@@ -287,8 +290,7 @@ fn error_study(args: ErrorArgs) -> Result<(), HemiError> {
     let reference: Vec<Vec3> = match (analytic, &peer, &args.reference) {
         (_, _, Some(path)) => read_reference(path, width, height)?,
         (Some(a), _, None) => {
-            let mut probe = Renderer::new(base.clone());
-            let camera = a.spawn(probe.world_mut(), 1.0, Vec3::ZERO);
+            let camera = a.camera(1.0, Vec3::ZERO);
             a.reference(&camera, width, height, 1.0, Vec3::ZERO)
                 .map_err(HemiError::InvalidScene)?
                 .into_iter()
@@ -299,10 +301,10 @@ fn error_study(args: ErrorArgs) -> Result<(), HemiError> {
             if (width, height) != (p.width, p.height) {
                 return Err(HemiError::Usage(format!("peer references are {}x{}: drop --size", p.width, p.height)));
             }
-            let (ao, hit) = p.reference_paths();
+            let (ao, hit) = p.read_reference()?;
             base.jitter = false;
-            mask = Some(crate::npy::read_bool(&hit)?.data);
-            crate::npy::read_f32(&ao)?.data.into_iter().map(Vec3::splat).collect()
+            mask = Some(hit);
+            ao.into_iter().map(Vec3::splat).collect()
         }
         (None, None, None) if args.scene == "default" => {
             return Err(HemiError::Usage(

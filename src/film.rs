@@ -63,7 +63,8 @@ impl OutputFormat {
 /// An output file opened (and so checked to be writable) before any rendering starts.
 pub struct OutputFile {
     path: PathBuf,
-    format: OutputFormat,
+    /// The image format its extension names (`None` for non-image files).
+    format: Option<OutputFormat>,
     file: File,
 }
 
@@ -71,24 +72,22 @@ impl OutputFile {
     /// Creates `path` for writing; fails early on an unknown extension or unwritable location.
     pub fn create(path: &Path) -> Result<Self, HemiError> {
         let format = OutputFormat::from_path(path)?;
-        let file = File::create(path).map_err(|e| io_error(path, "cannot create output file", e))?;
-        Ok(OutputFile { path: path.to_path_buf(), format, file })
+        Ok(OutputFile { format: Some(format), ..Self::create_any(path)? })
     }
 
-    /// Writes `image` in the file's format.
-    pub fn write(self, image: &Image) -> Result<(), HemiError> {
-        let path = self.path.clone();
-        let mut out = BufWriter::new(self.file);
-        write_image(image, self.format, &mut out).map_err(|e| io_error(&path, "cannot write image", e))?;
-        out.flush().map_err(|e| io_error(&path, "cannot write image", e))
-    }
-}
-
-impl OutputFile {
     /// Creates any output file (no image-format check), failing early if it is unwritable.
     pub fn create_any(path: &Path) -> Result<Self, HemiError> {
         let file = File::create(path).map_err(|e| io_error(path, "cannot create output file", e))?;
-        Ok(OutputFile { path: path.to_path_buf(), format: OutputFormat::Png, file })
+        Ok(OutputFile { path: path.to_path_buf(), format: None, file })
+    }
+
+    /// Writes `image` in the format the file's extension names.
+    pub fn write(self, image: &Image) -> Result<(), HemiError> {
+        let path = self.path.clone();
+        let format = self.format.ok_or_else(|| io_error(&path, "cannot write image", "no .png or .exr extension"))?;
+        let mut out = BufWriter::new(self.file);
+        write_image(image, format, &mut out).map_err(|e| io_error(&path, "cannot write image", e))?;
+        out.flush().map_err(|e| io_error(&path, "cannot write image", e))
     }
 
     /// Writes text (e.g. JSON statistics).
@@ -98,7 +97,7 @@ impl OutputFile {
         out.write_all(text.as_bytes()).and_then(|()| out.flush()).map_err(|e| io_error(&path, "cannot write", e))
     }
 
-    /// Writes an 8-bit RGB picture (plots and the like) as PNG, whatever the extension says.
+    /// Writes an 8-bit RGB picture (plots and the like) as PNG.
     pub fn write_rgb8(self, rgb: &RgbImage) -> Result<(), HemiError> {
         let path = self.path.clone();
         let mut out = BufWriter::new(self.file);

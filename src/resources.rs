@@ -173,8 +173,6 @@ pub struct FrameSamples {
     pub sq_sums: Vec<f32>,
     /// Pixels traced this frame.
     pub active_pixels: usize,
-    /// Sample index of this frame's first sample in every pixel.
-    pub first_index: u32,
     /// Per-pixel AOV sums (empty unless `RenderSettings::aovs`).
     pub aovs: Vec<AovValues>,
 }

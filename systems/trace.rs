@@ -69,7 +69,6 @@ pub fn trace(
     let groups: Vec<(u32, &dyn LightGroup)> = lights.groups().filter(|(_, g)| g.count() > 0).collect();
     let scene = Scene { geometry: &geometry, lights: &groups, sets: &sets, background: settings.background };
 
-    let first = accumulation.spp;
     let tiles = tiles(settings.width, settings.height, settings.tile_size);
     let job = Job {
         width: settings.width,
@@ -94,7 +93,6 @@ pub fn trace(
     frame.sq_sums.resize(settings.pixel_count(), 0.0);
     frame.aovs.resize(if settings.aovs { settings.pixel_count() } else { 0 }, [0.0; AOV_FLOATS]);
     frame.samples_per_pixel = count;
-    frame.first_index = first;
     frame.active_pixels = results.iter().map(|r| r.counts.iter().filter(|&&c| c > 0).count()).sum();
     let mut rays = RayCounts::default();
     for (tile, result) in tiles.iter().zip(&results) {

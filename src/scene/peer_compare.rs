@@ -8,7 +8,6 @@ use super::peer_scene::PeerScene;
 use crate::{
     Renderer,
     error::HemiError,
-    npy,
     resources::{Aov, RenderSettings},
     sampling::SamplerKind,
 };
@@ -47,20 +46,7 @@ pub fn compare(
     sampler: SamplerKind,
     threads: Option<usize>,
 ) -> Result<Comparison, HemiError> {
-    let (ao_path, hit_path) = scene.reference_paths();
-    let reference = npy::read_f32(&ao_path)?;
-    let hit = npy::read_bool(&hit_path)?;
-    if (reference.rows, reference.cols) != (scene.height as usize, scene.width as usize)
-        || hit.data.len() != reference.data.len()
-    {
-        return Err(HemiError::Io {
-            path: ao_path,
-            message: format!(
-                "reference is {}x{}, the scene {}x{}",
-                reference.cols, reference.rows, scene.width, scene.height
-            ),
-        });
-    }
+    let (reference, hit) = scene.read_reference()?;
     let settings = RenderSettings {
         width: scene.width,
         height: scene.height,
@@ -88,15 +74,15 @@ pub fn compare(
     let ao = image.aov(Aov::Ao).unwrap_or_default();
     let depth = image.aov(Aov::Depth).unwrap_or_default();
     let (mut n, mut diff, mut diff2, mut var, mut mismatches) = (0usize, 0.0f64, 0.0f64, 0.0f64, 0usize);
-    for i in 0..reference.data.len() {
+    for i in 0..reference.len() {
         let hemi_hit = depth[i].x > 0.0;
-        if hemi_hit != hit.data[i] {
+        if hemi_hit != hit[i] {
             mismatches += 1;
         }
-        if !hit.data[i] {
+        if !hit[i] {
             continue;
         }
-        let p = reference.data[i] as f64;
+        let p = reference[i] as f64;
         let d = ao[i].x as f64 - p;
         n += 1;
         diff += d;

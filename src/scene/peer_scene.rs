@@ -11,6 +11,7 @@ use serde::Deserialize;
 use crate::{
     components::{AmbientOccluder, Camera, PointLight, Transform},
     error::HemiError,
+    npy,
     scene::gltf::{self, SpawnOptions},
 };
 
@@ -142,5 +143,20 @@ impl PeerScene {
     pub fn reference_paths(&self) -> (PathBuf, PathBuf) {
         let refs = self.path.parent().unwrap_or(Path::new(".")).join("../refs");
         (refs.join(format!("{}.ao.npy", self.name)), refs.join(format!("{}.hit.npy", self.name)))
+    }
+
+    /// The reference AO and hit mask per pixel (row-major), checked against the scene's size.
+    pub fn read_reference(&self) -> Result<(Vec<f32>, Vec<bool>), HemiError> {
+        let (ao_path, hit_path) = self.reference_paths();
+        let ao = npy::read_f32(&ao_path)?;
+        let hit = npy::read_bool(&hit_path)?;
+        let size = (self.height as usize, self.width as usize);
+        if (ao.rows, ao.cols) != size || (hit.rows, hit.cols) != size {
+            return Err(HemiError::Io {
+                path: ao_path,
+                message: format!("reference is {}x{}, the scene {}x{}", ao.cols, ao.rows, self.width, self.height),
+            });
+        }
+        Ok((ao.data, hit.data))
     }
 }
