@@ -112,9 +112,10 @@ struct RenderArgs {
     /// scene's ao.samples].
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
     spp: Option<u32>,
-    /// Samples per pixel traced by each frame.
-    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=65_536))]
-    spf: u32,
+    /// Samples per pixel traced by each frame [default: up to 64; 16 with --target-error, so
+    /// pixels retire early]. Larger frames amortise the camera ray and per-frame work.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65_536))]
+    spf: Option<u32>,
     /// Image size, WIDTHxHEIGHT [default: 640x360, or a peer scene's own].
     #[arg(long, value_parser = parse_size)]
     size: Option<(u32, u32)>,
@@ -438,7 +439,7 @@ fn render(args: RenderArgs) -> Result<(), HemiError> {
     let settings = RenderSettings {
         width: size.0,
         height: size.1,
-        samples_per_frame: args.spf,
+        samples_per_frame: args.spf.unwrap_or(if args.target_error.is_some() { RenderSettings::ADAPTIVE_MIN_SPP } else { spp.min(64) }),
         samples_per_set: spp.min(4096),
         max_spp: Some(spp),
         seed: args.seed.or(peer.as_ref().map(|p| p.seed)).unwrap_or(0),

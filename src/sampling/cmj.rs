@@ -1,7 +1,10 @@
 //! Correlated multi-jittered sampling (Kensler 2013, "Correlated Multi-Jittered Sampling"):
 //! stateless multi-jittered patterns of any size, each a pure function of (index, pattern).
 
-use super::{generators::grid_shape, hash::permute};
+use super::{
+    generators::grid_shape,
+    hash::{Modulus, permute},
+};
 
 /// Kensler's hash to a float in [0, 1).
 #[inline]
@@ -19,20 +22,42 @@ fn randfloat(mut i: u32, p: u32) -> f32 {
     (i as f32 * (1.0 / 4_294_967_808.0)).min(1.0 - f32::EPSILON * 0.5)
 }
 
-/// Sample `s` of the `n`-point correlated multi-jittered pattern `p`: stratified on an m × k
-/// grid (m·k = n) and in both 1-D projections, with the sample order itself shuffled.
-#[inline]
-pub fn cmj(s: u32, n: u32, p: u32) -> [f32; 2] {
-    let (m, k) = grid_shape(n);
-    let s = permute(s, n, p.wrapping_mul(0x5163_3e2d));
-    let sx = permute(s % m, m, p.wrapping_mul(0xa511_e9b3));
-    let sy = permute(s / m, k, p.wrapping_mul(0x63d8_3595));
-    let jx = randfloat(s, p.wrapping_mul(0xa399_d265));
-    let jy = randfloat(s, p.wrapping_mul(0x711a_d6a5));
-    let x = ((s % m) as f32 + (sy as f32 + jx) / k as f32) / m as f32;
-    let y = ((s / m) as f32 + (sx as f32 + jy) / m as f32) / k as f32;
-    let below_one = |v: f32| v.min(1.0 - f32::EPSILON * 0.5);
-    [below_one(x), below_one(y)]
+/// The `n`-point correlated multi-jittered patterns, with the grid shape worked out once. Each
+/// pattern is stratified on an m × k grid (m·k = n) and in both 1-D projections, with the
+/// sample order itself shuffled. Computed per sample, so every (pixel, pass, dimension) gets a pattern of its own without a
+/// stored table (a table lookup per sample is a cache miss on large images).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Cmj {
+    n: Modulus,
+    m: Modulus,
+    k: Modulus,
+    /// 1/m and 1/k.
+    inv: [f32; 2],
+}
+
+impl Cmj {
+    /// Patterns of `n` ≥ 1 points.
+    pub fn new(n: u32) -> Self {
+        let n = n.max(1);
+        let (m, k) = grid_shape(n);
+        Cmj { n: Modulus::new(n), m: Modulus::new(m), k: Modulus::new(k), inv: [1.0 / m as f32, 1.0 / k as f32] }
+    }
+
+    /// Sample `s` (< n) of pattern `p`.
+    #[inline]
+    pub fn sample(&self, s: u32, p: u32) -> [f32; 2] {
+        let Cmj { n, m, k, inv: [inv_m, inv_k] } = *self;
+        let s = permute(s, n, p.wrapping_mul(0x5163_3e2d));
+        let (col, row) = (m.rem(s), m.div(s));
+        let sx = permute(col, m, p.wrapping_mul(0xa511_e9b3));
+        let sy = permute(row, k, p.wrapping_mul(0x63d8_3595));
+        let jx = randfloat(s, p.wrapping_mul(0xa399_d265));
+        let jy = randfloat(s, p.wrapping_mul(0x711a_d6a5));
+        let x = (col as f32 + (sy as f32 + jx) * inv_k) * inv_m;
+        let y = (row as f32 + (sx as f32 + jy) * inv_m) * inv_k;
+        let below_one = |v: f32| v.min(1.0 - f32::EPSILON * 0.5);
+        [below_one(x), below_one(y)]
+    }
 }
 
 #[cfg(test)]
@@ -44,7 +69,7 @@ mod tests {
         for n in [16u32, 12, 64] {
             let (m, k) = grid_shape(n);
             for p in [1u32, 99, 12345] {
-                let pts: Vec<[f32; 2]> = (0..n).map(|s| cmj(s, n, p)).collect();
+                let pts: Vec<[f32; 2]> = (0..n).map(|s| Cmj::new(n).sample(s, p)).collect();
                 let mut cells = vec![0; n as usize];
                 let mut xs = vec![0; n as usize];
                 let mut ys = vec![0; n as usize];

@@ -5,7 +5,7 @@
 
 use glam::Vec2;
 
-use super::{cmj::cmj, hash::SplitMix64};
+use super::hash::SplitMix64;
 
 /// Which pattern a sample set follows.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
@@ -65,7 +65,7 @@ impl SamplerKind {
 
     /// Whether samples come from precomputed sets rather than being computed per sample.
     pub fn uses_stored_sets(self) -> bool {
-        self != SamplerKind::ZSobol
+        !matches!(self, SamplerKind::ZSobol | SamplerKind::CorrelatedMultiJittered)
     }
 
     /// Appends one set of `n` points of this pattern to `out` (nothing for computed kinds).
@@ -77,11 +77,7 @@ impl SamplerKind {
             SamplerKind::NRooks => n_rooks(n, rng, out),
             SamplerKind::MultiJittered => multi_jittered(n, rng, out),
             SamplerKind::Hammersley => hammersley(n, rng, out),
-            SamplerKind::CorrelatedMultiJittered => {
-                let pattern = rng.next_u64() as u32;
-                out.extend((0..n).map(|s| Vec2::from(cmj(s, n, pattern))));
-            }
-            SamplerKind::ZSobol => {}
+            SamplerKind::CorrelatedMultiJittered | SamplerKind::ZSobol => {}
         }
     }
 }

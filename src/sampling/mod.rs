@@ -6,6 +6,8 @@
 //! of a pixel belongs to pass `i / n`; for each (pixel, pass, dimension) a hash picks one set and
 //! a hashed permutation (Kensler 2013) orders it, so the `n` samples of a pass are a whole,
 //! stratified set, different in every pixel and dimension, and independent of tile order.
+//! Correlated multi-jittered (the default) and ZSobol points are computed per sample instead:
+//! no table, and a pattern of its own for every (pixel, pass, dimension).
 
 pub mod cmj;
 pub mod generators;
@@ -19,7 +21,8 @@ use crate::resources::RenderSettings;
 use glam::Vec2;
 
 pub use generators::SamplerKind;
-use hash::{SplitMix64, hash_sample, mix64, permute};
+use hash::{Modulus, SplitMix64, hash_sample, mix64, permute, seed_key};
+use cmj::Cmj;
 use sobol::ZSobol;
 
 /// Sample dimensions: each consumer of 2-D samples owns one pair.
@@ -43,6 +46,11 @@ pub struct SampleSets {
     seed: u64,
     width: u32,
     zsobol: ZSobol,
+    cmj: Cmj,
+    /// Division by `n`.
+    modulus: Modulus,
+    /// The seed's hash key.
+    key: u64,
     points: Vec<Vec2>,
 }
 
@@ -69,7 +77,7 @@ impl SampleSets {
             kind.generate(n, &mut rng, &mut points);
         }
         let zsobol = ZSobol::new(n, width.max(height));
-        SampleSets { kind, n, num_sets, seed, width: width.max(1), zsobol, points }
+        SampleSets { kind, n, num_sets, seed, width: width.max(1), zsobol, cmj: Cmj::new(n), modulus: Modulus::new(n), key: seed_key(seed), points }
     }
 
     /// The pattern of these sets.
@@ -108,21 +116,20 @@ impl SampleSets {
     /// and the sets, so images do not depend on scheduling.
     #[inline]
     pub fn sample(&self, pixel: u32, index: u32, dim: u32) -> Vec2 {
-        let n = self.n;
-        if self.kind == SamplerKind::Regular {
-            return self.points[(index % n) as usize];
-        }
-        let pass = index / n;
+        let (pass, i) = (self.modulus.div(index), self.modulus.rem(index));
         match self.kind {
+            SamplerKind::Regular => self.points[i as usize],
             SamplerKind::ZSobol => {
                 let (x, y) = (pixel % self.width, pixel / self.width);
-                Vec2::from(self.zsobol.sample(x, y, index % n, dim, self.seed ^ mix64(pass as u64)))
+                Vec2::from(self.zsobol.sample(x, y, i, dim, self.seed ^ mix64(pass as u64)))
+            }
+            SamplerKind::CorrelatedMultiJittered => {
+                Vec2::from(self.cmj.sample(i, hash_sample(pixel, pass, dim, self.key) as u32))
             }
             _ => {
-                let h = hash_sample(pixel, pass, dim, self.seed);
+                let h = hash_sample(pixel, pass, dim, self.key);
                 let set = (((h >> 32) * self.num_sets as u64) >> 32) as u32;
-                let k = permute(index % n, n, h as u32);
-                self.points[(set * n + k) as usize]
+                self.points[(set * self.n + permute(i, self.modulus, h as u32)) as usize]
             }
         }
     }
