@@ -168,7 +168,10 @@ mod tests {
         let mut rng = SplitMix64::new(7);
         for d in [1u32, 2, 3, 7, 16, 17, 100, 1 << 31, u32::MAX] {
             let m = Modulus::new(d);
-            for a in [0u32, 1, d - 1, d, d.wrapping_add(1), u32::MAX].into_iter().chain((0..1000).map(|_| rng.next_u64() as u32)) {
+            for a in [0u32, 1, d - 1, d, d.wrapping_add(1), u32::MAX]
+                .into_iter()
+                .chain((0..1000).map(|_| rng.next_u64() as u32))
+            {
                 assert_eq!((m.div(a), m.rem(a)), (a / d, a % d), "{a} / {d}");
             }
         }

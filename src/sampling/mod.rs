@@ -20,9 +20,9 @@ use bevy_ecs::prelude::Resource;
 use crate::resources::RenderSettings;
 use glam::Vec2;
 
+use cmj::Cmj;
 pub use generators::SamplerKind;
 use hash::{Modulus, SplitMix64, hash_sample, mix64, permute, seed_key};
-use cmj::Cmj;
 use sobol::ZSobol;
 
 /// Sample dimensions: each consumer of 2-D samples owns one pair.
@@ -77,7 +77,18 @@ impl SampleSets {
             kind.generate(n, &mut rng, &mut points);
         }
         let zsobol = ZSobol::new(n, width.max(height));
-        SampleSets { kind, n, num_sets, seed, width: width.max(1), zsobol, cmj: Cmj::new(n), modulus: Modulus::new(n), key: seed_key(seed), points }
+        SampleSets {
+            kind,
+            n,
+            num_sets,
+            seed,
+            width: width.max(1),
+            zsobol,
+            cmj: Cmj::new(n),
+            modulus: Modulus::new(n),
+            key: seed_key(seed),
+            points,
+        }
     }
 
     /// The pattern of these sets.
