@@ -161,6 +161,22 @@ pub struct NodeGraph {
 }
 
 impl NodeGraph {
+    /// For every node, whether some clip can move it (a channel targets it or an ancestor).
+    pub fn animated(&self) -> Vec<bool> {
+        let mut animated = vec![false; self.nodes.len()];
+        for ch in self.clips.iter().flat_map(|c| &c.channels) {
+            if let Some(a) = animated.get_mut(ch.node) {
+                *a = true;
+            }
+        }
+        for i in 0..self.nodes.len() {
+            if let Some(p) = self.nodes[i].parent {
+                animated[i] |= animated[p];
+            }
+        }
+        animated
+    }
+
     /// World transforms of every node at time `t` under the active clip.
     pub fn pose(&self, t: f32) -> Vec<Affine3A> {
         let mut locals: Vec<Transform> = self.nodes.iter().map(|n| n.rest).collect();

@@ -45,8 +45,8 @@ pub mod prelude {
     pub use crate::{
         Renderer,
         components::{
-            AmbientOccluder, Camera, Cuboid, Deforming, DirectionalLight, DiskLight, Matte, Mesh, OrthographicCamera,
-            Plane, PointLight, Sphere, SpotLight, ThinLensCamera, Transform, TriangleMesh,
+            AmbientOccluder, Camera, Cuboid, Deforming, DirectionalLight, DiskLight, Dynamic, Matte, Mesh,
+            OrthographicCamera, Plane, PointLight, Sphere, SpotLight, ThinLensCamera, Transform, TriangleMesh,
         },
         error::HemiError,
         light::{Light, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term},

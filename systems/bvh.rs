@@ -5,15 +5,21 @@
 //!   however many entities share it;
 //! - a [`Deforming`] mesh whose vertices changed refits its BLAS (tree kept from the rest pose);
 //! - a moved mesh instance only rebuilds the top-level BVH over the instances;
-//! - spheres and cuboids share one world-space BLAS, rebuilt when one of them changes;
+//! - static meshes used by one entity each (not [`Dynamic`], not deforming) are baked in world
+//!   space into one BLAS, rebuilt when one of them changes (or which meshes qualify does);
+//! - each sphere and cuboid is a small world-space BLAS, rebuilt when one of them changes;
 //! - a material change only updates the material table; an unchanged scene does nothing.
 
-use std::{collections::HashMap, sync::Arc, time::Instant};
+use std::{
+    collections::{HashMap, HashSet},
+    sync::Arc,
+    time::Instant,
+};
 
 use bevy_ecs::{name::Name, prelude::*, system::SystemParam};
 
 use crate::{
-    components::{Cuboid, Deforming, Matte, Mesh, Plane, Sphere, Transform, TriangleMesh},
+    components::{Cuboid, Deforming, Dynamic, Matte, Mesh, Plane, Sphere, Transform, TriangleMesh},
     geometry::{
         Object, SceneGeometry,
         accel::{Blas, BvhWork, Instance},
@@ -36,6 +42,23 @@ type GeometryChanged = Or<(
 )>;
 type WorldChanged = Or<(Changed<Transform>, Changed<Sphere>, Changed<Plane>, Changed<Cuboid>)>;
 type ShapeAdded = Or<(Added<Sphere>, Added<Plane>, Added<Cuboid>, Added<TriangleMesh>)>;
+/// Changes that can decide whether a mesh is baked: markers added, or a mesh swapped (which
+/// changes how many entities share it).
+type BakingChanged = Or<(Added<Dynamic>, Added<Deforming>, (Changed<TriangleMesh>, Without<Deforming>))>;
+/// What the BVH system reads of a shaped entity.
+type ShapeQuery = (
+    Entity,
+    Option<&'static Name>,
+    &'static Transform,
+    &'static Matte,
+    Option<&'static Sphere>,
+    Option<&'static Plane>,
+    Option<&'static Cuboid>,
+    Option<&'static TriangleMesh>,
+    Option<&'static Deforming>,
+    Has<Dynamic>,
+);
+/// One shaped entity as read by [`ShapeQuery`].
 type ShapeData<'a> = (
     Entity,
     Option<&'a Name>,
@@ -46,6 +69,7 @@ type ShapeData<'a> = (
     Option<&'a Cuboid>,
     Option<&'a TriangleMesh>,
     Option<&'a Deforming>,
+    bool,
 );
 
 /// Removals of shape components (despawns included).
@@ -55,6 +79,8 @@ pub struct ShapeRemovals<'w, 's> {
     plane: RemovedComponents<'w, 's, Plane>,
     cuboid: RemovedComponents<'w, 's, Cuboid>,
     mesh: RemovedComponents<'w, 's, TriangleMesh>,
+    dynamic: RemovedComponents<'w, 's, Dynamic>,
+    deforming: RemovedComponents<'w, 's, Deforming>,
 }
 
 impl ShapeRemovals<'_, '_> {
@@ -64,6 +90,8 @@ impl ShapeRemovals<'_, '_> {
             self.plane.read().count(),
             self.cuboid.read().count(),
             self.mesh.read().count(),
+            self.dynamic.read().count(),
+            self.deforming.read().count(),
         ];
         counts.iter().any(|&c| c > 0)
     }
@@ -91,6 +119,8 @@ pub struct BvhCache {
     templates: HashMap<usize, MeshEntry>,
     deforming: HashMap<Entity, DeformEntry>,
     world: Vec<Arc<Blas>>,
+    /// Entities baked into the world-space BLAS of static meshes.
+    baked: HashSet<Entity>,
     planes: Vec<PlanePrim>,
     world_problems: Vec<String>,
 }
@@ -104,10 +134,12 @@ fn key(mesh: &Arc<Mesh>) -> usize {
 pub fn update_bvh(
     changed: Query<(), (GeometryChanged, Shaped)>,
     world_changed: Query<(), (WorldChanged, WorldShaped)>,
+    meshes_moved: Query<Entity, (Or<(Changed<Transform>, Changed<TriangleMesh>)>, With<TriangleMesh>)>,
+    baking_changed: Query<(), (BakingChanged, With<TriangleMesh>)>,
     added: Query<(), ShapeAdded>,
     mut removed: ShapeRemovals,
     recoloured: Query<(Entity, &Matte), (Changed<Matte>, Shaped)>,
-    shapes: Query<ShapeData, Shaped>,
+    shapes: Query<ShapeQuery, Shaped>,
     mut geometry: ResMut<SceneGeometry>,
     mut problems: ResMut<SceneProblems>,
     mut stats: ResMut<FrameStats>,
@@ -121,7 +153,10 @@ pub fn update_bvh(
         let objects_before = std::mem::take(&mut geometry.objects);
         *geometry = SceneGeometry::default();
         drop(objects_before);
-        let rebuild_world = structural || !world_changed.is_empty();
+        let rebuild_world = structural
+            || !world_changed.is_empty()
+            || !baking_changed.is_empty()
+            || meshes_moved.iter().any(|e| cache.baked.contains(&e));
         let (built, found, work) = update(&shapes, &mut cache, rebuild_world);
         problems.geometry = found;
         *geometry = built;
@@ -169,7 +204,7 @@ fn describe(entity: Entity, name: Option<&Name>, e: String) -> String {
 /// whose meshes are new or deformed. Every shaped entity (in entity order, for determinism)
 /// is an object whether or not it is valid, so object indices only move when entities do.
 fn update(
-    shapes: &Query<ShapeData, Shaped>,
+    shapes: &Query<ShapeQuery, Shaped>,
     cache: &mut BvhCache,
     rebuild_world: bool,
 ) -> (SceneGeometry, Vec<String>, BvhWork) {
@@ -181,7 +216,10 @@ fn update(
 
     if rebuild_world {
         let (mut world, mut planes, mut found) = (Vec::new(), Vec::new(), Vec::new());
-        for (object, &(entity, name, transform, matte, sphere, plane, cuboid, mesh, _)) in entries.iter().enumerate() {
+        let (baked, baked_blas) = bake_static_meshes(&entries, &mut found);
+        world.extend(baked_blas);
+        cache.baked = baked;
+        for (object, &(entity, name, transform, matte, sphere, plane, cuboid, mesh, ..)) in entries.iter().enumerate() {
             let object = object as u32;
             let count = [sphere.is_some(), plane.is_some(), cuboid.is_some(), mesh.is_some()];
             let result = if count.iter().filter(|&&s| s).count() > 1 {
@@ -232,12 +270,12 @@ fn update(
 
     let mut used_meshes = Vec::new();
     let mut used_deforming = Vec::new();
-    for (object, &(entity, name, transform, matte, sphere, plane, cuboid, mesh, deforming)) in
+    for (object, &(entity, name, transform, matte, sphere, plane, cuboid, mesh, deforming, _)) in
         entries.iter().enumerate()
     {
         let Some(mesh) = mesh else { continue };
-        if sphere.is_some() || plane.is_some() || cuboid.is_some() {
-            continue; // reported with the world shapes
+        if sphere.is_some() || plane.is_some() || cuboid.is_some() || cache.baked.contains(&entity) {
+            continue; // reported with the world shapes, or baked
         }
         let blas = world_space::validate_material(matte).and_then(|()| match deforming {
             None => {
@@ -273,6 +311,45 @@ fn update(
         return (SceneGeometry::build(g.world_prims(), planes, objects), problems, work);
     }
     (g, problems, work)
+}
+
+/// Bakes the static meshes that one entity each uses (no [`Dynamic`] marker, not deforming,
+/// no other shape component) into one world-space BLAS: which entities went in, and the BLAS
+/// (`None` when there are none). Unusable meshes are reported and left out.
+fn bake_static_meshes(entries: &[ShapeData], found: &mut Vec<String>) -> (HashSet<Entity>, Option<Arc<Blas>>) {
+    let mut users: HashMap<usize, usize> = HashMap::new();
+    for e in entries {
+        if let Some(mesh) = e.7 {
+            *users.entry(key(&mesh.0)).or_default() += 1;
+        }
+    }
+    let mut baked = HashSet::new();
+    let (mut prims, mut degenerate) = (Vec::new(), 0);
+    for (object, &(entity, name, transform, matte, sphere, plane, cuboid, mesh, deforming, dynamic)) in
+        entries.iter().enumerate()
+    {
+        let Some(mesh) = mesh else { continue };
+        let other_shape = sphere.is_some() || plane.is_some() || cuboid.is_some();
+        if other_shape || dynamic || deforming.is_some() || users[&key(&mesh.0)] > 1 {
+            continue;
+        }
+        baked.insert(entity);
+        let converted =
+            world_space::validate_material(matte).and_then(|()| world_space::mesh(&mesh.0, transform, object as u32));
+        match converted {
+            Ok(c) => {
+                prims.extend(c.prims);
+                degenerate += c.degenerate;
+            }
+            Err(e) => found.push(describe(entity, name, e)),
+        }
+    }
+    if prims.is_empty() {
+        return (baked, None);
+    }
+    let mut blas = Blas::build(prims);
+    blas.degenerate_triangles = degenerate;
+    (baked, Some(Arc::new(blas)))
 }
 
 /// The shared BLAS of a static mesh, built on first use.

@@ -6,6 +6,7 @@ mod common;
 use std::sync::Arc;
 
 use common::{occluder, settings, white};
+use hemi::scene::mesh_gen::uv_sphere;
 use hemi::{
     geometry::{SceneGeometry, accel::BvhWork},
     prelude::*,
@@ -221,6 +222,41 @@ fn moving_a_mesh_instance_rebuilds_only_the_top_level() {
     let stats = r.run_frame().unwrap();
     assert_eq!(stats.bvh_work, BvhWork { blas_built: 0, blas_refit: 0, tlas_built: true });
     assert_eq!(stats.spp, 2, "accumulation restarted");
+}
+
+#[test]
+fn static_meshes_are_baked_into_one_tree_and_dynamic_ones_stay_instances() {
+    let (a, b) = (Arc::new(uv_sphere(0.4, 8, 16)), Arc::new(uv_sphere(0.3, 6, 12)));
+    let bake = |dynamic: bool| {
+        let mut r = floor_scene(1, None);
+        let w = r.world_mut();
+        let baked = w.spawn((TriangleMesh(a.clone()), Transform::from_xyz(1.0, 0.4, -1.0))).id();
+        let moving = w.spawn((TriangleMesh(b.clone()), Transform::from_xyz(-1.0, 0.3, -1.0))).id();
+        if dynamic {
+            w.entity_mut(moving).insert(Dynamic);
+        }
+        let stats = r.run_frame().unwrap().clone();
+        (r, baked, moving, stats)
+    };
+
+    let (mut r, baked, moving, stats) = bake(true);
+    assert_eq!(stats.bvh_work.blas_built, 3, "the sphere, the baked mesh and the dynamic mesh");
+    assert_eq!(r.world().resource::<SceneGeometry>().instances().len(), 3);
+    let instanced = r.image().linear.clone();
+    r.world_mut().get_mut::<Transform>(moving).unwrap().translation.y += 0.1;
+    let stats = r.run_frame().unwrap();
+    assert_eq!(stats.bvh_work, BvhWork { blas_built: 0, blas_refit: 0, tlas_built: true }, "dynamic: top level only");
+    r.world_mut().get_mut::<Transform>(baked).unwrap().translation.y += 0.1;
+    let stats = r.run_frame().unwrap();
+    assert_eq!(stats.bvh_work.blas_built, 2, "a baked mesh moved: the world shapes and the baked tree are rebuilt");
+
+    // Baked or instanced, the same scene renders the same image up to rounding (which may flip
+    // a ray grazing an edge, so allow a stray pixel).
+    let (r, _, _, stats) = bake(false);
+    assert_eq!(stats.bvh_work.blas_built, 2, "the sphere and one tree for both meshes");
+    assert_eq!(r.world().resource::<SceneGeometry>().instances().len(), 2);
+    let differ = r.image().linear.iter().zip(&instanced).filter(|(x, y)| (**x - **y).abs().max_element() > 1e-4).count();
+    assert!(differ <= 2, "{differ} of {} pixels differ", instanced.len());
 }
 
 #[test]

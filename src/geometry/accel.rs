@@ -622,6 +622,12 @@ impl SceneGeometry {
     #[inline]
     fn closest_instance(&self, ray: &mut Ray, stack: &mut Vec<(u32, f32)>) -> Option<(u32, u32, f32, f32)> {
         stack.clear();
+        if let [inst] = &self.instances[..]
+            && inst.identity
+        {
+            // One world-space BLAS (a static scene): no top level to traverse.
+            return self.blases[inst.blas as usize].closest(ray, stack).map(|(slot, b1, b2)| (0, slot, b1, b2));
+        }
         let mut best = None;
         self.tlas4.closest(ray, stack, |first, count, ray, stack| {
             for k in first..first + count {
@@ -649,6 +655,11 @@ impl SceneGeometry {
             return true;
         }
         stack.clear();
+        if let [inst] = &self.instances[..]
+            && inst.identity
+        {
+            return self.blases[inst.blas as usize].occluded(ray, stack);
+        }
         self.tlas4.occluded(ray, stack, |first, count, stack| {
             self.instances[first as usize..(first + count) as usize].iter().any(|inst| {
                 let blas = &self.blases[inst.blas as usize];

@@ -36,8 +36,8 @@ use glam::{Affine3A, Mat4, Quat, Vec3};
 use crate::{
     animation::{Channel, Clip, Influences, Interpolation, Keys, Node, NodeGraph, NodeLink, Skin},
     components::{
-        AmbientOccluder, Camera, Deforming, DirectionalLight, Matte, Mesh, OrthographicCamera, PointLight, SpotLight,
-        Transform, TriangleMesh,
+        AmbientOccluder, Camera, Deforming, DirectionalLight, Dynamic, Matte, Mesh, OrthographicCamera, PointLight,
+        SpotLight, Transform, TriangleMesh,
     },
     error::HemiError,
     light::Light,
@@ -564,6 +564,7 @@ impl GltfScene {
                 bounds = Some(bounds.map_or((q, q), |(lo, hi)| (lo.min(q), hi.max(q))));
             }
         };
+        let animated = graph.animated();
         for placement in &self.placements {
             let node_world = graph.world[placement.node];
             let node_name = &graph.nodes[placement.node].name;
@@ -601,6 +602,9 @@ impl GltfScene {
                     ));
                     if !options.geometry_only {
                         entity.insert(NodeLink { node: placement.node, offset: *offset });
+                        if animated[placement.node] {
+                            entity.insert(Dynamic);
+                        }
                     }
                 }
             }
