@@ -221,6 +221,21 @@ fn box_and_sphere() -> Renderer {
 }
 
 #[test]
+fn animated_nodes_stay_instances_and_moving_them_rebuilds_only_the_top_level() {
+    let mut r = box_and_sphere();
+    r.run_frame().unwrap();
+    let w = r.world_mut();
+    let mut meshes: Vec<bool> =
+        w.query_filtered::<hemi::bevy_ecs::query::Has<Dynamic>, With<TriangleMesh>>().iter(w).collect();
+    meshes.sort();
+    assert_eq!(meshes, [false, true], "one box hangs under an animated node, the other under none");
+    r.set_time(0.5);
+    let stats = r.run_frame().unwrap();
+    let top_level_only = hemi::geometry::accel::BvhWork { blas_built: 0, blas_refit: 0, tlas_built: true };
+    assert_eq!(stats.bvh_work, top_level_only, "the static box stays baked, the moving one is an instance");
+}
+
+#[test]
 fn animated_frames_change_where_things_move_and_nowhere_else() {
     let mut r = box_and_sphere();
     let mut frames = Vec::new();

@@ -255,7 +255,8 @@ fn static_meshes_are_baked_into_one_tree_and_dynamic_ones_stay_instances() {
     let (r, _, _, stats) = bake(false);
     assert_eq!(stats.bvh_work.blas_built, 2, "the sphere and one tree for both meshes");
     assert_eq!(r.world().resource::<SceneGeometry>().instances().len(), 2);
-    let differ = r.image().linear.iter().zip(&instanced).filter(|(x, y)| (**x - **y).abs().max_element() > 1e-4).count();
+    let differ =
+        r.image().linear.iter().zip(&instanced).filter(|(x, y)| (**x - **y).abs().max_element() > 1e-4).count();
     assert!(differ <= 2, "{differ} of {} pixels differ", instanced.len());
 }
 
