@@ -143,7 +143,7 @@ pub struct TriangleMesh(pub Arc<Mesh>);
 /// Marks a [`TriangleMesh`] entity that moves often (animated nodes, objects a user drives by
 /// hand): it stays an instance of its own, so moving it only rebuilds the top-level BVH.
 /// Static meshes that no other entity shares are instead baked, in world space, into one BVH
-/// with each other (one tree to traverse instead of one per mesh: 1.8× on Sponza's 103
+/// with each other (one tree to traverse instead of one per mesh: 1.8× on Sponza's 37
 /// pieces), which is rebuilt whenever one of them changes. glTF nodes that an animation drives
 /// get this marker from the loader.
 #[derive(Component, Clone, Copy, Debug, Default, PartialEq, Eq)]
