@@ -439,7 +439,11 @@ fn render(args: RenderArgs) -> Result<(), HemiError> {
     let settings = RenderSettings {
         width: size.0,
         height: size.1,
-        samples_per_frame: args.spf.unwrap_or(if args.target_error.is_some() { RenderSettings::ADAPTIVE_MIN_SPP } else { spp.min(64) }),
+        samples_per_frame: args.spf.unwrap_or(if args.target_error.is_some() {
+            RenderSettings::ADAPTIVE_MIN_SPP
+        } else {
+            spp.min(64)
+        }),
         samples_per_set: spp.min(4096),
         max_spp: Some(spp),
         seed: args.seed.or(peer.as_ref().map(|p| p.seed)).unwrap_or(0),

@@ -48,7 +48,7 @@ impl Cmj {
     pub fn sample(&self, s: u32, p: u32) -> [f32; 2] {
         let Cmj { n, m, k, inv: [inv_m, inv_k] } = *self;
         let s = permute(s, n, p.wrapping_mul(0x5163_3e2d));
-        let (col, row) = (m.rem(s), m.div(s));
+        let (col, row) = (m.remainder(s), m.quotient(s));
         let sx = permute(col, m, p.wrapping_mul(0xa511_e9b3));
         let sy = permute(row, k, p.wrapping_mul(0x63d8_3595));
         let jx = randfloat(s, p.wrapping_mul(0xa399_d265));

@@ -54,13 +54,13 @@ impl Modulus {
 
     /// `a / d`, exact for every `a`.
     #[inline]
-    pub fn div(self, a: u32) -> u32 {
+    pub fn quotient(self, a: u32) -> u32 {
         if self.d == 1 { a } else { ((self.magic as u128 * a as u128) >> 64) as u32 }
     }
 
     /// `a % d`, exact for every `a`.
     #[inline]
-    pub fn rem(self, a: u32) -> u32 {
+    pub fn remainder(self, a: u32) -> u32 {
         let low = self.magic.wrapping_mul(a as u64);
         ((low as u128 * self.d as u128) >> 64) as u32
     }
@@ -99,7 +99,7 @@ pub fn permute(i: u32, len: Modulus, seed: u32) -> u32 {
             break;
         }
     }
-    len.rem(i.wrapping_add(p))
+    len.remainder(i.wrapping_add(p))
 }
 
 /// A small deterministic generator (SplitMix64) for building sample sets from a seed.
@@ -168,8 +168,11 @@ mod tests {
         let mut rng = SplitMix64::new(7);
         for d in [1u32, 2, 3, 7, 16, 17, 100, 1 << 31, u32::MAX] {
             let m = Modulus::new(d);
-            for a in [0u32, 1, d - 1, d, d.wrapping_add(1), u32::MAX].into_iter().chain((0..1000).map(|_| rng.next_u64() as u32)) {
-                assert_eq!((m.div(a), m.rem(a)), (a / d, a % d), "{a} / {d}");
+            for a in [0u32, 1, d - 1, d, d.wrapping_add(1), u32::MAX]
+                .into_iter()
+                .chain((0..1000).map(|_| rng.next_u64() as u32))
+            {
+                assert_eq!((m.quotient(a), m.remainder(a)), (a / d, a % d), "{a} / {d}");
             }
         }
     }

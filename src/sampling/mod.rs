@@ -20,9 +20,9 @@ use bevy_ecs::prelude::Resource;
 use crate::resources::RenderSettings;
 use glam::Vec2;
 
+use cmj::Cmj;
 pub use generators::SamplerKind;
 use hash::{Modulus, SplitMix64, hash_sample, mix64, permute, seed_key};
-use cmj::Cmj;
 use sobol::ZSobol;
 
 /// Sample dimensions: each consumer of 2-D samples owns one pair.
@@ -77,7 +77,18 @@ impl SampleSets {
             kind.generate(n, &mut rng, &mut points);
         }
         let zsobol = ZSobol::new(n, width.max(height));
-        SampleSets { kind, n, num_sets, seed, width: width.max(1), zsobol, cmj: Cmj::new(n), modulus: Modulus::new(n), key: seed_key(seed), points }
+        SampleSets {
+            kind,
+            n,
+            num_sets,
+            seed,
+            width: width.max(1),
+            zsobol,
+            cmj: Cmj::new(n),
+            modulus: Modulus::new(n),
+            key: seed_key(seed),
+            points,
+        }
     }
 
     /// The pattern of these sets.
@@ -116,7 +127,7 @@ impl SampleSets {
     /// and the sets, so images do not depend on scheduling.
     #[inline]
     pub fn sample(&self, pixel: u32, index: u32, dim: u32) -> Vec2 {
-        let (pass, i) = (self.modulus.div(index), self.modulus.rem(index));
+        let (pass, i) = (self.modulus.quotient(index), self.modulus.remainder(index));
         match self.kind {
             SamplerKind::Regular => self.points[i as usize],
             SamplerKind::ZSobol => {
