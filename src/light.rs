@@ -116,7 +116,7 @@ pub struct LightSample {
     pub shadow: Option<Shadow>,
 }
 
-/// The 2-D sample values of one light at one shading point, computed on demand.
+/// The 2-D sample values of one light at one shading point.
 #[derive(Clone, Copy, Debug)]
 pub struct LightSamples<'a> {
     source: Source<'a>,
@@ -125,14 +125,24 @@ pub struct LightSamples<'a> {
 #[derive(Clone, Copy, Debug)]
 enum Source<'a> {
     Sets { sets: &'a SampleSets, pixel: u32, index: u32, first_dim: u32, last: u32 },
+    Columns { values: &'a [Vec2], at: usize, stride: usize, last: u32 },
     Fixed(Vec2),
 }
 
 impl<'a> LightSamples<'a> {
-    /// The samples the renderer uses: dimensions `first_dim .. first_dim + dims`.
+    /// The samples the renderer uses: dimensions `first_dim .. first_dim + dims`, computed on
+    /// demand.
     #[inline]
     pub fn from_sets(sets: &'a SampleSets, pixel: u32, index: u32, first_dim: u32, dims: u32) -> Self {
         LightSamples { source: Source::Sets { sets, pixel, index, first_dim, last: dims.saturating_sub(1) } }
+    }
+
+    /// Sample `at` of a run computed ahead: dimension `k`'s samples are
+    /// `values[k * stride..(k + 1) * stride]`, as [`SampleSets::fill`] writes them.
+    #[inline]
+    pub(crate) fn from_columns(values: &'a [Vec2], at: usize, stride: usize) -> Self {
+        let last = (values.len() / stride.max(1)).saturating_sub(1) as u32;
+        LightSamples { source: Source::Columns { values, at, stride, last } }
     }
 
     /// The same value for every dimension (for testing a light directly).
@@ -146,6 +156,7 @@ impl<'a> LightSamples<'a> {
     pub fn get(&self, k: u32) -> Vec2 {
         match self.source {
             Source::Sets { sets, pixel, index, first_dim, last } => sets.sample(pixel, index, first_dim + k.min(last)),
+            Source::Columns { values, at, stride, last } => values[k.min(last) as usize * stride + at],
             Source::Fixed(u) => u,
         }
     }
@@ -188,8 +199,9 @@ pub trait LightGroup: Send + Sync {
     fn dims(&self) -> u32;
     /// The reflectance the group's light is multiplied by.
     fn term(&self) -> Term;
-    /// Sum of the group's light arriving at `hit` (before the material's reflectance),
-    /// tracing shadow rays with `tracer`.
+    /// Adds the group's light arriving at `hit` (before the material's reflectance) for the
+    /// samples `first, first + 1, …` of `pixel`, one per element of `arriving`, tracing shadow
+    /// rays with `tracer`. The samples share the hit, so per-hit work is done once.
     #[allow(clippy::too_many_arguments)]
     fn shade(
         &self,
@@ -198,9 +210,10 @@ pub trait LightGroup: Send + Sync {
         hit: &SurfaceHit,
         at: &ShadingPoint,
         pixel: u32,
-        index: u32,
+        first: u32,
         first_dim: u32,
-    ) -> Vec3;
+        arriving: &mut [Vec3],
+    );
 }
 
 struct Group<P>(Vec<P>);
@@ -226,10 +239,11 @@ impl<P: PlacedLight> LightGroup for Group<P> {
         hit: &SurfaceHit,
         at: &ShadingPoint,
         pixel: u32,
-        index: u32,
+        first: u32,
         first_dim: u32,
-    ) -> Vec3 {
-        tracer.shade_lights(scene, hit, at, &self.0, pixel, index, first_dim)
+        arriving: &mut [Vec3],
+    ) {
+        tracer.shade_lights(scene, hit, at, &self.0, pixel, first, first_dim, arriving)
     }
 }
 
