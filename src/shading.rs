@@ -5,7 +5,7 @@
 use glam::{Vec2, Vec3};
 
 use crate::{
-    geometry::{Ray, SceneGeometry, SurfaceHit},
+    geometry::{Ray, SceneGeometry, SpawnOrigins, SurfaceHit},
     light::{LightGroup, LightSamples, PlacedLight, ShadingPoint, Shadow, Term},
     resources::AovValues,
     sampling::SampleSets,
@@ -151,7 +151,8 @@ impl Tracer {
     ) {
         let hit = &primary.hit;
         let material = scene.geometry.objects[hit.object as usize].material;
-        let at = ShadingPoint { p: hit.p, normal: hit.normal, material };
+        let at = ShadingPoint::new(hit.p, hit.normal, material);
+        let spawn = hit.spawn_origins();
         out.fill(SampleResult {
             albedo: material.cd,
             normal: hit.normal.into(),
@@ -172,7 +173,7 @@ impl Tracer {
             }
             arriving.clear();
             arriving.resize(out.len(), Vec3::ZERO);
-            group.shade(self, scene, hit, &at, pixel, first, first_dim, &mut arriving);
+            group.shade(self, scene, &spawn, &at, pixel, first, first_dim, &mut arriving);
             for (o, &a) in out.iter_mut().zip(&arriving) {
                 let reflected = reflectance * a;
                 o.radiance += reflected;
@@ -193,7 +194,7 @@ impl Tracer {
     pub(crate) fn shade_lights<P: PlacedLight>(
         &mut self,
         scene: &Scene,
-        hit: &SurfaceHit,
+        spawn: &SpawnOrigins,
         at: &ShadingPoint,
         lights: &[P],
         pixel: u32,
@@ -220,7 +221,7 @@ impl Tracer {
                 *sum += match s.shadow {
                     // A shadow ray only when its answer changes the result.
                     Some(shadow) if s.unoccluded != s.occluded => {
-                        if self.blocked(scene, hit, shadow, P::TERM) {
+                        if self.blocked(scene, spawn, shadow, P::TERM) {
                             s.occluded
                         } else {
                             s.unoccluded
@@ -233,15 +234,15 @@ impl Tracer {
         self.samples = values;
     }
 
-    /// Traces a shadow segment from the hit, counted by the light's term; true if blocked.
+    /// Traces a shadow segment from a hit, counted by the light's term; true if blocked.
     #[inline]
-    fn blocked(&mut self, scene: &Scene, hit: &SurfaceHit, shadow: Shadow, term: Term) -> bool {
+    fn blocked(&mut self, scene: &Scene, spawn: &SpawnOrigins, shadow: Shadow, term: Term) -> bool {
         let ray = match shadow {
             Shadow::ToPoint(q) => {
-                let origin = hit.spawn_origin(q - hit.p);
+                let origin = spawn.towards(q - spawn.p);
                 Ray::new(origin, q - origin, 1.0 - SHADOW_EPSILON)
             }
-            Shadow::Along { dir, max_distance } => Ray::new(hit.spawn_origin(dir), dir, max_distance),
+            Shadow::Along { dir, max_distance } => Ray::new(spawn.towards(dir), dir, max_distance),
         };
         match term {
             Term::Ambient => self.rays.ao += 1,
