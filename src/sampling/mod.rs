@@ -137,6 +137,10 @@ impl SampleSets {
     /// hash and the pattern's set-up are done once per pass instead of once per sample.
     #[inline]
     pub fn fill(&self, pixel: u32, first: u32, dim: u32, out: &mut [Vec2]) {
+        if let [one] = out {
+            *one = self.sample(pixel, first, dim);
+            return;
+        }
         let mut index = first;
         let mut rest = out;
         while !rest.is_empty() {
@@ -163,7 +167,12 @@ impl SampleSets {
                 }
             }
             SamplerKind::CorrelatedMultiJittered => {
-                self.cmj.fill(first, hash_sample(pixel, pass, dim, self.key) as u32, out)
+                let p = hash_sample(pixel, pass, dim, self.key) as u32;
+                match out {
+                    // A lone sample skips the vector loop's set-up.
+                    [one] => *one = Vec2::from(self.cmj.sample(first, p)),
+                    _ => self.cmj.fill(first, p, out),
+                }
             }
             _ => {
                 let h = hash_sample(pixel, pass, dim, self.key);
