@@ -22,7 +22,8 @@ use glam::{Vec2, Vec3, Vec3A};
 
 use crate::{
     components::{Matte, Transform},
-    geometry::SurfaceHit,
+    geometry::SpawnOrigins,
+    math::Onb,
     sampling::SampleSets,
     shading::{Scene, Tracer},
     systems::{FrameStage, scene_changes::detect_scene_changes},
@@ -85,6 +86,17 @@ pub struct ShadingPoint {
     pub normal: Vec3A,
     /// Material at the point.
     pub material: Matte,
+    /// Orthonormal frame with `w` = `normal`, built once per hit for lights that sample
+    /// directions around the normal (`frame.to_world(local)`).
+    pub frame: Onb,
+}
+
+impl ShadingPoint {
+    /// The point at `p` with unit normal `normal` and its frame.
+    #[inline]
+    pub fn new(p: Vec3A, normal: Vec3A, material: Matte) -> Self {
+        ShadingPoint { p, normal, material, frame: Onb::from_normal(normal.into()) }
+    }
 }
 
 /// The segment a shadow ray tests. The core starts it just off the surface.
@@ -116,7 +128,7 @@ pub struct LightSample {
     pub shadow: Option<Shadow>,
 }
 
-/// The 2-D sample values of one light at one shading point, computed on demand.
+/// The 2-D sample values of one light at one shading point.
 #[derive(Clone, Copy, Debug)]
 pub struct LightSamples<'a> {
     source: Source<'a>,
@@ -125,14 +137,24 @@ pub struct LightSamples<'a> {
 #[derive(Clone, Copy, Debug)]
 enum Source<'a> {
     Sets { sets: &'a SampleSets, pixel: u32, index: u32, first_dim: u32, last: u32 },
+    Columns { values: &'a [Vec2], at: usize, stride: usize, last: u32 },
     Fixed(Vec2),
 }
 
 impl<'a> LightSamples<'a> {
-    /// The samples the renderer uses: dimensions `first_dim .. first_dim + dims`.
+    /// The samples the renderer uses: dimensions `first_dim .. first_dim + dims`, computed on
+    /// demand.
     #[inline]
     pub fn from_sets(sets: &'a SampleSets, pixel: u32, index: u32, first_dim: u32, dims: u32) -> Self {
         LightSamples { source: Source::Sets { sets, pixel, index, first_dim, last: dims.saturating_sub(1) } }
+    }
+
+    /// Sample `at` of a run computed ahead: dimension `k`'s samples are
+    /// `values[k * stride..(k + 1) * stride]`, as [`SampleSets::fill`] writes them.
+    #[inline]
+    pub(crate) fn from_columns(values: &'a [Vec2], at: usize, stride: usize) -> Self {
+        let last = (values.len() / stride.max(1)).saturating_sub(1) as u32;
+        LightSamples { source: Source::Columns { values, at, stride, last } }
     }
 
     /// The same value for every dimension (for testing a light directly).
@@ -142,13 +164,22 @@ impl<'a> LightSamples<'a> {
 
     /// Sample `k` in [0, 1)², `k < DIMS`; larger `k` repeats the light's last dimension
     /// rather than reading another light's.
-    #[inline]
+    #[inline(always)]
     pub fn get(&self, k: u32) -> Vec2 {
         match self.source {
-            Source::Sets { sets, pixel, index, first_dim, last } => sets.sample(pixel, index, first_dim + k.min(last)),
+            Source::Sets { sets, pixel, index, first_dim, last } => {
+                sample_once(sets, pixel, index, first_dim + k.min(last))
+            }
+            Source::Columns { values, at, stride, last } => values[k.min(last) as usize * stride + at],
             Source::Fixed(u) => u,
         }
     }
+}
+
+/// One sample computed on demand, out of line: the renderer computes its samples ahead.
+#[inline(never)]
+fn sample_once(sets: &SampleSets, pixel: u32, index: u32, dim: u32) -> Vec2 {
+    sets.sample(pixel, index, dim)
 }
 
 /// A light resolved to world space: what the tracer samples at every shading point.
@@ -180,7 +211,8 @@ pub trait Light: Component + Sized {
     fn place(&self, transform: &Transform) -> Option<Self::Placed>;
 }
 
-/// The placed lights of one registered type, behind one virtual call per shading point.
+/// The placed lights of one registered type, behind one virtual call per run of samples at a
+/// shading point.
 pub trait LightGroup: Send + Sync {
     /// Lights in the group.
     fn count(&self) -> usize;
@@ -188,19 +220,21 @@ pub trait LightGroup: Send + Sync {
     fn dims(&self) -> u32;
     /// The reflectance the group's light is multiplied by.
     fn term(&self) -> Term;
-    /// Sum of the group's light arriving at `hit` (before the material's reflectance),
-    /// tracing shadow rays with `tracer`.
+    /// Adds the group's light arriving at `at` (before the material's reflectance) for the
+    /// samples `first, first + 1, …` of `pixel`, one per element of `arriving`, tracing shadow
+    /// rays from `spawn` with `tracer`. The samples share the hit, so per-hit work is done once.
     #[allow(clippy::too_many_arguments)]
     fn shade(
         &self,
         tracer: &mut Tracer,
         scene: &Scene,
-        hit: &SurfaceHit,
+        spawn: &SpawnOrigins,
         at: &ShadingPoint,
         pixel: u32,
-        index: u32,
+        first: u32,
         first_dim: u32,
-    ) -> Vec3;
+        arriving: &mut [Vec3],
+    );
 }
 
 struct Group<P>(Vec<P>);
@@ -223,13 +257,14 @@ impl<P: PlacedLight> LightGroup for Group<P> {
         &self,
         tracer: &mut Tracer,
         scene: &Scene,
-        hit: &SurfaceHit,
+        spawn: &SpawnOrigins,
         at: &ShadingPoint,
         pixel: u32,
-        index: u32,
+        first: u32,
         first_dim: u32,
-    ) -> Vec3 {
-        tracer.shade_lights(scene, hit, at, &self.0, pixel, index, first_dim)
+        arriving: &mut [Vec3],
+    ) {
+        tracer.shade_lights(scene, spawn, at, &self.0, pixel, first, first_dim, arriving)
     }
 }
 

@@ -2,10 +2,10 @@
 //! (see [`crate::light`]). The core knows no light kinds; it applies the reflectance a light
 //! names, traces the shadow rays lights ask for, and counts them.
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 use crate::{
-    geometry::{Ray, SceneGeometry, SurfaceHit},
+    geometry::{Ray, SceneGeometry, SpawnOrigins, SurfaceHit},
     light::{LightGroup, LightSamples, PlacedLight, ShadingPoint, Shadow, Term},
     resources::AovValues,
     sampling::SampleSets,
@@ -102,6 +102,10 @@ pub struct PrimaryHit {
 #[derive(Default)]
 pub struct Tracer {
     stack: Vec<(u32, f32)>,
+    /// One light's sample values for a run of samples, dimension by dimension.
+    samples: Vec<Vec2>,
+    /// One light group's arriving light for a run of samples.
+    arriving: Vec<Vec3>,
     /// Rays traced by this tracer.
     pub rays: RayCounts,
 }
@@ -114,10 +118,11 @@ impl Tracer {
     /// reflectance is zero at the hit be skipped (no rays); AOVs need them traced.
     #[inline(always)]
     pub fn sample(&mut self, scene: &Scene, ray: &Ray, pixel: u32, index: u32, skip_black: bool) -> SampleResult {
-        match self.primary(scene, ray) {
-            Some(hit) => self.shade(scene, &hit, pixel, index, skip_black, Lights::All),
-            None => SampleResult { radiance: scene.background, ..Default::default() },
+        let mut out = [SampleResult { radiance: scene.background, ..Default::default() }];
+        if let Some(hit) = self.primary(scene, ray) {
+            self.shade(scene, &hit, pixel, index, skip_black, Lights::All, &mut out);
         }
+        out[0]
     }
 
     /// The camera ray's first hit (one primary ray), with the distance it travelled.
@@ -128,28 +133,34 @@ impl Tracer {
         Some(PrimaryHit { hit, depth: hit.t * ray.dir.length() })
     }
 
-    /// Light reflected at a primary hit for sample `index` of `pixel` (each light's own
-    /// sample dimensions), from the lights `which` selects; several samples may share one hit.
-    #[inline(always)]
+    /// Light reflected at a primary hit for the samples `first, first + 1, …` of `pixel`, one
+    /// per element of `out` (each light's own sample dimensions), from the lights `which`
+    /// selects. The samples share the hit, so per-hit work and each pass's sample set-up are
+    /// done once for all of them.
+    #[inline]
+    #[allow(clippy::too_many_arguments)]
     pub fn shade(
         &mut self,
         scene: &Scene,
         primary: &PrimaryHit,
         pixel: u32,
-        index: u32,
+        first: u32,
         skip_black: bool,
         which: Lights,
-    ) -> SampleResult {
+        out: &mut [SampleResult],
+    ) {
         let hit = &primary.hit;
         let material = scene.geometry.objects[hit.object as usize].material;
-        let at = ShadingPoint { p: hit.p, normal: hit.normal, material };
-        let mut out = SampleResult {
+        let at = ShadingPoint::new(hit.p, hit.normal, material);
+        let spawn = hit.spawn_origins();
+        out.fill(SampleResult {
             albedo: material.cd,
             normal: hit.normal.into(),
             depth: primary.depth,
             hit: true,
             ..Default::default()
-        };
+        });
+        let mut arriving = std::mem::take(&mut self.arriving);
         for &(first_dim, group) in scene.lights {
             let fixed = group.dims() == 0;
             if (which == Lights::Fixed && !fixed) || (which == Lights::Sampled && fixed) {
@@ -160,61 +171,78 @@ impl Tracer {
             if skip_black && reflectance.max_element() <= 0.0 {
                 continue;
             }
-            let arriving = group.shade(self, scene, hit, &at, pixel, index, first_dim);
-            let reflected = reflectance * arriving;
-            out.radiance += reflected;
-            match term {
-                Term::Ambient => out.ao += arriving.element_sum() / 3.0,
-                Term::Diffuse => out.direct += reflected,
+            arriving.clear();
+            arriving.resize(out.len(), Vec3::ZERO);
+            group.shade(self, scene, &spawn, &at, pixel, first, first_dim, &mut arriving);
+            for (o, &a) in out.iter_mut().zip(&arriving) {
+                let reflected = reflectance * a;
+                o.radiance += reflected;
+                match term {
+                    Term::Ambient => o.ao += a.element_sum() / 3.0,
+                    Term::Diffuse => o.direct += reflected,
+                }
             }
         }
-        out
+        self.arriving = arriving;
     }
 
-    /// Light arriving from `lights` (all of one type) at a hit: each light's sample, with its
-    /// shadow ray when it can matter.
+    /// Adds the light arriving from `lights` (all of one type) at a hit for the samples
+    /// `first, first + 1, …` of `pixel`, one per element of `arriving`: each light's sample,
+    /// with its shadow ray when it can matter.
     #[inline]
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn shade_lights<P: PlacedLight>(
         &mut self,
         scene: &Scene,
-        hit: &SurfaceHit,
+        spawn: &SpawnOrigins,
         at: &ShadingPoint,
         lights: &[P],
         pixel: u32,
-        index: u32,
+        first: u32,
         first_dim: u32,
-    ) -> Vec3 {
-        let mut sum = Vec3::ZERO;
-        let mut dim = first_dim;
-        for light in lights {
-            let u = LightSamples::from_sets(scene.sets, pixel, index, dim, P::DIMS);
-            dim += P::DIMS;
-            let Some(s) = light.sample(at, &u) else { continue };
-            sum += match s.shadow {
-                // A shadow ray only when its answer changes the result.
-                Some(shadow) if s.unoccluded != s.occluded => {
-                    if self.blocked(scene, hit, shadow, P::TERM) {
-                        s.occluded
-                    } else {
-                        s.unoccluded
+        arriving: &mut [Vec3],
+    ) {
+        let n = arriving.len();
+        // Each light's sample values for the whole run, dimension after dimension.
+        let mut values = std::mem::take(&mut self.samples);
+        values.resize(n * P::DIMS as usize, Vec2::ZERO);
+        for (l, light) in lights.iter().enumerate() {
+            let dim = first_dim + l as u32 * P::DIMS;
+            for (k, column) in (0..P::DIMS).zip(values.chunks_exact_mut(n.max(1))) {
+                scene.sets.fill(pixel, first, dim + k, column);
+            }
+            for (j, sum) in arriving.iter_mut().enumerate() {
+                let u = if P::DIMS == 0 {
+                    LightSamples::from_sets(scene.sets, pixel, first.wrapping_add(j as u32), dim, 0)
+                } else {
+                    LightSamples::from_columns(&values, j, n)
+                };
+                let Some(s) = light.sample(at, &u) else { continue };
+                *sum += match s.shadow {
+                    // A shadow ray only when its answer changes the result.
+                    Some(shadow) if s.unoccluded != s.occluded => {
+                        if self.blocked(scene, spawn, shadow, P::TERM) {
+                            s.occluded
+                        } else {
+                            s.unoccluded
+                        }
                     }
-                }
-                _ => s.unoccluded,
-            };
+                    _ => s.unoccluded,
+                };
+            }
         }
-        sum
+        self.samples = values;
     }
 
-    /// Traces a shadow segment from the hit, counted by the light's term; true if blocked.
+    /// Traces a shadow segment from a hit, counted by the light's term; true if blocked.
     #[inline]
-    fn blocked(&mut self, scene: &Scene, hit: &SurfaceHit, shadow: Shadow, term: Term) -> bool {
+    fn blocked(&mut self, scene: &Scene, spawn: &SpawnOrigins, shadow: Shadow, term: Term) -> bool {
         let ray = match shadow {
             Shadow::ToPoint(q) => {
-                let origin = hit.spawn_origin(q - hit.p);
+                let origin = spawn.towards(q - spawn.p);
                 Ray::new(origin, q - origin, 1.0 - SHADOW_EPSILON)
             }
-            Shadow::Along { dir, max_distance } => Ray::new(hit.spawn_origin(dir), dir, max_distance),
+            Shadow::Along { dir, max_distance } => Ray::new(spawn.towards(dir), dir, max_distance),
         };
         match term {
             Term::Ambient => self.rays.ao += 1,

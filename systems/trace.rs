@@ -145,6 +145,8 @@ fn trace_tile<C: CameraRays>(
     target: Option<f32>,
 ) -> TileResult {
     let mut tracer = Tracer::default();
+    // One pixel's samples of this frame.
+    let mut samples = Vec::with_capacity(job.count as usize);
     let mut nonfinite = 0;
     let pixels = ((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize;
     let mut sums = Vec::with_capacity(pixels);
@@ -171,29 +173,32 @@ fn trace_tile<C: CameraRays>(
                 continue;
             }
             // Without jitter or lens every sample's camera ray is the same: trace it once, and
-            // evaluate the lights that draw no samples (point lights) once too.
+            // shade all samples at its hit together, evaluating the lights that draw no samples
+            // (point lights) once.
             let shared = (!job.jitter && !C::USES_LENS)
                 .then(|| tracer.primary(scene, &camera.ray(x, y, Vec2::splat(0.5), Vec2::ZERO)));
-            let fixed = match &shared {
-                Some(Some(hit)) => tracer.shade(scene, hit, pixel, first, !job.aovs, Lights::Fixed),
-                _ => SampleResult::default(),
-            };
-            for index in first..first + count {
-                let s = match &shared {
-                    Some(Some(hit)) => {
-                        let mut s = tracer.shade(scene, hit, pixel, index, !job.aovs, Lights::Sampled);
-                        s.radiance += fixed.radiance;
-                        s.direct += fixed.direct;
-                        s
+            samples.clear();
+            match &shared {
+                Some(Some(hit)) => {
+                    let mut fixed = [SampleResult::default()];
+                    tracer.shade(scene, hit, pixel, first, !job.aovs, Lights::Fixed, &mut fixed);
+                    samples.resize(count as usize, SampleResult::default());
+                    tracer.shade(scene, hit, pixel, first, !job.aovs, Lights::Sampled, &mut samples);
+                    for s in &mut samples {
+                        s.radiance += fixed[0].radiance;
+                        s.direct += fixed[0].direct;
                     }
-                    Some(None) => SampleResult { radiance: scene.background, ..Default::default() },
-                    None => {
-                        let lens = if C::USES_LENS { scene.sets.sample(pixel, index, dims::LENS) } else { Vec2::ZERO };
-                        let film =
-                            if job.jitter { scene.sets.sample(pixel, index, dims::PIXEL) } else { Vec2::splat(0.5) };
-                        tracer.sample(scene, &camera.ray(x, y, film, lens), pixel, index, !job.aovs)
-                    }
-                };
+                }
+                Some(None) => {
+                    samples.resize(count as usize, SampleResult { radiance: scene.background, ..Default::default() })
+                }
+                None => samples.extend((first..first + count).map(|index| {
+                    let lens = if C::USES_LENS { scene.sets.sample(pixel, index, dims::LENS) } else { Vec2::ZERO };
+                    let film = if job.jitter { scene.sets.sample(pixel, index, dims::PIXEL) } else { Vec2::splat(0.5) };
+                    tracer.sample(scene, &camera.ray(x, y, film, lens), pixel, index, !job.aovs)
+                })),
+            }
+            for s in &samples {
                 let values = job.aovs.then(|| s.aov_values());
                 if !s.radiance.is_finite() || values.is_some_and(|v| v.iter().any(|x| !x.is_finite())) {
                     nonfinite += 1;

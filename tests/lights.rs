@@ -140,7 +140,7 @@ fn spot_attenuation_is_full_inside_zero_outside_and_smooth_between() {
     let at_angle = |a: f32| {
         // A floor point at angle `a` from the axis, at distance 1 from the light at the origin.
         let p = Vec3::new(a.sin(), -a.cos(), 0.0);
-        let at = ShadingPoint { p: p.into(), normal: (-p).into(), material: white() };
+        let at = ShadingPoint::new(p.into(), (-p).into(), white());
         placed.sample(&at, &LightSamples::fixed(Vec2::ZERO)).map_or(0.0, |s| s.unoccluded.x)
     };
     assert!((at_angle(0.0) - 1.0).abs() < 1e-6);

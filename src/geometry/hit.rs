@@ -28,6 +28,36 @@ impl SurfaceHit {
     pub fn spawn_origin(&self, w: Vec3A) -> Vec3A {
         offset_ray_origin(self.p, self.p_error, self.normal, w)
     }
+
+    /// Both origins [`SurfaceHit::spawn_origin`] can return, worked out once for a hit that
+    /// spawns many rays.
+    #[inline]
+    pub fn spawn_origins(&self) -> SpawnOrigins {
+        SpawnOrigins {
+            p: self.p,
+            normal: self.normal,
+            front: self.spawn_origin(self.normal),
+            back: self.spawn_origin(-self.normal),
+        }
+    }
+}
+
+/// The ray origins of one hit on either side of its surface.
+#[derive(Clone, Copy, Debug)]
+pub struct SpawnOrigins {
+    /// The hit point.
+    pub p: Vec3A,
+    normal: Vec3A,
+    front: Vec3A,
+    back: Vec3A,
+}
+
+impl SpawnOrigins {
+    /// The origin for a ray towards `w`: exactly [`SurfaceHit::spawn_origin`]`(w)`.
+    #[inline]
+    pub fn towards(&self, w: Vec3A) -> Vec3A {
+        if w.dot(self.normal) < 0.0 { self.back } else { self.front }
+    }
 }
 
 /// Offsets `p` (with error bound `err`) along `n` to the side of `w`, far enough that the
@@ -50,4 +80,26 @@ pub fn offset_ray_origin(p: Vec3A, err: Vec3A, n: Vec3A, w: Vec3A) -> Vec3A {
         }
     };
     Vec3A::new(round(po.x, offset.x), round(po.y, offset.y), round(po.z, offset.z))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn spawn_origins_are_those_of_spawn_origin() {
+        let hit = SurfaceHit {
+            t: 1.0,
+            p: Vec3A::new(1e3, -2.5, 1e-3),
+            p_error: Vec3A::new(1e-4, 3e-7, 0.0),
+            normal: Vec3A::new(0.6, 0.0, -0.8),
+            object: 0,
+        };
+        let origins = hit.spawn_origins();
+        let ws = [Vec3A::X, -Vec3A::X, Vec3A::Z, Vec3A::new(0.8, 0.3, 0.6), Vec3A::new(0.8, 0.0, 0.6), Vec3A::ZERO];
+        for w in ws {
+            assert_eq!(origins.towards(w), hit.spawn_origin(w), "w = {w}");
+        }
+        assert_ne!(origins.towards(Vec3A::X), origins.towards(-Vec3A::X));
+    }
 }

@@ -9,5 +9,5 @@ pub mod tri4;
 pub mod world_space;
 
 pub use accel::{Object, Prim, SceneGeometry, Shape};
-pub use hit::SurfaceHit;
+pub use hit::{SpawnOrigins, SurfaceHit};
 pub use ray::Ray;

@@ -1,6 +1,6 @@
 //! Rays with the per-ray constants that the slab and watertight triangle tests need.
 
-use glam::Vec3A;
+use glam::{Vec3A, Vec3Swizzles};
 
 /// A ray segment `origin + t·dir` for t in (0, tmax). `dir` need not be unit length.
 #[derive(Clone, Copy, Debug)]
@@ -23,25 +23,17 @@ impl Ray {
     /// A ray from `origin` along `dir` up to `tmax`.
     #[inline]
     pub fn new(origin: Vec3A, dir: Vec3A, tmax: f32) -> Self {
+        // The axes (kx, ky, kz), kz that of the largest |dir| component, and `dir` in that order.
         let abs = dir.abs();
-        let kz = if abs.x > abs.y {
-            if abs.x > abs.z { 0 } else { 2 }
+        let (axes, d) = if abs.x > abs.y {
+            if abs.x > abs.z { ([1, 2, 0], dir.yzx()) } else { ([0, 1, 2], dir) }
         } else if abs.y > abs.z {
-            1
+            ([2, 0, 1], dir.zxy())
         } else {
-            2
+            ([0, 1, 2], dir)
         };
-        let kx = (kz + 1) % 3;
-        let ky = (kx + 1) % 3;
-        let dz = dir[kz];
-        Ray {
-            origin,
-            dir,
-            inv_dir: dir.recip(),
-            tmax,
-            axes: [kx, ky, kz],
-            shear: Vec3A::new(-dir[kx] / dz, -dir[ky] / dz, 1.0 / dz),
-        }
+        // One vector division: the same quotients as three scalar ones.
+        Ray { origin, dir, inv_dir: dir.recip(), tmax, axes, shear: Vec3A::new(-d.x, -d.y, 1.0) / d.z }
     }
 
     /// The same ray with another far end.
@@ -54,5 +46,30 @@ impl Ray {
     #[inline]
     pub fn at(&self, t: f32) -> Vec3A {
         self.origin + self.dir * t
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shear_and_axes_are_the_scalar_definitions() {
+        let dirs = [
+            Vec3A::new(0.3, -0.2, 0.9),
+            Vec3A::new(-5.0, 1.0, 2.0),
+            Vec3A::new(0.1, 7.0, -3.0),
+            Vec3A::new(1.0, 1.0, 1.0),
+            Vec3A::new(0.0, 0.0, -1.0),
+            Vec3A::new(1e-30, -3e-7, 2.5e-7),
+        ];
+        for dir in dirs {
+            let ray = Ray::new(Vec3A::ZERO, dir, 1.0);
+            let [kx, ky, kz] = ray.axes;
+            let abs = dir.abs();
+            assert!(abs[kz] >= abs[kx] && abs[kz] >= abs[ky] && (kz + 1) % 3 == kx && (kx + 1) % 3 == ky, "{dir}");
+            let dz = dir[kz];
+            assert_eq!(ray.shear, Vec3A::new(-dir[kx] / dz, -dir[ky] / dz, 1.0 / dz), "{dir}");
+        }
     }
 }

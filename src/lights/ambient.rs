@@ -6,7 +6,6 @@ use glam::{Vec3, Vec3A};
 use crate::{
     components::Transform,
     light::{Light, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term, check_emission},
-    math::Onb,
     sampling::warp::cosine_power_hemisphere,
 };
 
@@ -91,7 +90,7 @@ impl PlacedLight for PlacedOccluder {
         if s.weight <= 0.0 {
             return Some(LightSample { unoccluded: floor, occluded: floor, shadow: None });
         }
-        let dir = Vec3A::from(Onb::from_normal(at.normal.into()).to_world(s.dir));
+        let dir = Vec3A::from(at.frame.to_world(s.dir));
         Some(LightSample {
             unoccluded: self.radiance * (self.min_amount + (1.0 - self.min_amount) * s.weight),
             occluded: floor,

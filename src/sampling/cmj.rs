@@ -1,9 +1,11 @@
 //! Correlated multi-jittered sampling (Kensler 2013, "Correlated Multi-Jittered Sampling"):
 //! stateless multi-jittered patterns of any size, each a pure function of (index, pattern).
 
+use glam::Vec2;
+
 use super::{
     generators::grid_shape,
-    hash::{Modulus, permute},
+    hash::{Modulus, permute, permute_pow2},
 };
 
 /// Kensler's hash to a float in [0, 1).
@@ -46,17 +48,72 @@ impl Cmj {
     /// Sample `s` (< n) of pattern `p`.
     #[inline]
     pub fn sample(&self, s: u32, p: u32) -> [f32; 2] {
-        let Cmj { n, m, k, inv: [inv_m, inv_k] } = *self;
-        let s = permute(s, n, p.wrapping_mul(0x5163_3e2d));
-        let (col, row) = (m.rem(s), m.div(s));
-        let sx = permute(col, m, p.wrapping_mul(0xa511_e9b3));
-        let sy = permute(row, k, p.wrapping_mul(0x63d8_3595));
-        let jx = randfloat(s, p.wrapping_mul(0xa399_d265));
-        let jy = randfloat(s, p.wrapping_mul(0x711a_d6a5));
+        let sc = Scrambles::new(p);
+        let s = permute(s, self.n, sc.order);
+        let (col, row) = (self.m.remainder(s), self.m.quotient(s));
+        let (sx, sy) = (permute(col, self.m, sc.x), permute(row, self.k, sc.y));
+        self.point(s, col, row, sx, sy, &sc)
+    }
+
+    /// Samples `first..first + out.len()` (all < n) of pattern `p`, in order: the values of
+    /// [`Cmj::sample`], with the pattern's scrambles derived once. For a power-of-two n (then m
+    /// and k are powers of two too) every permutation is a single round and every division a
+    /// shift or mask: a loop without branches that the compiler can vectorise.
+    #[inline]
+    pub fn fill(&self, first: u32, p: u32, out: &mut [Vec2]) {
+        debug_assert!(first as u64 + out.len() as u64 <= self.n.get() as u64);
+        if !self.n.is_power_of_two() {
+            for (s, o) in (first..).zip(out) {
+                *o = Vec2::from(self.sample(s, p));
+            }
+            return;
+        }
+        let sc = Scrambles::new(p);
+        let (wn, wm, wk, shift) = (self.n.mask(), self.m.mask(), self.k.mask(), self.m.get().trailing_zeros());
+        for (s, o) in (first..).zip(out) {
+            let s = permute_pow2(s, wn, sc.order);
+            let (col, row) = (s & wm, s >> shift);
+            let (sx, sy) = (permute_pow2(col, wm, sc.x), permute_pow2(row, wk, sc.y));
+            *o = Vec2::from(self.point(s, col, row, sx, sy, &sc));
+        }
+    }
+
+    /// The point of (shuffled) sample `s` in cell (`col`, `row`), with `sx`, `sy` its
+    /// permuted sub-cell coordinates.
+    #[inline(always)]
+    fn point(&self, s: u32, col: u32, row: u32, sx: u32, sy: u32, sc: &Scrambles) -> [f32; 2] {
+        let [inv_m, inv_k] = self.inv;
+        let jx = randfloat(s, sc.jx);
+        let jy = randfloat(s, sc.jy);
         let x = (col as f32 + (sy as f32 + jx) * inv_k) * inv_m;
         let y = (row as f32 + (sx as f32 + jy) * inv_m) * inv_k;
         let below_one = |v: f32| v.min(1.0 - f32::EPSILON * 0.5);
         [below_one(x), below_one(y)]
+    }
+}
+
+/// The per-pattern seeds of Kensler's five hashes, derived from the pattern number.
+struct Scrambles {
+    /// Sample order.
+    order: u32,
+    /// Column and row shuffles.
+    x: u32,
+    y: u32,
+    /// Jitter within the sub-cell.
+    jx: u32,
+    jy: u32,
+}
+
+impl Scrambles {
+    #[inline(always)]
+    fn new(p: u32) -> Self {
+        Scrambles {
+            order: p.wrapping_mul(0x5163_3e2d),
+            x: p.wrapping_mul(0xa511_e9b3),
+            y: p.wrapping_mul(0x63d8_3595),
+            jx: p.wrapping_mul(0xa399_d265),
+            jy: p.wrapping_mul(0x711a_d6a5),
+        }
     }
 }
 
@@ -80,6 +137,22 @@ mod tests {
                 }
                 assert!(cells.iter().all(|&c| c == 1), "grid, n={n}");
                 assert!(xs.iter().all(|&c| c == 1) && ys.iter().all(|&c| c == 1), "1-D, n={n}");
+            }
+        }
+    }
+
+    #[test]
+    fn fill_gives_the_samples_of_sample() {
+        for n in [1u32, 2, 8, 12, 16, 64, 256] {
+            let cmj = Cmj::new(n);
+            for p in [0u32, 1, 99, 0xdead_beef] {
+                for first in [0, n / 3, n - 1] {
+                    let mut out = vec![Vec2::NAN; (n - first) as usize];
+                    cmj.fill(first, p, &mut out);
+                    for (s, v) in (first..).zip(&out) {
+                        assert_eq!(v.to_array(), cmj.sample(s, p), "n {n}, p {p}, s {s}");
+                    }
+                }
             }
         }
     }

@@ -52,15 +52,27 @@ impl Modulus {
         self.d
     }
 
+    /// Whether the divisor is a power of two (1 included).
+    #[inline]
+    pub fn is_power_of_two(self) -> bool {
+        self.mask == self.d - 1
+    }
+
+    /// `d − 1` with every lower bit set: `d − 1` itself when `d` is a power of two.
+    #[inline]
+    pub fn mask(self) -> u32 {
+        self.mask
+    }
+
     /// `a / d`, exact for every `a`.
     #[inline]
-    pub fn div(self, a: u32) -> u32 {
+    pub fn quotient(self, a: u32) -> u32 {
         if self.d == 1 { a } else { ((self.magic as u128 * a as u128) >> 64) as u32 }
     }
 
     /// `a % d`, exact for every `a`.
     #[inline]
-    pub fn rem(self, a: u32) -> u32 {
+    pub fn remainder(self, a: u32) -> u32 {
         let low = self.magic.wrapping_mul(a as u64);
         ((low as u128 * self.d as u128) >> 64) as u32
     }
@@ -71,35 +83,50 @@ impl Modulus {
 #[inline]
 pub fn permute(i: u32, len: Modulus, seed: u32) -> u32 {
     debug_assert!(i < len.get());
-    if len.get() == 1 {
-        return 0;
+    if len.is_power_of_two() {
+        return permute_pow2(i, len.mask, seed);
     }
-    let (p, w) = (seed, len.mask);
     let mut i = i;
     loop {
-        i ^= p;
-        i = i.wrapping_mul(0xe170_893d);
-        i ^= p >> 16;
-        i ^= (i & w) >> 4;
-        i ^= p >> 8;
-        i = i.wrapping_mul(0x0929_eb3f);
-        i ^= p >> 23;
-        i ^= (i & w) >> 1;
-        i = i.wrapping_mul(1 | p >> 27);
-        i = i.wrapping_mul(0x6935_fa69);
-        i ^= (i & w) >> 11;
-        i = i.wrapping_mul(0x74dc_b303);
-        i ^= (i & w) >> 2;
-        i = i.wrapping_mul(0x9e50_1cc3);
-        i ^= (i & w) >> 2;
-        i = i.wrapping_mul(0xc860_a3df);
-        i &= w;
-        i ^= i >> 5;
+        i = permute_round(i, len.mask, seed);
         if i < len.get() {
             break;
         }
     }
-    len.rem(i.wrapping_add(p))
+    len.remainder(i.wrapping_add(seed))
+}
+
+/// [`permute`] for a power-of-two length `mask + 1`: the values are the same, but one round
+/// always lands in range (no loop) and the final remainder is a mask, so a run of indices can
+/// be computed as one vector loop.
+#[inline]
+pub fn permute_pow2(i: u32, mask: u32, seed: u32) -> u32 {
+    debug_assert!(i <= mask && mask & mask.wrapping_add(1) == 0);
+    permute_round(i, mask, seed).wrapping_add(seed) & mask
+}
+
+/// One round of Kensler's permutation: a bijection of `0..=w` (`w` all ones below its top bit);
+/// [`permute`] repeats it until the result falls below the length (cycle walking).
+#[inline(always)]
+fn permute_round(mut i: u32, w: u32, p: u32) -> u32 {
+    i ^= p;
+    i = i.wrapping_mul(0xe170_893d);
+    i ^= p >> 16;
+    i ^= (i & w) >> 4;
+    i ^= p >> 8;
+    i = i.wrapping_mul(0x0929_eb3f);
+    i ^= p >> 23;
+    i ^= (i & w) >> 1;
+    i = i.wrapping_mul(1 | p >> 27);
+    i = i.wrapping_mul(0x6935_fa69);
+    i ^= (i & w) >> 11;
+    i = i.wrapping_mul(0x74dc_b303);
+    i ^= (i & w) >> 2;
+    i = i.wrapping_mul(0x9e50_1cc3);
+    i ^= (i & w) >> 2;
+    i = i.wrapping_mul(0xc860_a3df);
+    i &= w;
+    i ^ (i >> 5)
 }
 
 /// A small deterministic generator (SplitMix64) for building sample sets from a seed.
@@ -157,6 +184,29 @@ mod tests {
     }
 
     #[test]
+    fn power_of_two_permutation_matches_the_general_one() {
+        // The general loop (cycle walking, exact remainder) against the single-round form.
+        let general = |i: u32, len: u32, p: u32| {
+            let (len, mut i) = (Modulus::new(len), i);
+            loop {
+                i = permute_round(i, len.mask, p);
+                if i < len.get() {
+                    break;
+                }
+            }
+            len.remainder(i.wrapping_add(p))
+        };
+        for len in [1u32, 2, 4, 16, 64, 256, 4096] {
+            for seed in [0u32, 7, 0xdead_beef, u32::MAX] {
+                for i in 0..len {
+                    assert_eq!(permute_pow2(i, len - 1, seed), general(i, len, seed), "len {len}");
+                    assert_eq!(permute(i, Modulus::new(len), seed), general(i, len, seed), "len {len}");
+                }
+            }
+        }
+    }
+
+    #[test]
     fn permutations_differ_between_seeds() {
         let a: Vec<u32> = (0..64).map(|i| permute(i, Modulus::new(64), 1)).collect();
         let b: Vec<u32> = (0..64).map(|i| permute(i, Modulus::new(64), 2)).collect();
@@ -172,7 +222,7 @@ mod tests {
                 .into_iter()
                 .chain((0..1000).map(|_| rng.next_u64() as u32))
             {
-                assert_eq!((m.div(a), m.rem(a)), (a / d, a % d), "{a} / {d}");
+                assert_eq!((m.quotient(a), m.remainder(a)), (a / d, a % d), "{a} / {d}");
             }
         }
     }

@@ -127,20 +127,59 @@ impl SampleSets {
     /// and the sets, so images do not depend on scheduling.
     #[inline]
     pub fn sample(&self, pixel: u32, index: u32, dim: u32) -> Vec2 {
-        let (pass, i) = (self.modulus.div(index), self.modulus.rem(index));
+        let mut out = [Vec2::ZERO];
+        self.fill_pass(pixel, self.modulus.quotient(index), self.modulus.remainder(index), dim, &mut out);
+        out[0]
+    }
+
+    /// The samples `first, first + 1, …` of `pixel` in dimension `dim`, one per element of
+    /// `out`: exactly [`SampleSets::sample`] for each index, but the (pixel, pass, dimension)
+    /// hash and the pattern's set-up are done once per pass instead of once per sample.
+    #[inline]
+    pub fn fill(&self, pixel: u32, first: u32, dim: u32, out: &mut [Vec2]) {
+        if let [one] = out {
+            *one = self.sample(pixel, first, dim);
+            return;
+        }
+        let mut index = first;
+        let mut rest = out;
+        while !rest.is_empty() {
+            let (pass, i) = (self.modulus.quotient(index), self.modulus.remainder(index));
+            let len = ((self.n - i) as usize).min(rest.len());
+            let (run, tail) = rest.split_at_mut(len);
+            self.fill_pass(pixel, pass, i, dim, run);
+            index = index.wrapping_add(len as u32);
+            rest = tail;
+        }
+    }
+
+    /// Samples `first..first + out.len()` (all < n) of one pass.
+    #[inline(always)]
+    fn fill_pass(&self, pixel: u32, pass: u32, first: u32, dim: u32, out: &mut [Vec2]) {
+        let indices = first..;
         match self.kind {
-            SamplerKind::Regular => self.points[i as usize],
+            SamplerKind::Regular => out.copy_from_slice(&self.points[first as usize..][..out.len()]),
             SamplerKind::ZSobol => {
                 let (x, y) = (pixel % self.width, pixel / self.width);
-                Vec2::from(self.zsobol.sample(x, y, i, dim, self.seed ^ mix64(pass as u64)))
+                let seed = self.seed ^ mix64(pass as u64);
+                for (i, o) in indices.zip(out) {
+                    *o = Vec2::from(self.zsobol.sample(x, y, i, dim, seed));
+                }
             }
             SamplerKind::CorrelatedMultiJittered => {
-                Vec2::from(self.cmj.sample(i, hash_sample(pixel, pass, dim, self.key) as u32))
+                let p = hash_sample(pixel, pass, dim, self.key) as u32;
+                match out {
+                    // A lone sample skips the vector loop's set-up.
+                    [one] => *one = Vec2::from(self.cmj.sample(first, p)),
+                    _ => self.cmj.fill(first, p, out),
+                }
             }
             _ => {
                 let h = hash_sample(pixel, pass, dim, self.key);
-                let set = (((h >> 32) * self.num_sets as u64) >> 32) as u32;
-                self.points[(set * self.n + permute(i, self.modulus, h as u32)) as usize]
+                let set = &self.points[((((h >> 32) * self.num_sets as u64) >> 32) * self.n as u64) as usize..];
+                for (i, o) in indices.zip(out) {
+                    *o = set[permute(i, self.modulus, h as u32) as usize];
+                }
             }
         }
     }
@@ -249,6 +288,22 @@ mod tests {
             assert!(cells.iter().all(|&c| c == 1));
         }
         assert_ne!(sets.sample(0, 0, 0), sets.sample(1, 0, 0));
+    }
+
+    #[test]
+    fn fill_gives_the_samples_of_sample_across_passes() {
+        for kind in SamplerKind::ALL {
+            for n in [1u32, 12, 16] {
+                let sets = SampleSets::generate(kind, n, 9, 37, 23);
+                for (pixel, first, len) in [(0u32, 0u32, 40usize), (5, 7, 1), (100, 15, 33), (850, 3, 16)] {
+                    let mut out = vec![Vec2::NAN; len];
+                    sets.fill(pixel, first, 4, &mut out);
+                    for (index, v) in (first..).zip(&out) {
+                        assert_eq!(*v, sets.sample(pixel, index, 4), "{kind:?}, n {n}, index {index}");
+                    }
+                }
+            }
+        }
     }
 
     #[test]
