@@ -42,6 +42,8 @@ type GeometryChanged = Or<(
 )>;
 type WorldChanged = Or<(Changed<Transform>, Changed<Sphere>, Changed<Plane>, Changed<Cuboid>)>;
 type ShapeAdded = Or<(Added<Sphere>, Added<Plane>, Added<Cuboid>, Added<TriangleMesh>)>;
+/// A mesh entity moved or got another mesh.
+type MeshChanged = Or<(Changed<Transform>, Changed<TriangleMesh>)>;
 /// Changes that can decide whether a mesh is baked: markers added, or a mesh swapped (which
 /// changes how many entities share it).
 type BakingChanged = Or<(Added<Dynamic>, Added<Deforming>, (Changed<TriangleMesh>, Without<Deforming>))>;
@@ -134,7 +136,7 @@ fn key(mesh: &Arc<Mesh>) -> usize {
 pub fn update_bvh(
     changed: Query<(), (GeometryChanged, Shaped)>,
     world_changed: Query<(), (WorldChanged, WorldShaped)>,
-    meshes_moved: Query<Entity, (Or<(Changed<Transform>, Changed<TriangleMesh>)>, With<TriangleMesh>)>,
+    meshes_moved: Query<Entity, (MeshChanged, With<TriangleMesh>)>,
     baking_changed: Query<(), (BakingChanged, With<TriangleMesh>)>,
     added: Query<(), ShapeAdded>,
     mut removed: ShapeRemovals,
