@@ -8,7 +8,7 @@ use crate::{
     geometry::{Ray, SceneGeometry, SpawnOrigins, SurfaceHit},
     light::{LightGroup, LightSamples, PlacedLight, ShadingPoint, Shadow, Term},
     resources::AovValues,
-    sampling::SampleSets,
+    sampling::{SampleSets, dims},
 };
 
 /// Rays traced, by kind.
@@ -106,14 +106,56 @@ pub struct Tracer {
     samples: Vec<Vec2>,
     /// One light group's arriving light for a run of samples.
     arriving: Vec<Vec3>,
+    /// Every light dimension's samples for a pixel's run of camera samples that do not share a
+    /// hit (jittered or lens rays), computed ahead by [`Tracer::prepare_run`].
+    run: RunSamples,
     /// Rays traced by this tracer.
     pub rays: RayCounts,
+}
+
+/// Light samples of a run computed ahead: dimension `dims::LIGHTS + k` of sample `j` is
+/// `values[k * stride + j]`; `at` is the sample being shaded.
+#[derive(Default)]
+struct RunSamples {
+    values: Vec<Vec2>,
+    stride: usize,
+    at: Option<usize>,
 }
 
 /// pbrt-v4's ShadowEpsilon: shadow rays to a point stop this fraction short of it.
 const SHADOW_EPSILON: f32 = 1e-4;
 
 impl Tracer {
+    /// Computes every light dimension's samples for samples `first..first + count` of `pixel`
+    /// at once (one hash per pass, vectorised patterns), for [`Tracer::sample_in_run`].
+    pub fn prepare_run(&mut self, scene: &Scene, pixel: u32, first: u32, count: u32) {
+        let dims = scene.lights.iter().map(|(d, g)| d + g.dims()).max().unwrap_or(dims::LIGHTS) - dims::LIGHTS;
+        let run = &mut self.run;
+        run.stride = count as usize;
+        run.values.resize(dims as usize * run.stride, Vec2::ZERO);
+        for (k, column) in (0..dims).zip(run.values.chunks_exact_mut(run.stride.max(1))) {
+            scene.sets.fill(pixel, first, dims::LIGHTS + k, column);
+        }
+    }
+
+    /// [`Tracer::sample`] for sample `first + j` of the run last given to
+    /// [`Tracer::prepare_run`], reading the light samples computed there.
+    #[inline(always)]
+    pub fn sample_in_run(
+        &mut self,
+        scene: &Scene,
+        ray: &Ray,
+        pixel: u32,
+        first: u32,
+        j: u32,
+        skip_black: bool,
+    ) -> SampleResult {
+        self.run.at = Some(j as usize);
+        let s = self.sample(scene, ray, pixel, first + j, skip_black);
+        self.run.at = None;
+        s
+    }
+
     /// What the camera ray sees for sample `index` of `pixel`. `skip_black` lets lights whose
     /// reflectance is zero at the hit be skipped (no rays); AOVs need them traced.
     #[inline(always)]
@@ -206,14 +248,25 @@ impl Tracer {
         // Each light's sample values for the whole run, dimension after dimension.
         let mut values = std::mem::take(&mut self.samples);
         values.resize(n * P::DIMS as usize, Vec2::ZERO);
+        let run = std::mem::take(&mut self.run);
+        let ahead = run.at.filter(|_| n == 1);
         for (l, light) in lights.iter().enumerate() {
             let dim = first_dim + l as u32 * P::DIMS;
-            for (k, column) in (0..P::DIMS).zip(values.chunks_exact_mut(n.max(1))) {
-                scene.sets.fill(pixel, first, dim + k, column);
+            if ahead.is_none() {
+                for (k, column) in (0..P::DIMS).zip(values.chunks_exact_mut(n.max(1))) {
+                    scene.sets.fill(pixel, first, dim + k, column);
+                }
             }
             for (j, sum) in arriving.iter_mut().enumerate() {
                 let u = if P::DIMS == 0 {
                     LightSamples::from_sets(scene.sets, pixel, first.wrapping_add(j as u32), dim, 0)
+                } else if let Some(at) = ahead {
+                    let start = (dim - dims::LIGHTS) as usize * run.stride;
+                    LightSamples::from_columns(
+                        &run.values[start..start + P::DIMS as usize * run.stride],
+                        at,
+                        run.stride,
+                    )
                 } else {
                     LightSamples::from_columns(&values, j, n)
                 };
@@ -232,6 +285,7 @@ impl Tracer {
             }
         }
         self.samples = values;
+        self.run = run;
     }
 
     /// Traces a shadow segment from a hit, counted by the light's term; true if blocked.

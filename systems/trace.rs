@@ -147,6 +147,7 @@ fn trace_tile<C: CameraRays>(
     let mut tracer = Tracer::default();
     // One pixel's samples of this frame.
     let mut samples = Vec::with_capacity(job.count as usize);
+    let (mut films, mut lenses) = (Vec::new(), Vec::new());
     let mut nonfinite = 0;
     let pixels = ((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize;
     let mut sums = Vec::with_capacity(pixels);
@@ -192,11 +193,25 @@ fn trace_tile<C: CameraRays>(
                 Some(None) => {
                     samples.resize(count as usize, SampleResult { radiance: scene.background, ..Default::default() })
                 }
-                None => samples.extend((first..first + count).map(|index| {
-                    let lens = if C::USES_LENS { scene.sets.sample(pixel, index, dims::LENS) } else { Vec2::ZERO };
-                    let film = if job.jitter { scene.sets.sample(pixel, index, dims::PIXEL) } else { Vec2::splat(0.5) };
-                    tracer.sample(scene, &camera.ray(x, y, film, lens), pixel, index, !job.aovs)
-                })),
+                None => {
+                    // Every sample has a camera ray of its own: compute the run's samples of
+                    // every dimension ahead, then trace and shade sample by sample.
+                    films.clear();
+                    films.resize(count as usize, Vec2::splat(0.5));
+                    lenses.clear();
+                    lenses.resize(count as usize, Vec2::ZERO);
+                    if job.jitter {
+                        scene.sets.fill(pixel, first, dims::PIXEL, &mut films);
+                    }
+                    if C::USES_LENS {
+                        scene.sets.fill(pixel, first, dims::LENS, &mut lenses);
+                    }
+                    tracer.prepare_run(scene, pixel, first, count);
+                    samples.extend((0..count).map(|j| {
+                        let ray = camera.ray(x, y, films[j as usize], lenses[j as usize]);
+                        tracer.sample_in_run(scene, &ray, pixel, first, j, !job.aovs)
+                    }));
+                }
             }
             for s in &samples {
                 let values = job.aovs.then(|| s.aov_values());
