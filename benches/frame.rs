@@ -64,6 +64,21 @@ fn system_sample_sets(bencher: Bencher, kind: SamplerKind) {
     bencher.bench(|| SampleSets::generate(kind, 64, 1, 640, 360));
 }
 
+/// Per-sample cost of each sampler: 64 samples for each of 1,024 pixels, one dimension (what
+/// the trace system asks for per pixel, per light dimension). CMJ and ZSobol compute their
+/// points; the others read stored sets.
+#[divan::bench(args = SamplerKind::ALL, sample_count = 20)]
+fn samples_fill_64k(bencher: Bencher, kind: SamplerKind) {
+    let sets = SampleSets::generate(kind, 64, 1, 640, 360);
+    let mut out = vec![glam::Vec2::ZERO; 64];
+    bencher.bench_local(|| {
+        for pixel in 0..1024 {
+            sets.fill(pixel * 97, 0, 2, &mut out);
+            divan::black_box(&out);
+        }
+    });
+}
+
 /// BVH build over n triangles (copies of a torus knot on a grid).
 #[divan::bench(args = [10_000, 100_000, 1_000_000], sample_count = 3)]
 fn system_bvh_build(bencher: Bencher, triangles: usize) {
