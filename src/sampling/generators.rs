@@ -22,7 +22,7 @@ pub enum SamplerKind {
     MultiJittered,
     /// (i/n, radical inverse of i), XOR-scrambled per set so that sets differ.
     Hammersley,
-    /// Kensler's correlated multi-jittered patterns (generated into the stored sets).
+    /// Kensler's correlated multi-jittered patterns (computed per sample, no stored sets).
     /// The default: lowest or near-lowest RMSE in `hemi error` on both analytic scenes, at
     /// any spp (see the README).
     #[default]
