@@ -34,8 +34,10 @@ pub struct FrameStats {
     pub bvh_built: bool,
     /// Which BVHs were built or refit this frame.
     pub bvh_work: BvhWork,
-    /// BVH nodes.
+    /// BVH nodes (binary, as built).
     pub bvh_nodes: usize,
+    /// Children per node of the bottom-level trees traversal uses (8 with AVX, else 4).
+    pub bvh_width: usize,
     /// Primitives in the BVH (triangles + spheres).
     pub bvh_prims: usize,
     /// Bytes of BVH nodes and primitives.
@@ -96,6 +98,7 @@ impl FrameStats {
                 "blas_refit": self.bvh_work.blas_refit,
                 "tlas_built": self.bvh_work.tlas_built,
                 "nodes": self.bvh_nodes,
+                "width": self.bvh_width,
                 "prims": self.bvh_prims,
                 "bytes": self.bvh_bytes,
             },
@@ -122,11 +125,12 @@ impl FrameStats {
         let r = &self.rays;
         let _ = writeln!(
             s,
-            "  rays: {} primary, {} ao, {} shadow; bvh: {} nodes, {} prims, {:.1} MiB{}; buffers {:.1} MiB",
+            "  rays: {} primary, {} ao, {} shadow; bvh: {} nodes ({}-wide), {} prims, {:.1} MiB{}; buffers {:.1} MiB",
             r.primary,
             r.ao,
             r.shadow,
             self.bvh_nodes,
+            self.bvh_width,
             self.bvh_prims,
             self.bvh_bytes as f64 / (1 << 20) as f64,
             if self.bvh_built { " (built)" } else { "" },

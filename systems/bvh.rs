@@ -190,6 +190,7 @@ pub fn update_bvh(
         "unchanged".to_string()
     };
     stats.bvh_nodes = geometry.node_count();
+    stats.bvh_width = geometry.node_width();
     stats.bvh_prims = geometry.prim_count();
     stats.bvh_bytes = geometry.memory_bytes();
     stats.record("bvh", start.elapsed(), note);

@@ -24,11 +24,11 @@ use obvhs::{
 };
 
 use super::{
-    bvh4::Bvh4,
     hit::SurfaceHit,
     ray::Ray,
     shapes::{PlanePrim, SpherePrim, Triangle},
     tri4::{RayTri4, Tri4},
+    wide_bvh::{Bvh4, Node, NodeTest, WideBvh},
 };
 use crate::{
     components::{Matte, Mesh},
@@ -84,13 +84,66 @@ fn hit_prim(prim: &Prim, ray: &Ray) -> Option<(f32, f32, f32)> {
     }
 }
 
+/// The wide tree a BLAS traverses: eight children per node where the CPU has AVX, else four.
+#[derive(Clone)]
+enum Tree {
+    Four(Bvh4),
+    #[cfg(target_arch = "x86_64")]
+    Eight(super::wide_bvh::Bvh8),
+}
+
+impl Tree {
+    /// Collapses `bvh2` to eight children per node where the CPU has AVX and `HEMI_BVH_WIDTH`
+    /// is not 4, else to four.
+    fn from_bvh2(bvh2: &[Bvh2Node]) -> Self {
+        #[cfg(target_arch = "x86_64")]
+        if bvh_width() == 8
+            && let Some(tree) = super::wide_bvh::Bvh8::from_bvh2(bvh2)
+        {
+            return Tree::Eight(tree);
+        }
+        Tree::Four(Bvh4::from_bvh2(bvh2))
+    }
+
+    fn map_leaves(&mut self, f: impl FnMut(u32, u32) -> (u32, u32)) {
+        match self {
+            Tree::Four(t) => t.map_leaves(f),
+            #[cfg(target_arch = "x86_64")]
+            Tree::Eight(t) => t.map_leaves(f),
+        }
+    }
+
+    fn memory_bytes(&self) -> usize {
+        match self {
+            Tree::Four(t) => t.memory_bytes(),
+            #[cfg(target_arch = "x86_64")]
+            Tree::Eight(t) => t.memory_bytes(),
+        }
+    }
+
+    fn width(&self) -> usize {
+        match self {
+            Tree::Four(_) => 4,
+            #[cfg(target_arch = "x86_64")]
+            Tree::Eight(_) => 8,
+        }
+    }
+}
+
+/// The BLAS node width asked for: 4 when the environment variable `HEMI_BVH_WIDTH` is `4`,
+/// else 8 (which falls back to 4 without AVX). Read once per process.
+fn bvh_width() -> usize {
+    static WIDTH: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
+    *WIDTH.get_or_init(|| if std::env::var("HEMI_BVH_WIDTH").is_ok_and(|w| w.trim() == "4") { 4 } else { 8 })
+}
+
 /// A bottom-level BVH: an obvhs BVH2 over primitives stored in leaf order.
 #[derive(Clone)]
 pub struct Blas {
     bvh: Bvh2,
-    /// The BVH2 collapsed to four children per node, which traversal uses. Its leaves are
-    /// ranges of `packets` when every primitive is a triangle, else ranges of `prims`.
-    bvh4: Bvh4,
+    /// The BVH2 collapsed to a wide tree, which traversal uses. Its leaves are ranges of
+    /// `packets` when every primitive is a triangle, else ranges of `prims`.
+    tree: Tree,
     /// Each leaf's triangles in packets of four, when every primitive is a triangle.
     packets: Vec<Tri4>,
     prims: Vec<Prim>,
@@ -116,21 +169,21 @@ impl Blas {
         let depth = subtree_depth(&bvh.nodes);
         let mut blas = Blas {
             bvh,
-            bvh4: Bvh4::default(),
+            tree: Tree::Four(Bvh4::default()),
             packets: Vec::new(),
             prims,
             triangle_count,
             degenerate_triangles: 0,
             depth,
         };
-        blas.build_bvh4();
+        blas.build_tree();
         blas
     }
 
-    /// Collapses the BVH2 into the BVH4 and, for an all-triangle BLAS, packs each leaf's
+    /// Collapses the BVH2 into the wide tree and, for an all-triangle BLAS, packs each leaf's
     /// triangles into packets of four.
-    fn build_bvh4(&mut self) {
-        self.bvh4 = Bvh4::from_bvh2(&self.bvh.nodes);
+    fn build_tree(&mut self) {
+        self.tree = Tree::from_bvh2(&self.bvh.nodes);
         self.packets.clear();
         let tris: Option<Vec<Triangle>> = self
             .prims
@@ -142,7 +195,7 @@ impl Blas {
             .collect();
         let Some(tris) = tris.filter(|t| !t.is_empty()) else { return };
         let packets = &mut self.packets;
-        self.bvh4.map_leaves(|first, count| {
+        self.tree.map_leaves(|first, count| {
             let start = packets.len() as u32;
             let leaf: Vec<(u32, Triangle)> = (first..first + count).map(|k| (k, tris[k as usize])).collect();
             packets.extend(leaf.chunks(4).map(Tri4::pack));
@@ -193,7 +246,7 @@ impl Blas {
             }
         }
         self.bvh.refit_all();
-        self.build_bvh4();
+        self.build_tree();
     }
 
     /// Bounds of everything in this BLAS.
@@ -214,20 +267,55 @@ impl Blas {
     /// Bytes held by nodes and primitives.
     pub fn memory_bytes(&self) -> usize {
         self.bvh.nodes.len() * size_of::<Bvh2Node>()
-            + self.bvh4.len() * size_of::<super::bvh4::Node4>()
+            + self.tree.memory_bytes()
             + self.packets.len() * size_of::<Tri4>()
             + self.prims.len() * (size_of::<Prim>() + 4)
+    }
+
+    /// Children per node of the tree traversal uses (8 with AVX, else 4).
+    pub fn node_width(&self) -> usize {
+        self.tree.width()
     }
 
     /// Front-to-back traversal; shrinks `ray.tmax` to the closest hit and returns the
     /// primitive slot and barycentrics. Uses `stack` above its current length only.
     #[inline]
     fn closest(&self, ray: &mut Ray, stack: &mut Vec<(u32, f32)>) -> Option<(u32, f32, f32)> {
+        match &self.tree {
+            Tree::Four(tree) => self.closest_in(tree, ray, stack),
+            // SAFETY: an eight-wide tree is built only where AVX was detected.
+            #[cfg(target_arch = "x86_64")]
+            Tree::Eight(tree) => unsafe { self.closest_avx(tree, ray, stack) },
+        }
+    }
+
+    /// [`Blas::closest`] compiled for AVX, so that the eight-wide node test inlines.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn closest_avx(
+        &self,
+        tree: &super::wide_bvh::Bvh8,
+        ray: &mut Ray,
+        stack: &mut Vec<(u32, f32)>,
+    ) -> Option<(u32, f32, f32)> {
+        self.closest_in(tree, ray, stack)
+    }
+
+    #[inline(always)]
+    fn closest_in<const W: usize>(
+        &self,
+        tree: &WideBvh<W>,
+        ray: &mut Ray,
+        stack: &mut Vec<(u32, f32)>,
+    ) -> Option<(u32, f32, f32)>
+    where
+        Node<W>: NodeTest<W>,
+    {
         let prims = &self.prims;
         let mut best = None;
         if !self.packets.is_empty() {
             let r = RayTri4::new(ray);
-            self.bvh4.closest(ray, stack, |first, count, ray, _| {
+            tree.closest(ray, stack, |first, count, ray, _| {
                 for packet in &self.packets[first as usize..(first + count) as usize] {
                     self.packet_hits(packet, &r, ray, |slot, (t, b1, b2), ray| {
                         ray.tmax = t;
@@ -238,7 +326,7 @@ impl Blas {
             });
             return best;
         }
-        self.bvh4.closest(ray, stack, |first, count, ray, _| {
+        tree.closest(ray, stack, |first, count, ray, _| {
             for k in first..first + count {
                 if let Some((t, b1, b2)) = hit_prim(&prims[k as usize], ray) {
                     ray.tmax = t;
@@ -252,17 +340,37 @@ impl Blas {
     /// Whether any primitive blocks `ray` in (0, tmax). Uses `stack` above its current length.
     #[inline]
     fn occluded(&self, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool {
+        match &self.tree {
+            Tree::Four(tree) => self.occluded_in(tree, ray, stack),
+            // SAFETY: an eight-wide tree is built only where AVX was detected.
+            #[cfg(target_arch = "x86_64")]
+            Tree::Eight(tree) => unsafe { self.occluded_avx(tree, ray, stack) },
+        }
+    }
+
+    /// [`Blas::occluded`] compiled for AVX, so that the eight-wide node test inlines.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn occluded_avx(&self, tree: &super::wide_bvh::Bvh8, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool {
+        self.occluded_in(tree, ray, stack)
+    }
+
+    #[inline(always)]
+    fn occluded_in<const W: usize>(&self, tree: &WideBvh<W>, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool
+    where
+        Node<W>: NodeTest<W>,
+    {
         let prims = &self.prims;
         if !self.packets.is_empty() {
             let r = RayTri4::new(ray);
             let mut local = *ray;
-            return self.bvh4.occluded(ray, stack, |first, count, _| {
+            return tree.occluded(ray, stack, |first, count, _| {
                 self.packets[first as usize..(first + count) as usize]
                     .iter()
                     .any(|packet| self.packet_hits(packet, &r, &mut local, |_, _, _| true))
             });
         }
-        self.bvh4.occluded(ray, stack, |first, count, _| {
+        tree.occluded(ray, stack, |first, count, _| {
             prims[first as usize..(first + count) as usize].iter().any(|p| hit_prim(p, ray).is_some())
         })
     }
@@ -522,6 +630,11 @@ impl SceneGeometry {
             depth,
             build_time: start.elapsed(),
         }
+    }
+
+    /// Children per node of the widest bottom-level tree (8 with AVX, else 4).
+    pub fn node_width(&self) -> usize {
+        self.blases.iter().map(|b| b.node_width()).max().unwrap_or(4)
     }
 
     /// Number of BVH nodes (top level plus every BLAS once).

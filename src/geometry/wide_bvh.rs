@@ -1,0 +1,485 @@
+//! A wide BVH collapsed from an obvhs BVH2, with the child boxes of a node stored as
+//! structure-of-arrays and tested against a ray at once: four children per node with SSE (the
+//! x86_64 baseline; scalar elsewhere), or eight with AVX, built only where the CPU has it.
+//!
+//! The node test keeps the semantics of the scalar slab test it replaces, bit for bit on every
+//! decision and at either width: a zero direction component gives 0·∞ = NaN exactly when the
+//! origin lies on that slab's plane, and such a bound leaves the slab unbounded (the NaN lane
+//! is dropped by the min/max, which return their second operand when the first is NaN); the
+//! far distance is widened by 2γ(3) (Ize 2013) so rounding never culls a true hit. Each axis
+//! takes its near and far planes by the sign of the direction, which for a box with min ≤ max
+//! gives the same values as min/max of the two slab distances and lets an empty slot be an
+//! inverted box that no ray enters.
+
+use glam::Vec4;
+use obvhs::{aabb::Aabb, bvh2::node::Bvh2Node};
+
+use super::ray::Ray;
+use crate::math::gamma;
+
+/// Leaf references on the closest-hit stack: `LEAF | (node << 3) | slot`.
+const LEAF: u32 = 1 << 31;
+
+/// `W` children: their boxes (min x, y, z, max x, y, z; `W` lanes each) and what they hold.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+pub struct Node<const W: usize> {
+    planes: [[f32; W]; 6],
+    /// Node index of an inner child, or first primitive of a leaf.
+    child: [u32; W],
+    /// Primitives in a leaf child; 0 for an inner child or an empty slot.
+    count: [u32; W],
+}
+
+/// A ray's constants for the node test.
+#[derive(Clone, Copy)]
+pub struct RayBox {
+    origin: [f32; 3],
+    inv_dir: [f32; 3],
+    near: [usize; 3],
+    far: [usize; 3],
+}
+
+impl RayBox {
+    /// The node-test constants of `ray`.
+    #[inline(always)]
+    pub fn new(ray: &Ray) -> Self {
+        let inv = ray.inv_dir;
+        // inv_dir is never ±0 or NaN for a finite direction; its sign picks the near plane.
+        let (nx, ny, nz) =
+            (usize::from(inv.x < 0.0) * 3, 1 + usize::from(inv.y < 0.0) * 3, 2 + usize::from(inv.z < 0.0) * 3);
+        RayBox {
+            origin: ray.origin.to_array(),
+            inv_dir: inv.to_array(),
+            near: [nx, ny, nz],
+            far: [(nx + 3) % 6, (ny + 3) % 6, (nz + 3) % 6],
+        }
+    }
+}
+
+/// The ray–children test of a node of width `W`.
+pub trait NodeTest<const W: usize> {
+    /// Which children the ray enters before `tmax` (bit i for child i) and their entry distances.
+    fn test(&self, r: &RayBox, tmax: f32) -> (u32, [f32; W]);
+}
+
+/// How far past the computed exit distance a box still counts as entered (Ize 2013).
+#[inline(always)]
+fn far_scale() -> f32 {
+    1.0 + 2.0 * gamma(3)
+}
+
+impl NodeTest<4> for Node<4> {
+    #[inline(always)]
+    fn test(&self, r: &RayBox, tmax: f32) -> (u32, [f32; 4]) {
+        let p = &self.planes;
+        let mut near = Vec4::ZERO;
+        let mut far = Vec4::INFINITY;
+        for a in 0..3 {
+            let (o, inv) = (Vec4::splat(r.origin[a]), Vec4::splat(r.inv_dir[a]));
+            near = max_keep((Vec4::from_array(p[r.near[a]]) - o) * inv, near);
+            far = min_keep((Vec4::from_array(p[r.far[a]]) - o) * inv, far);
+        }
+        let far = (far * far_scale()).min(Vec4::splat(tmax));
+        (near.cmple(far).bitmask(), near.to_array())
+    }
+}
+
+/// `max(a, b)`, returning `b` when `a` is NaN.
+#[inline(always)]
+fn max_keep(a: Vec4, b: Vec4) -> Vec4 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        // maxps returns its second operand when either is NaN.
+        // SAFETY: SSE is part of the x86_64 baseline, so the instruction always exists.
+        Vec4::from(unsafe { std::arch::x86_64::_mm_max_ps(a.into(), b.into()) })
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        Vec4::from_array(std::array::from_fn(|i| if a[i] > b[i] { a[i] } else { b[i] }))
+    }
+}
+
+/// `min(a, b)`, returning `b` when `a` is NaN.
+#[inline(always)]
+fn min_keep(a: Vec4, b: Vec4) -> Vec4 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        // minps returns its second operand when either is NaN.
+        // SAFETY: SSE is part of the x86_64 baseline, so the instruction always exists.
+        Vec4::from(unsafe { std::arch::x86_64::_mm_min_ps(a.into(), b.into()) })
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        Vec4::from_array(std::array::from_fn(|i| if a[i] < b[i] { a[i] } else { b[i] }))
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl NodeTest<8> for Node<8> {
+    #[inline(always)]
+    fn test(&self, r: &RayBox, tmax: f32) -> (u32, [f32; 8]) {
+        // SAFETY: a `Node<8>` exists only inside a `WideBvh<8>`, which `WideBvh::<8>::from_bvh2`
+        // builds only after detecting AVX.
+        unsafe { test8_avx(self, r, tmax) }
+    }
+}
+
+/// The eight-child node test: the four-child one's operations in 256-bit registers.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+#[inline]
+fn test8_avx(n: &Node<8>, r: &RayBox, tmax: f32) -> (u32, [f32; 8]) {
+    use std::arch::x86_64::*;
+    // SAFETY: each row of `planes` is eight contiguous f32.
+    let load = |row: usize| unsafe { _mm256_loadu_ps(n.planes[row].as_ptr()) };
+    let mut near = _mm256_setzero_ps();
+    let mut far = _mm256_set1_ps(f32::INFINITY);
+    for a in 0..3 {
+        let (o, inv) = (_mm256_set1_ps(r.origin[a]), _mm256_set1_ps(r.inv_dir[a]));
+        // vmaxps / vminps return their second operand when either is NaN.
+        near = _mm256_max_ps(_mm256_mul_ps(_mm256_sub_ps(load(r.near[a]), o), inv), near);
+        far = _mm256_min_ps(_mm256_mul_ps(_mm256_sub_ps(load(r.far[a]), o), inv), far);
+    }
+    let far = _mm256_min_ps(_mm256_mul_ps(far, _mm256_set1_ps(far_scale())), _mm256_set1_ps(tmax));
+    let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
+    let mut entry = [0.0; 8];
+    // SAFETY: `entry` holds eight f32.
+    unsafe { _mm256_storeu_ps(entry.as_mut_ptr(), near) };
+    (mask, entry)
+}
+
+impl<const W: usize> Node<W> {
+    const EMPTY: Self = {
+        let mut planes = [[f32::INFINITY; W]; 6];
+        planes[3] = [f32::NEG_INFINITY; W];
+        planes[4] = [f32::NEG_INFINITY; W];
+        planes[5] = [f32::NEG_INFINITY; W];
+        Node { planes, child: [0; W], count: [0; W] }
+    };
+
+    fn set(&mut self, slot: usize, aabb: &Aabb) {
+        for a in 0..3 {
+            self.planes[a][slot] = aabb.min[a];
+            self.planes[a + 3][slot] = aabb.max[a];
+        }
+    }
+}
+
+/// A BVH of `W` children per node whose leaves are ranges of a primitive array in the BVH2's
+/// leaf order.
+#[derive(Clone, Debug)]
+pub struct WideBvh<const W: usize> {
+    nodes: Vec<Node<W>>,
+}
+
+impl<const W: usize> Default for WideBvh<W> {
+    fn default() -> Self {
+        WideBvh { nodes: Vec::new() }
+    }
+}
+
+/// Four children per node: available everywhere.
+pub type Bvh4 = WideBvh<4>;
+
+/// Eight children per node: built only where the CPU has AVX.
+pub type Bvh8 = WideBvh<8>;
+
+impl Bvh4 {
+    /// Collapses a BVH2 (root at 0, children of an inner node at `first_index` and the next).
+    pub fn from_bvh2(bvh2: &[Bvh2Node]) -> Self {
+        Self::collapse(bvh2)
+    }
+}
+
+impl Bvh8 {
+    /// Collapses a BVH2 as [`Bvh4::from_bvh2`] does, or `None` where the CPU lacks AVX.
+    pub fn from_bvh2(bvh2: &[Bvh2Node]) -> Option<Self> {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx") {
+            return Some(Self::collapse(bvh2));
+        }
+        let _ = bvh2;
+        None
+    }
+}
+
+impl<const W: usize> WideBvh<W> {
+    /// Each node takes in turn the inner child of largest surface area apart until it has `W`.
+    fn collapse(bvh2: &[Bvh2Node]) -> Self {
+        let Some(root) = bvh2.first() else { return WideBvh::default() };
+        let mut nodes = vec![Node::EMPTY];
+        // (BVH2 node whose children fill the wide node, wide node)
+        let mut todo = vec![(0usize, 0usize)];
+        if root.prim_count > 0 {
+            nodes[0].set(0, root.aabb());
+            nodes[0].child[0] = root.first_index;
+            nodes[0].count[0] = root.prim_count;
+            todo.clear();
+        }
+        while let Some((n, out)) = todo.pop() {
+            let first = bvh2[n].first_index as usize;
+            let mut kids = vec![first, first + 1];
+            while kids.len() < W {
+                let widest = kids
+                    .iter()
+                    .enumerate()
+                    .filter(|&(_, &k)| bvh2[k].prim_count == 0)
+                    .max_by(|a, b| bvh2[*a.1].aabb().half_area().total_cmp(&bvh2[*b.1].aabb().half_area()))
+                    .map(|(i, _)| i);
+                let Some(i) = widest else { break };
+                let k = kids.remove(i);
+                let f = bvh2[k].first_index as usize;
+                kids.insert(i, f + 1);
+                kids.insert(i, f);
+            }
+            for (slot, &k) in kids.iter().enumerate() {
+                let node = &bvh2[k];
+                nodes[out].set(slot, node.aabb());
+                if node.prim_count > 0 {
+                    nodes[out].child[slot] = node.first_index;
+                    nodes[out].count[slot] = node.prim_count;
+                } else {
+                    nodes[out].child[slot] = nodes.len() as u32;
+                    todo.push((k, nodes.len()));
+                    nodes.push(Node::EMPTY);
+                }
+            }
+        }
+        WideBvh { nodes }
+    }
+
+    /// Replaces every leaf's (first, count) by `f(first, count)`, visiting leaves in node order.
+    pub fn map_leaves(&mut self, mut f: impl FnMut(u32, u32) -> (u32, u32)) {
+        for node in &mut self.nodes {
+            for slot in 0..W {
+                if node.count[slot] > 0 {
+                    (node.child[slot], node.count[slot]) = f(node.child[slot], node.count[slot]);
+                }
+            }
+        }
+    }
+
+    /// Number of nodes.
+    pub fn len(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Whether there are no nodes.
+    pub fn is_empty(&self) -> bool {
+        self.nodes.is_empty()
+    }
+
+    /// Bytes held by the nodes.
+    pub fn memory_bytes(&self) -> usize {
+        self.nodes.len() * size_of::<Node<W>>()
+    }
+}
+
+impl<const W: usize> WideBvh<W>
+where
+    Node<W>: NodeTest<W>,
+{
+    /// Any-hit traversal: calls `leaf(first, count, stack)` for leaves the ray enters, in no
+    /// particular order, until one returns true. Uses `stack` above its current length only.
+    #[inline(always)]
+    pub fn occluded(
+        &self,
+        ray: &Ray,
+        stack: &mut Vec<(u32, f32)>,
+        mut leaf: impl FnMut(u32, u32, &mut Vec<(u32, f32)>) -> bool,
+    ) -> bool {
+        if self.nodes.is_empty() {
+            return false;
+        }
+        let r = RayBox::new(ray);
+        let base = stack.len();
+        let mut node = 0u32;
+        loop {
+            let n = &self.nodes[node as usize];
+            let (mut mask, _) = n.test(&r, ray.tmax);
+            let mut next = None;
+            while mask != 0 {
+                let i = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                if n.count[i] > 0 {
+                    if leaf(n.child[i], n.count[i], stack) {
+                        stack.truncate(base);
+                        return true;
+                    }
+                } else if next.is_none() {
+                    next = Some(n.child[i]);
+                } else {
+                    stack.push((n.child[i], 0.0));
+                }
+            }
+            node = match next {
+                Some(c) => c,
+                None => {
+                    if stack.len() == base {
+                        return false;
+                    }
+                    match stack.pop() {
+                        Some((c, _)) => c,
+                        None => return false,
+                    }
+                }
+            };
+        }
+    }
+
+    /// Closest-hit traversal, front to back: calls `leaf(first, count, ray, stack)` for leaves
+    /// the ray enters before `ray.tmax`, nearest entry first; `leaf` shrinks `ray.tmax` to the
+    /// hits it finds. Uses `stack` above its current length only.
+    #[inline(always)]
+    pub fn closest(
+        &self,
+        ray: &mut Ray,
+        stack: &mut Vec<(u32, f32)>,
+        mut leaf: impl FnMut(u32, u32, &mut Ray, &mut Vec<(u32, f32)>),
+    ) {
+        if self.nodes.is_empty() {
+            return;
+        }
+        let r = RayBox::new(ray);
+        let base = stack.len();
+        let mut item = 0u32;
+        loop {
+            if item & LEAF != 0 {
+                let n = &self.nodes[((item & !LEAF) >> 3) as usize];
+                let slot = (item & 7) as usize;
+                leaf(n.child[slot], n.count[slot], ray, stack);
+            } else {
+                let n = &self.nodes[item as usize];
+                let (mut mask, near) = n.test(&r, ray.tmax);
+                if mask != 0 {
+                    let code = |i: usize| if n.count[i] > 0 { LEAF | (item << 3) | i as u32 } else { n.child[i] };
+                    // Hit children sorted by entry distance (insertion sort of at most W).
+                    let mut hits = [(0u32, 0f32); W];
+                    let mut k = 0;
+                    while mask != 0 {
+                        let i = mask.trailing_zeros() as usize;
+                        mask &= mask - 1;
+                        let entry = (code(i), near[i]);
+                        let mut j = k;
+                        while j > 0 && hits[j - 1].1 > entry.1 {
+                            hits[j] = hits[j - 1];
+                            j -= 1;
+                        }
+                        hits[j] = entry;
+                        k += 1;
+                    }
+                    for &h in hits[1..k].iter().rev() {
+                        stack.push(h);
+                    }
+                    item = hits[0].0;
+                    continue;
+                }
+            }
+            loop {
+                if stack.len() == base {
+                    return;
+                }
+                match stack.pop() {
+                    Some((i, d)) if d <= ray.tmax => {
+                        item = i;
+                        break;
+                    }
+                    Some(_) => continue,
+                    None => return,
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::{collections::BTreeSet, time::Duration};
+
+    use glam::{Vec3, Vec3A};
+    use obvhs::{BvhBuildParams, bvh2::builder::build_bvh2};
+
+    use super::*;
+    use crate::sampling::hash::SplitMix64;
+
+    /// Leaves as (first, count).
+    type Leaves = BTreeSet<(u32, u32)>;
+
+    /// The leaves whose own box the ray enters in [0, tmax], by the scalar slab test (with the
+    /// same exit widening and NaN rule as the node tests).
+    fn brute_force(bvh2: &[Bvh2Node], ray: &Ray) -> Leaves {
+        let (o, inv) = (ray.origin.to_array(), ray.inv_dir.to_array());
+        let mut leaves = Leaves::new();
+        for node in bvh2.iter().filter(|n| n.prim_count > 0) {
+            let (mut near, mut far) = (0.0f32, f32::INFINITY);
+            for a in 0..3 {
+                let (t0, t1) = ((node.aabb().min[a] - o[a]) * inv[a], (node.aabb().max[a] - o[a]) * inv[a]);
+                let (tn, tf) = if inv[a] < 0.0 { (t1, t0) } else { (t0, t1) };
+                near = if tn > near { tn } else { near };
+                far = if tf < far { tf } else { far };
+            }
+            if near <= (far * far_scale()).min(ray.tmax) {
+                leaves.insert((node.first_index, node.prim_count));
+            }
+        }
+        leaves
+    }
+
+    /// The leaves `tree` visits with a callback that never reports a hit, by both traversals.
+    fn visited<const W: usize>(tree: &WideBvh<W>, ray: &Ray) -> (Leaves, Leaves)
+    where
+        Node<W>: NodeTest<W>,
+    {
+        let mut stack = Vec::new();
+        let mut any = Leaves::new();
+        tree.occluded(ray, &mut stack, |first, count, _| {
+            assert!(any.insert((first, count)), "leaf ({first}, {count}) visited twice");
+            false
+        });
+        let mut nearest = Leaves::new();
+        tree.closest(&mut ray.clone(), &mut stack, |first, count, _, _| {
+            assert!(nearest.insert((first, count)), "leaf ({first}, {count}) visited twice");
+        });
+        assert!(stack.is_empty());
+        (any, nearest)
+    }
+
+    #[test]
+    fn both_widths_visit_exactly_the_leaves_the_ray_enters() {
+        let mut rng = SplitMix64::new(7);
+        let mut point = |scale: f32| Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * scale;
+        let boxes: Vec<Aabb> = (0..3_000)
+            .map(|_| {
+                let min = point(20.0) - 10.0;
+                Aabb::new(min.into(), (min + point(1.5)).into())
+            })
+            .collect();
+        let bvh2 = build_bvh2(&boxes, BvhBuildParams::medium_build(), &mut Duration::default()).nodes;
+        let four = Bvh4::from_bvh2(&bvh2);
+        let eight = Bvh8::from_bvh2(&bvh2);
+        if eight.is_none() {
+            eprintln!("no AVX on this CPU: the eight-wide tree is not built and not tested");
+        }
+        let mut rng = SplitMix64::new(8);
+        let mut entered = 0;
+        for i in 0..2_000 {
+            let origin = Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 24.0 - 12.0;
+            let mut dir = Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
+            // Every fourth ray runs parallel to one or two axes.
+            if i % 4 == 0 {
+                dir[i % 3] = 0.0;
+                dir[(i / 4) % 3] = 0.0;
+            }
+            let tmax = if i % 2 == 0 { f32::INFINITY } else { rng.next_f32() * 20.0 };
+            let ray = Ray::new(origin, dir.normalize_or(Vec3A::X), tmax);
+            let expected = brute_force(&bvh2, &ray);
+            entered += expected.len();
+            assert_eq!(visited(&four, &ray), (expected.clone(), expected.clone()), "4-wide, ray {i}");
+            if let Some(eight) = &eight {
+                assert_eq!(visited(eight, &ray), (expected.clone(), expected), "8-wide, ray {i}");
+            }
+        }
+        assert!(entered > 4_000, "rays should enter many leaves ({entered})");
+    }
+}
