@@ -49,14 +49,19 @@ for s in "${scenes[@]}"; do
         --stats-json "$out/$s.json" 2>/dev/null
     h_s=$(json "round(d['total']['seconds'],2)" < "$out/$s.json")
     h_ao=$(json "round(d['total']['ao_mrays_per_s'],2)" < "$out/$s.json")
-    e_line=$(cd "$work" && .venv/bin/python embree_ao.py "scenes/$s.json" --spp "$spp" --threads "$threads" --out "$out/$s.embree" 2>/dev/null | tail -1)
-    e_s=$(echo "$e_line" | json "d['render_s']")
-    e_ao=$(echo "$e_line" | json "d['ao_incl_gen_mrays_s']")
-    m_line=$(cd "$work" && .venv/bin/python mitsuba_ao.py "scenes/$s.json" --spp "$spp" --threads "$threads" --repeat 2 --out "$out/$s.mitsuba" 2>/dev/null | tail -1 || true)
-    if [ -n "$m_line" ]; then
+    e_line=$(cd "$work" && .venv/bin/python embree_ao.py "$peers_src/scenes/$s.json" --spp "$spp" --threads "$threads" --out "$out/$s.embree" 2>/dev/null | tail -1 || true)
+    if [ -n "$e_line" ] && e_s=$(echo "$e_line" | json "d['render_s']" 2>/dev/null); then
+        e_ao=$(echo "$e_line" | json "d['ao_incl_gen_mrays_s']")
+    else
+        echo "compare-peers: embree failed on $s (run embree_ao.py by hand to see why)" >&2
+        e_s=nan; e_ao=nan
+    fi
+    m_line=$(cd "$work" && .venv/bin/python mitsuba_ao.py "$peers_src/scenes/$s.json" --spp "$spp" --threads "$threads" --repeat 2 --out "$out/$s.mitsuba" 2>/dev/null | tail -1 || true)
+    if [ -n "$m_line" ] && echo "$m_line" | json "d['ao_mrays_s']" >/dev/null 2>&1; then
         m_s=$(echo "$m_line" | json "d['all_runs_render_s'][-1] if d.get('all_runs_render_s') else d['render_s']")
         m_ao=$(echo "$m_line" | json "d['ao_mrays_s']")
     else
+        echo "compare-peers: mitsuba failed on $s (run mitsuba_ao.py by hand to see why)" >&2
         m_s=nan; m_ao=nan
     fi
     ratio=$(python3 -c "print(f'{$h_ao/$m_ao:.2f}x, {$h_ao/$e_ao:.2f}x')" 2>/dev/null || echo "-")
