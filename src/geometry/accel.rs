@@ -185,20 +185,20 @@ impl Blas {
     fn build_tree(&mut self) {
         self.tree = Tree::from_bvh2(&self.bvh.nodes);
         self.packets.clear();
-        let tris: Option<Vec<Triangle>> = self
-            .prims
-            .iter()
-            .map(|p| match p.shape {
-                Shape::Triangle(t) => Some(t),
-                Shape::Sphere(_) => None,
-            })
-            .collect();
-        let Some(tris) = tris.filter(|t| !t.is_empty()) else { return };
+        let prims = &self.prims;
+        if prims.is_empty() || prims.iter().any(|p| matches!(p.shape, Shape::Sphere(_))) {
+            return;
+        }
+        let triangle = |k: u32| match prims[k as usize].shape {
+            Shape::Triangle(t) => (k, t),
+            Shape::Sphere(_) => unreachable!("an all-triangle BLAS"),
+        };
         let packets = &mut self.packets;
         self.tree.map_leaves(|first, count| {
             let start = packets.len() as u32;
-            let leaf: Vec<(u32, Triangle)> = (first..first + count).map(|k| (k, tris[k as usize])).collect();
-            packets.extend(leaf.chunks(4).map(Tri4::pack));
+            for lane0 in (first..first + count).step_by(4) {
+                packets.push(Tri4::pack((lane0..(lane0 + 4).min(first + count)).map(triangle)));
+            }
             (start, packets.len() as u32 - start)
         });
     }

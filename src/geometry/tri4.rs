@@ -54,11 +54,10 @@ pub struct Lanes {
 
 impl Tri4 {
     /// Packs up to four (slot, triangle) pairs.
-    pub fn pack(tris: &[(u32, Triangle)]) -> Self {
-        debug_assert!(tris.len() <= 4);
+    pub fn pack(tris: impl Iterator<Item = (u32, Triangle)>) -> Self {
         let mut packet = Tri4 { p: [[Vec4::ZERO; 3]; 3], slot: [u32::MAX; 4] };
-        for (lane, (slot, tri)) in tris.iter().enumerate() {
-            packet.slot[lane] = *slot;
+        for (lane, (slot, tri)) in tris.take(4).enumerate() {
+            packet.slot[lane] = slot;
             for v in 0..3 {
                 for a in 0..3 {
                     packet.p[v][a][lane] = tri.p[v][a];

@@ -219,21 +219,26 @@ impl<const W: usize> WideBvh<W> {
         }
         while let Some((n, out)) = todo.pop() {
             let first = bvh2[n].first_index as usize;
-            let mut kids = vec![first, first + 1];
-            while kids.len() < W {
-                let widest = kids
-                    .iter()
-                    .enumerate()
-                    .filter(|&(_, &k)| bvh2[k].prim_count == 0)
-                    .max_by(|a, b| bvh2[*a.1].aabb().half_area().total_cmp(&bvh2[*b.1].aabb().half_area()))
-                    .map(|(i, _)| i);
+            let mut kids = [0usize; W];
+            (kids[0], kids[1]) = (first, first + 1);
+            let mut len = 2;
+            while len < W {
+                // The inner child of largest area (the last of equals) is replaced by its two.
+                let mut widest = None;
+                let mut widest_area = 0.0;
+                for (i, &k) in kids[..len].iter().enumerate() {
+                    let area = bvh2[k].aabb().half_area();
+                    if bvh2[k].prim_count == 0 && (widest.is_none() || area >= widest_area) {
+                        (widest, widest_area) = (Some(i), area);
+                    }
+                }
                 let Some(i) = widest else { break };
-                let k = kids.remove(i);
-                let f = bvh2[k].first_index as usize;
-                kids.insert(i, f + 1);
-                kids.insert(i, f);
+                let f = bvh2[kids[i]].first_index as usize;
+                kids.copy_within(i + 1..len, i + 2);
+                (kids[i], kids[i + 1]) = (f, f + 1);
+                len += 1;
             }
-            for (slot, &k) in kids.iter().enumerate() {
+            for (slot, &k) in kids[..len].iter().enumerate() {
                 let node = &bvh2[k];
                 nodes[out].set(slot, node.aabb());
                 if node.prim_count > 0 {
