@@ -392,7 +392,11 @@ impl Blas {
             let i = todo.trailing_zeros() as usize;
             todo &= todo - 1;
             let slot = packet.slot[i];
-            let Some(Prim { shape: Shape::Triangle(tri), .. }) = self.prims.get(slot as usize) else { continue };
+            if slot == u32::MAX {
+                continue;
+            }
+            // The packet's own copy of the triangle: already in cache, unlike `prims`.
+            let tri = packet.triangle(i);
             let found = if lanes.exact & (1 << i) != 0 {
                 tri.intersect(ray)
             } else {

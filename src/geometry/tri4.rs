@@ -5,7 +5,7 @@
 //! its f64 edge fallback), and only lanes that pass the sign test get their determinant and
 //! their f64 plane distance computed, by the scalar [`Triangle::finish`].
 
-use glam::Vec4;
+use glam::{Vec3A, Vec4};
 
 use super::{ray::Ray, shapes::Triangle};
 
@@ -65,6 +65,13 @@ impl Tri4 {
             }
         }
         packet
+    }
+
+    /// The triangle in `lane`, exactly as packed.
+    #[inline(always)]
+    pub fn triangle(&self, lane: usize) -> Triangle {
+        let vertex = |v: usize| Vec3A::new(self.p[v][0][lane], self.p[v][1][lane], self.p[v][2][lane]);
+        Triangle { p: [vertex(0), vertex(1), vertex(2)] }
     }
 
     /// Edge tests of the four lanes (unused lanes come back in `exact`; skip them by slot).
