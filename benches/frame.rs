@@ -22,7 +22,11 @@ fn main() {
 }
 
 fn default_scene(width: u32, height: u32) -> Renderer {
-    let settings = RenderSettings { width, height, samples_per_frame: 1, samples_per_set: 16, ..Default::default() };
+    default_scene_spp(width, height, 1)
+}
+
+fn default_scene_spp(width: u32, height: u32, spp: u32) -> Renderer {
+    let settings = RenderSettings { width, height, samples_per_frame: spp, samples_per_set: 16, ..Default::default() };
     let mut r = Renderer::with_default_scene(settings);
     r.run_frame().unwrap();
     r
@@ -42,6 +46,26 @@ fn frame_320x180_1spp(bencher: Bencher) {
 fn system_trace_320x180_1spp(bencher: Bencher) {
     let mut r = default_scene(320, 180);
     bencher.bench_local(|| r.world_mut().run_system_once(trace::trace).unwrap());
+}
+
+/// How the trace system's cost grows with pixels: the default scene at 1 spp, width w and
+/// height 9w/16 (items: pixels).
+#[divan::bench(args = [160, 320, 640], sample_count = 10)]
+fn system_trace_by_width(bencher: Bencher, width: u32) {
+    let mut r = default_scene(width, width * 9 / 16);
+    bencher
+        .counter(ItemsCount::new(width * width * 9 / 16))
+        .bench_local(|| r.world_mut().run_system_once(trace::trace).unwrap());
+}
+
+/// How the trace system's cost grows with samples per pixel: the default scene at 160×90
+/// (items: samples).
+#[divan::bench(args = [1, 4, 16], sample_count = 10)]
+fn system_trace_by_spp(bencher: Bencher, spp: u32) {
+    let mut r = default_scene_spp(160, 90, spp);
+    bencher
+        .counter(ItemsCount::new(160 * 90 * spp))
+        .bench_local(|| r.world_mut().run_system_once(trace::trace).unwrap());
 }
 
 /// The accumulate system alone (640×360).
@@ -120,7 +144,33 @@ fn ao_rays() -> (SceneGeometry, Vec<Ray>) {
     (geometry, rays)
 }
 
-/// AO occlusion queries through hemi's BVH2 traversal, one thread.
+/// How AO-ray cost grows with triangles: one torus knot tessellated to n triangles, 8
+/// cosine-distributed rays leaving each of 10,000 random points on it (items: rays).
+#[divan::bench(args = [10_000, 100_000, 1_000_000], sample_count = 5)]
+fn ao_rays_by_triangles(bencher: Bencher, triangles: u32) {
+    let knot = torus_knot(2, 3, 0.8, 0.2, triangles / 40, 20);
+    let prims = world_space::mesh(&knot, &Transform::IDENTITY, 0).unwrap().prims;
+    let object = Object { entity: Entity::PLACEHOLDER, material: Matte::default() };
+    let geometry = SceneGeometry::build(prims, vec![], vec![object]);
+    let mut rng = SplitMix64::new(9);
+    let mut stack = Vec::new();
+    let mut rays = Vec::new();
+    while rays.len() < 80_000 {
+        // Rays from outside towards the knot's centre find points on its surface.
+        let p = glam::Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
+        let Some(hit) = geometry.intersect(&Ray::new(p * 4.0, -p, f32::INFINITY), &mut stack) else { continue };
+        for _ in 0..8 {
+            let s = cosine_power_hemisphere(glam::Vec2::new(rng.next_f32(), rng.next_f32()), 1.0);
+            let w = glam::Vec3A::from(Onb::from_normal(hit.normal.into()).to_world(s.dir));
+            rays.push(Ray::new(hit.spawn_origin(w), w, f32::INFINITY));
+        }
+    }
+    bencher
+        .counter(ItemsCount::new(rays.len()))
+        .bench_local(|| rays.iter().filter(|ray| geometry.occluded(ray, &mut stack)).count());
+}
+
+/// AO occlusion queries through hemi's BVH traversal, one thread.
 #[divan::bench(sample_count = 20)]
 fn ao_rays_default_scene(bencher: Bencher) {
     let (geometry, rays) = ao_rays();

@@ -3,7 +3,7 @@
 use bevy_ecs::entity::Entity;
 use glam::{Vec3, Vec3A};
 use hemi::{
-    components::{Matte, Transform},
+    components::{Matte, Mesh, Transform},
     geometry::{Object, Prim, Ray, SceneGeometry, Shape, shapes::SpherePrim, world_space},
     sampling::hash::SplitMix64,
     scene::mesh_gen::{torus_knot, uv_sphere},
@@ -81,6 +81,49 @@ fn occlusion_matches_brute_force_for_segments() {
         if expected { blocked += 1 } else { free += 1 }
     }
     assert!(blocked > 600 && free > 600, "{blocked} blocked, {free} free");
+}
+
+#[test]
+fn pre_split_triangles_give_the_brute_force_hits() {
+    // Two long triangles among many small ones: obvhs's pre-splits reference the long ones from
+    // several leaves; hits must still be exactly the brute-force ones.
+    let mut prims = world_space::mesh(&torus_knot(2, 3, 0.8, 0.15, 200, 12), &Transform::IDENTITY, 0).unwrap().prims;
+    // A long thin beam along the diagonal of x and z: its boxes are far from tight.
+    let beam = Mesh {
+        positions: vec![
+            Vec3::new(-6.0, -2.0, -6.0),
+            Vec3::new(6.0, -1.0, 6.0),
+            Vec3::new(6.5, -1.0, 5.5),
+            Vec3::new(-5.5, -2.0, -6.5),
+        ],
+        indices: vec![[0, 1, 2], [0, 2, 3]],
+    };
+    prims.extend(world_space::mesh(&beam, &Transform::IDENTITY, 1).unwrap().prims);
+    let object = Object { entity: Entity::PLACEHOLDER, material: Matte::default() };
+    let geometry = SceneGeometry::build(prims, vec![], vec![object; 2]);
+    assert!(geometry.blases()[0].split_references() > 0, "the long triangles should be split");
+    assert_eq!(geometry.prim_count(), 200 * 12 * 2 + 2);
+    let mut rng = SplitMix64::new(4);
+    let mut stack = Vec::new();
+    let (mut hits, mut blocked) = (0, 0);
+    for i in 0..6_000 {
+        let origin = (Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 8.0) - 4.0;
+        let tmax = if i % 2 == 0 { f32::INFINITY } else { rng.next_f32() * 6.0 };
+        // Every other ray aims at a point of the beam.
+        let dir = if i % 4 < 2 {
+            random_unit(&mut rng)
+        } else {
+            let target = Vec3A::new(-6.0, -2.0, -6.0) + Vec3A::new(12.0, 1.0, 12.0) * rng.next_f32();
+            (target + Vec3A::new(0.5, 0.0, -0.5) * rng.next_f32() - origin).normalize()
+        };
+        let ray = Ray::new(origin, dir, tmax);
+        let slow = geometry.intersect_brute_force(&ray);
+        assert_eq!(geometry.intersect(&ray, &mut stack).map(|h| (h.t, h.object)), slow.map(|h| (h.t, h.object)));
+        assert_eq!(geometry.occluded(&ray, &mut stack), slow.is_some());
+        hits += usize::from(slow.is_some_and(|h| h.object == 1));
+        blocked += usize::from(slow.is_some());
+    }
+    assert!(hits > 1_000 && blocked < 5_500, "{hits} hits on the beam, {blocked} blocked");
 }
 
 #[test]

@@ -20,7 +20,12 @@ use glam::{Affine3A, Mat3A, Vec3, Vec3A};
 use obvhs::{
     BvhBuildParams,
     aabb::Aabb,
-    bvh2::{Bvh2, builder::build_bvh2, node::Bvh2Node},
+    bvh2::{
+        Bvh2,
+        builder::{build_bvh2, build_bvh2_from_tris},
+        node::Bvh2Node,
+    },
+    triangle::Triangle as ObvhsTriangle,
 };
 
 use super::{
@@ -146,7 +151,10 @@ pub struct Blas {
     tree: Tree,
     /// Each leaf's triangles in packets of four, when every primitive is a triangle.
     packets: Vec<Tri4>,
+    /// The primitives in leaf order: a pre-split triangle once per leaf it sits in.
     prims: Vec<Prim>,
+    /// Primitives given to the build (each counted once).
+    unique_prims: usize,
     /// Triangles stored.
     pub triangle_count: usize,
     /// Zero-area triangles dropped at build time (they can never be hit).
@@ -156,15 +164,33 @@ pub struct Blas {
 }
 
 impl Blas {
-    /// Builds a BVH over `prims` (in any order).
+    /// Builds a BVH over `prims` (in any order). An all-triangle set gets obvhs's spatial
+    /// pre-splits: large triangles are referenced from several leaves under tighter boxes.
     pub fn build(prims: Vec<Prim>) -> Self {
+        Blas::build_with(prims, true)
+    }
+
+    /// Builds a BVH over `prims`, with spatial pre-splits of large triangles if `split` (a tree
+    /// that will be refit must have none: each primitive in exactly one leaf).
+    fn build_with(prims: Vec<Prim>, split: bool) -> Self {
         let triangle_count = prims.iter().filter(|p| matches!(p.shape, Shape::Triangle(_))).count();
-        let aabbs: Vec<Aabb> = prims.iter().map(Prim::bounds).collect();
+        let params = BvhBuildParams::medium_build();
+        let tris: Option<Vec<ObvhsTriangle>> = prims
+            .iter()
+            .map(|p| match p.shape {
+                Shape::Triangle(t) => Some(ObvhsTriangle { v0: t.p[0], v1: t.p[1], v2: t.p[2] }),
+                Shape::Sphere(_) => None,
+            })
+            .collect();
         let bvh = if prims.is_empty() {
             Bvh2::default()
+        } else if let Some(tris) = tris.filter(|_| split) {
+            build_bvh2_from_tris(&tris, BvhBuildParams { pre_split: true, ..params }, &mut Duration::default())
         } else {
-            build_bvh2(&aabbs, BvhBuildParams::medium_build(), &mut Duration::default())
+            let aabbs: Vec<Aabb> = prims.iter().map(Prim::bounds).collect();
+            build_bvh2(&aabbs, params, &mut Duration::default())
         };
+        let unique_prims = prims.len();
         let prims = bvh.primitive_indices.iter().map(|&i| prims[i as usize]).collect();
         let depth = subtree_depth(&bvh.nodes);
         let mut blas = Blas {
@@ -172,6 +198,7 @@ impl Blas {
             tree: Tree::Four(Bvh4::default()),
             packets: Vec::new(),
             prims,
+            unique_prims,
             triangle_count,
             degenerate_triangles: 0,
             depth,
@@ -226,7 +253,7 @@ impl Blas {
             let p = tri.map(|i| Vec3A::from(mesh.positions[i as usize]));
             Prim { shape: Shape::Triangle(Triangle { p }), object: 0 }
         });
-        Blas::build(prims.collect())
+        Blas::build_with(prims.collect(), false)
     }
 
     /// Moves the triangles of a [`Blas::deformable`] BLAS to `positions` (same triangles as at
@@ -259,9 +286,20 @@ impl Blas {
         self.bvh.nodes.len()
     }
 
-    /// The primitives, in leaf order.
-    pub fn prims(&self) -> &[Prim] {
-        &self.prims
+    /// Leaf references beyond one per primitive, made by spatial pre-splits.
+    pub fn split_references(&self) -> usize {
+        self.prims.len() - self.unique_prims
+    }
+
+    /// Each primitive once (a pre-split triangle sits in several leaves), in leaf order.
+    pub fn prims(&self) -> impl Iterator<Item = &Prim> {
+        let mut seen = vec![false; self.unique_prims];
+        let original = &self.bvh.primitive_indices;
+        self.prims
+            .iter()
+            .zip(original)
+            .filter(move |&(_, &i)| !std::mem::replace(&mut seen[i as usize], true))
+            .map(|(p, _)| p)
     }
 
     /// Bytes held by nodes and primitives.
@@ -648,7 +686,7 @@ impl SceneGeometry {
 
     /// Number of bounded primitives stored (shared meshes once).
     pub fn prim_count(&self) -> usize {
-        self.blases.iter().map(|b| b.prims.len()).sum()
+        self.blases.iter().map(|b| b.unique_prims).sum()
     }
 
     /// The bottom-level BVHs.
@@ -666,7 +704,7 @@ impl SceneGeometry {
         let mut out = Vec::new();
         for inst in &self.instances {
             let m = inst.to_world;
-            for prim in &self.blases[inst.blas as usize].prims {
+            for prim in self.blases[inst.blas as usize].prims() {
                 let object = inst.object.unwrap_or(prim.object);
                 let shape = match prim.shape {
                     Shape::Triangle(t) => Shape::Triangle(Triangle { p: t.p.map(|p| m.transform_point3a(p)) }),
