@@ -144,11 +144,13 @@ fn ao_rays() -> (SceneGeometry, Vec<Ray>) {
     (geometry, rays)
 }
 
-/// How AO-ray cost grows with triangles: one torus knot tessellated to n triangles, 8
-/// cosine-distributed rays leaving each of 10,000 random points on it (items: rays).
+/// How AO-ray cost grows with triangles: one torus knot tessellated to about n near-square
+/// triangles, 8 cosine-distributed rays leaving each of 10,000 random points on it (items: rays).
 #[divan::bench(args = [10_000, 100_000, 1_000_000], sample_count = 5)]
 fn ao_rays_by_triangles(bencher: Bencher, triangles: u32) {
-    let knot = torus_knot(2, 3, 0.8, 0.2, triangles / 40, 20);
+    // Near-square triangles: the tube's length is about ten times its circumference.
+    let sides = (triangles as f32 / 20.0).sqrt().round() as u32;
+    let knot = torus_knot(2, 3, 0.8, 0.2, 10 * sides, sides);
     let prims = world_space::mesh(&knot, &Transform::IDENTITY, 0).unwrap().prims;
     let object = Object { entity: Entity::PLACEHOLDER, material: Matte::default() };
     let geometry = SceneGeometry::build(prims, vec![], vec![object]);
