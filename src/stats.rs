@@ -36,7 +36,7 @@ pub struct FrameStats {
     pub bvh_work: BvhWork,
     /// BVH nodes (binary, as built).
     pub bvh_nodes: usize,
-    /// Children per node of the bottom-level trees traversal uses (8 with AVX, else 4).
+    /// Children per node of the trees traversal uses (8 with AVX, else 4).
     pub bvh_width: usize,
     /// Primitives in the BVH (triangles + spheres).
     pub bvh_prims: usize,

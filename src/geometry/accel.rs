@@ -89,12 +89,18 @@ fn hit_prim(prim: &Prim, ray: &Ray) -> Option<(f32, f32, f32)> {
     }
 }
 
-/// The wide tree a BLAS traverses: eight children per node where the CPU has AVX, else four.
-#[derive(Clone)]
+/// The wide tree traversal uses: eight children per node where the CPU has AVX, else four.
+#[derive(Clone, Debug)]
 enum Tree {
     Four(Bvh4),
     #[cfg(target_arch = "x86_64")]
     Eight(super::wide_bvh::Bvh8),
+}
+
+impl Default for Tree {
+    fn default() -> Self {
+        Tree::Four(Bvh4::default())
+    }
 }
 
 impl Tree {
@@ -135,7 +141,7 @@ impl Tree {
     }
 }
 
-/// The BLAS node width asked for: 4 when the environment variable `HEMI_BVH_WIDTH` is `4`,
+/// The node width asked for: 4 when the environment variable `HEMI_BVH_WIDTH` is `4`,
 /// else 8 (which falls back to 4 without AVX). Read once per process.
 fn bvh_width() -> usize {
     static WIDTH: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
@@ -195,7 +201,7 @@ impl Blas {
         let depth = subtree_depth(&bvh.nodes);
         let mut blas = Blas {
             bvh,
-            tree: Tree::Four(Bvh4::default()),
+            tree: Tree::default(),
             packets: Vec::new(),
             prims,
             unique_prims,
@@ -606,7 +612,8 @@ pub struct SceneGeometry {
     blases: Vec<Arc<Blas>>,
     instances: Vec<Instance>,
     tlas: Vec<Bvh2Node>,
-    tlas4: Bvh4,
+    /// The top-level BVH2 collapsed to a wide tree, which traversal uses.
+    top: Tree,
     planes: Vec<PlanePrim>,
     /// Objects, indexed by `SurfaceHit::object`.
     pub objects: Vec<Object>,
@@ -661,7 +668,7 @@ impl SceneGeometry {
         SceneGeometry {
             blases,
             instances,
-            tlas4: Bvh4::from_bvh2(&tlas),
+            top: Tree::from_bvh2(&tlas),
             tlas,
             planes,
             objects,
@@ -674,9 +681,9 @@ impl SceneGeometry {
         }
     }
 
-    /// Children per node of the widest bottom-level tree (8 with AVX, else 4).
+    /// Children per node of the trees traversal uses (8 with AVX, else 4).
     pub fn node_width(&self) -> usize {
-        self.blases.iter().map(|b| b.node_width()).max().unwrap_or(4)
+        self.blases.iter().map(|b| b.node_width()).max().unwrap_or(self.top.width())
     }
 
     /// Number of BVH nodes (top level plus every BLAS once).
@@ -783,8 +790,39 @@ impl SceneGeometry {
             // One world-space BLAS (a static scene): no top level to traverse.
             return self.blases[inst.blas as usize].closest(ray, stack).map(|(slot, b1, b2)| (0, slot, b1, b2));
         }
+        match &self.top {
+            Tree::Four(top) => self.closest_through(top, ray, stack),
+            // SAFETY: an eight-wide tree is built only where AVX was detected.
+            #[cfg(target_arch = "x86_64")]
+            Tree::Eight(top) => unsafe { self.closest_through_avx(top, ray, stack) },
+        }
+    }
+
+    /// [`SceneGeometry::closest_through`] compiled for AVX, so that the eight-wide node test inlines.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn closest_through_avx(
+        &self,
+        top: &super::wide_bvh::Bvh8,
+        ray: &mut Ray,
+        stack: &mut Vec<(u32, f32)>,
+    ) -> Option<(u32, u32, f32, f32)> {
+        self.closest_through(top, ray, stack)
+    }
+
+    /// Closest hit through the top-level tree `top`.
+    #[inline(always)]
+    fn closest_through<const W: usize>(
+        &self,
+        top: &WideBvh<W>,
+        ray: &mut Ray,
+        stack: &mut Vec<(u32, f32)>,
+    ) -> Option<(u32, u32, f32, f32)>
+    where
+        Node<W>: NodeTest<W>,
+    {
         let mut best = None;
-        self.tlas4.closest(ray, stack, |first, count, ray, stack| {
+        top.closest(ray, stack, |first, count, ray, stack| {
             for k in first..first + count {
                 let inst = &self.instances[k as usize];
                 let blas = &self.blases[inst.blas as usize];
@@ -815,7 +853,29 @@ impl SceneGeometry {
         {
             return self.blases[inst.blas as usize].occluded(ray, stack);
         }
-        self.tlas4.occluded(ray, stack, |first, count, stack| {
+        match &self.top {
+            Tree::Four(top) => self.occluded_through(top, ray, stack),
+            // SAFETY: an eight-wide tree is built only where AVX was detected.
+            #[cfg(target_arch = "x86_64")]
+            Tree::Eight(top) => unsafe { self.occluded_through_avx(top, ray, stack) },
+        }
+    }
+
+    /// [`SceneGeometry::occluded_through`] compiled for AVX, so that the eight-wide node test
+    /// inlines.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn occluded_through_avx(&self, top: &super::wide_bvh::Bvh8, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool {
+        self.occluded_through(top, ray, stack)
+    }
+
+    /// Occlusion through the top-level tree `top`.
+    #[inline(always)]
+    fn occluded_through<const W: usize>(&self, top: &WideBvh<W>, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool
+    where
+        Node<W>: NodeTest<W>,
+    {
+        top.occluded(ray, stack, |first, count, stack| {
             self.instances[first as usize..(first + count) as usize].iter().any(|inst| {
                 let blas = &self.blases[inst.blas as usize];
                 if inst.identity {
