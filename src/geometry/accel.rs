@@ -143,6 +143,7 @@ impl Tree {
 
 /// The node width asked for: 4 when the environment variable `HEMI_BVH_WIDTH` is `4`,
 /// else 8 (which falls back to 4 without AVX). Read once per process.
+#[cfg(target_arch = "x86_64")]
 fn bvh_width() -> usize {
     static WIDTH: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
     *WIDTH.get_or_init(|| if std::env::var("HEMI_BVH_WIDTH").is_ok_and(|w| w.trim() == "4") { 4 } else { 8 })
