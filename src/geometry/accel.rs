@@ -139,6 +139,104 @@ impl Tree {
             Tree::Eight(_) => 8,
         }
     }
+
+    /// Runs `query` over this tree; an eight-wide tree is traversed by code compiled for AVX.
+    #[inline(always)]
+    fn query<Q: TreeQuery>(&self, query: Q) -> Q::Output {
+        match self {
+            Tree::Four(tree) => query.run(tree),
+            // SAFETY: an eight-wide tree is built only where AVX was detected.
+            #[cfg(target_arch = "x86_64")]
+            Tree::Eight(tree) => unsafe { query_avx(tree, query) },
+        }
+    }
+}
+
+/// A traversal written once for either node width.
+trait TreeQuery {
+    type Output;
+    fn run<const W: usize>(self, tree: &WideBvh<W>) -> Self::Output
+    where
+        Node<W>: NodeTest<W>;
+}
+
+/// [`TreeQuery::run`] compiled for AVX, so that the eight-wide node test inlines.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+fn query_avx<Q: TreeQuery>(tree: &super::wide_bvh::Bvh8, query: Q) -> Q::Output {
+    query.run(tree)
+}
+
+/// Closest hit in a BLAS: (primitive slot, b1, b2).
+struct BlasClosest<'a> {
+    blas: &'a Blas,
+    ray: &'a mut Ray,
+    stack: &'a mut Vec<(u32, f32)>,
+}
+
+impl TreeQuery for BlasClosest<'_> {
+    type Output = Option<(u32, f32, f32)>;
+    #[inline(always)]
+    fn run<const W: usize>(self, tree: &WideBvh<W>) -> Self::Output
+    where
+        Node<W>: NodeTest<W>,
+    {
+        self.blas.closest_in(tree, self.ray, self.stack)
+    }
+}
+
+/// Whether anything in a BLAS blocks the ray.
+struct BlasOccluded<'a> {
+    blas: &'a Blas,
+    ray: &'a Ray,
+    stack: &'a mut Vec<(u32, f32)>,
+}
+
+impl TreeQuery for BlasOccluded<'_> {
+    type Output = bool;
+    #[inline(always)]
+    fn run<const W: usize>(self, tree: &WideBvh<W>) -> bool
+    where
+        Node<W>: NodeTest<W>,
+    {
+        self.blas.occluded_in(tree, self.ray, self.stack)
+    }
+}
+
+/// Closest hit through the top level: (instance, primitive slot, b1, b2).
+struct TopClosest<'a> {
+    scene: &'a SceneGeometry,
+    ray: &'a mut Ray,
+    stack: &'a mut Vec<(u32, f32)>,
+}
+
+impl TreeQuery for TopClosest<'_> {
+    type Output = Option<(u32, u32, f32, f32)>;
+    #[inline(always)]
+    fn run<const W: usize>(self, tree: &WideBvh<W>) -> Self::Output
+    where
+        Node<W>: NodeTest<W>,
+    {
+        self.scene.closest_through(tree, self.ray, self.stack)
+    }
+}
+
+/// Whether anything reached through the top level blocks the ray.
+struct TopOccluded<'a> {
+    scene: &'a SceneGeometry,
+    ray: &'a Ray,
+    stack: &'a mut Vec<(u32, f32)>,
+}
+
+impl TreeQuery for TopOccluded<'_> {
+    type Output = bool;
+    #[inline(always)]
+    fn run<const W: usize>(self, tree: &WideBvh<W>) -> bool
+    where
+        Node<W>: NodeTest<W>,
+    {
+        self.scene.occluded_through(tree, self.ray, self.stack)
+    }
 }
 
 /// The node width asked for: 4 when the environment variable `HEMI_BVH_WIDTH` is `4`,
@@ -182,16 +280,19 @@ impl Blas {
     fn build_with(prims: Vec<Prim>, split: bool) -> Self {
         let triangle_count = prims.iter().filter(|p| matches!(p.shape, Shape::Triangle(_))).count();
         let params = BvhBuildParams::medium_build();
-        let tris: Option<Vec<ObvhsTriangle>> = prims
-            .iter()
-            .map(|p| match p.shape {
-                Shape::Triangle(t) => Some(ObvhsTriangle { v0: t.p[0], v1: t.p[1], v2: t.p[2] }),
-                Shape::Sphere(_) => None,
-            })
-            .collect();
+        // obvhs splits only triangles, given as its own type: all or nothing.
+        let split_tris = || -> Option<Vec<ObvhsTriangle>> {
+            prims
+                .iter()
+                .map(|p| match p.shape {
+                    Shape::Triangle(t) => Some(ObvhsTriangle { v0: t.p[0], v1: t.p[1], v2: t.p[2] }),
+                    Shape::Sphere(_) => None,
+                })
+                .collect()
+        };
         let bvh = if prims.is_empty() {
             Bvh2::default()
-        } else if let Some(tris) = tris.filter(|_| split) {
+        } else if let Some(tris) = split.then(split_tris).flatten() {
             build_bvh2_from_tris(&tris, BvhBuildParams { pre_split: true, ..params }, &mut Duration::default())
         } else {
             let aabbs: Vec<Aabb> = prims.iter().map(Prim::bounds).collect();
@@ -326,24 +427,7 @@ impl Blas {
     /// primitive slot and barycentrics. Uses `stack` above its current length only.
     #[inline]
     fn closest(&self, ray: &mut Ray, stack: &mut Vec<(u32, f32)>) -> Option<(u32, f32, f32)> {
-        match &self.tree {
-            Tree::Four(tree) => self.closest_in(tree, ray, stack),
-            // SAFETY: an eight-wide tree is built only where AVX was detected.
-            #[cfg(target_arch = "x86_64")]
-            Tree::Eight(tree) => unsafe { self.closest_avx(tree, ray, stack) },
-        }
-    }
-
-    /// [`Blas::closest`] compiled for AVX, so that the eight-wide node test inlines.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx")]
-    fn closest_avx(
-        &self,
-        tree: &super::wide_bvh::Bvh8,
-        ray: &mut Ray,
-        stack: &mut Vec<(u32, f32)>,
-    ) -> Option<(u32, f32, f32)> {
-        self.closest_in(tree, ray, stack)
+        self.tree.query(BlasClosest { blas: self, ray, stack })
     }
 
     #[inline(always)]
@@ -385,19 +469,7 @@ impl Blas {
     /// Whether any primitive blocks `ray` in (0, tmax). Uses `stack` above its current length.
     #[inline]
     fn occluded(&self, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool {
-        match &self.tree {
-            Tree::Four(tree) => self.occluded_in(tree, ray, stack),
-            // SAFETY: an eight-wide tree is built only where AVX was detected.
-            #[cfg(target_arch = "x86_64")]
-            Tree::Eight(tree) => unsafe { self.occluded_avx(tree, ray, stack) },
-        }
-    }
-
-    /// [`Blas::occluded`] compiled for AVX, so that the eight-wide node test inlines.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx")]
-    fn occluded_avx(&self, tree: &super::wide_bvh::Bvh8, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool {
-        self.occluded_in(tree, ray, stack)
+        self.tree.query(BlasOccluded { blas: self, ray, stack })
     }
 
     #[inline(always)]
@@ -791,24 +863,7 @@ impl SceneGeometry {
             // One world-space BLAS (a static scene): no top level to traverse.
             return self.blases[inst.blas as usize].closest(ray, stack).map(|(slot, b1, b2)| (0, slot, b1, b2));
         }
-        match &self.top {
-            Tree::Four(top) => self.closest_through(top, ray, stack),
-            // SAFETY: an eight-wide tree is built only where AVX was detected.
-            #[cfg(target_arch = "x86_64")]
-            Tree::Eight(top) => unsafe { self.closest_through_avx(top, ray, stack) },
-        }
-    }
-
-    /// [`SceneGeometry::closest_through`] compiled for AVX, so that the eight-wide node test inlines.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx")]
-    fn closest_through_avx(
-        &self,
-        top: &super::wide_bvh::Bvh8,
-        ray: &mut Ray,
-        stack: &mut Vec<(u32, f32)>,
-    ) -> Option<(u32, u32, f32, f32)> {
-        self.closest_through(top, ray, stack)
+        self.top.query(TopClosest { scene: self, ray, stack })
     }
 
     /// Closest hit through the top-level tree `top`.
@@ -854,20 +909,7 @@ impl SceneGeometry {
         {
             return self.blases[inst.blas as usize].occluded(ray, stack);
         }
-        match &self.top {
-            Tree::Four(top) => self.occluded_through(top, ray, stack),
-            // SAFETY: an eight-wide tree is built only where AVX was detected.
-            #[cfg(target_arch = "x86_64")]
-            Tree::Eight(top) => unsafe { self.occluded_through_avx(top, ray, stack) },
-        }
-    }
-
-    /// [`SceneGeometry::occluded_through`] compiled for AVX, so that the eight-wide node test
-    /// inlines.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx")]
-    fn occluded_through_avx(&self, top: &super::wide_bvh::Bvh8, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool {
-        self.occluded_through(top, ray, stack)
+        self.top.query(TopOccluded { scene: self, ray, stack })
     }
 
     /// Occlusion through the top-level tree `top`.
