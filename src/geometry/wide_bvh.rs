@@ -63,6 +63,11 @@ pub trait NodeTest<const W: usize> {
     fn test(&self, r: &RayBox, tmax: f32) -> (u32, [f32; W]);
 }
 
+/// Where the entry distance starts: the smallest positive f32, so a child whose exit distance
+/// is 0 or less is not entered. It can hold only hits at t ≤ 0, which every primitive test
+/// rejects: this skips, for instance, the flat leaf box of a plane that a ray starts on.
+const NEAR_START: f32 = f32::from_bits(1);
+
 /// How far past the computed exit distance a box still counts as entered (Ize 2013).
 #[inline(always)]
 fn far_scale() -> f32 {
@@ -73,7 +78,7 @@ impl NodeTest<4> for Node<4> {
     #[inline(always)]
     fn test(&self, r: &RayBox, tmax: f32) -> (u32, [f32; 4]) {
         let p = &self.planes;
-        let mut near = Vec4::ZERO;
+        let mut near = Vec4::splat(NEAR_START);
         let mut far = Vec4::INFINITY;
         for a in 0..3 {
             let (o, inv) = (Vec4::splat(r.origin[a]), Vec4::splat(r.inv_dir[a]));
@@ -133,7 +138,7 @@ fn test8_avx(n: &Node<8>, r: &RayBox, tmax: f32) -> (u32, [f32; 8]) {
     use std::arch::x86_64::*;
     // SAFETY: each row of `planes` is eight contiguous f32.
     let load = |row: usize| unsafe { _mm256_loadu_ps(n.planes[row].as_ptr()) };
-    let mut near = _mm256_setzero_ps();
+    let mut near = _mm256_set1_ps(NEAR_START);
     let mut far = _mm256_set1_ps(f32::INFINITY);
     for a in 0..3 {
         let (o, inv) = (_mm256_set1_ps(r.origin[a]), _mm256_set1_ps(r.inv_dir[a]));
@@ -417,7 +422,7 @@ mod tests {
         let (o, inv) = (ray.origin.to_array(), ray.inv_dir.to_array());
         let mut leaves = Leaves::new();
         for node in bvh2.iter().filter(|n| n.prim_count > 0) {
-            let (mut near, mut far) = (0.0f32, f32::INFINITY);
+            let (mut near, mut far) = (NEAR_START, f32::INFINITY);
             for a in 0..3 {
                 let (t0, t1) = ((node.aabb().min[a] - o[a]) * inv[a], (node.aabb().max[a] - o[a]) * inv[a]);
                 let (tn, tf) = if inv[a] < 0.0 { (t1, t0) } else { (t0, t1) };
@@ -448,6 +453,26 @@ mod tests {
         });
         assert!(stack.is_empty());
         (any, nearest)
+    }
+
+    #[test]
+    fn a_ray_leaving_a_flat_box_it_starts_on_enters_no_leaf() {
+        // A floor of flat boxes at y = 0 and one box above it.
+        let mut boxes: Vec<Aabb> = (0..16)
+            .map(|i| Aabb::new(Vec3::new(i as f32, 0.0, 0.0).into(), Vec3::new(i as f32 + 1.0, 0.0, 1.0).into()))
+            .collect();
+        boxes.push(Aabb::new(Vec3::new(3.0, 2.0, 0.0).into(), Vec3::new(4.0, 3.0, 1.0).into()));
+        let bvh2 = build_bvh2(&boxes, BvhBuildParams::medium_build(), &mut Duration::default()).nodes;
+        let up = Ray::new(Vec3A::new(3.5, 0.0, 0.5), Vec3A::new(0.0, 1.0, 0.2).normalize(), f32::INFINITY);
+        let down = Ray::new(Vec3A::new(3.5, 1.0, 0.5), Vec3A::new(0.0, -1.0, 0.2).normalize(), f32::INFINITY);
+        let four = Bvh4::from_bvh2(&bvh2);
+        let (up4, down4) = (visited(&four, &up).0, visited(&four, &down).0);
+        assert_eq!(up4.len(), 1, "only the box above, not the floor under the origin: {up4:?}");
+        assert_eq!(down4.len(), 1, "the floor box the ray comes down on: {down4:?}");
+        assert_ne!(up4, down4);
+        if let Some(eight) = Bvh8::from_bvh2(&bvh2) {
+            assert_eq!((visited(&eight, &up).0, visited(&eight, &down).0), (up4, down4));
+        }
     }
 
     #[test]
