@@ -30,7 +30,7 @@ use obvhs::{
 
 use super::{
     hit::SurfaceHit,
-    ray::Ray,
+    ray::{Ray, Shear},
     shapes::{PlanePrim, SpherePrim, Triangle},
     tri4::{RayTri4, Tri4},
     wide_bvh::{Bvh4, Node, NodeTest, WideBvh},
@@ -80,11 +80,11 @@ pub struct Object {
     pub material: Matte,
 }
 
-/// Intersects one primitive: (t, b1, b2).
+/// Intersects one primitive: (t, b1, b2). `shear` is [`Shear::new`]`(ray.dir)`.
 #[inline(always)]
-fn hit_prim(prim: &Prim, ray: &Ray) -> Option<(f32, f32, f32)> {
+fn hit_prim(prim: &Prim, ray: &Ray, shear: &Shear) -> Option<(f32, f32, f32)> {
     match prim.shape {
-        Shape::Triangle(t) => t.intersect(ray),
+        Shape::Triangle(t) => t.intersect(ray, shear),
         Shape::Sphere(s) => s.intersect(ray).map(|t| (t, 0.0, 0.0)),
     }
 }
@@ -472,9 +472,10 @@ impl Blas {
             });
             return best;
         }
+        let shear = Shear::new(ray.dir);
         tree.closest(ray, stack, |first, count, ray, _| {
             for k in first..first + count {
-                if let Some((t, b1, b2)) = hit_prim(&prims[k as usize], ray) {
+                if let Some((t, b1, b2)) = hit_prim(&prims[k as usize], ray, &shear) {
                     ray.tmax = t;
                     best = Some((k, b1, b2));
                 }
@@ -498,8 +499,9 @@ impl Blas {
         if !self.packets.is_empty() {
             return tree.occluded(ray, stack, |first, count, _| self.packets_block(first, count, ray));
         }
+        let shear = Shear::new(ray.dir);
         tree.occluded(ray, stack, |first, count, _| {
-            prims[first as usize..(first + count) as usize].iter().any(|p| hit_prim(p, ray).is_some())
+            prims[first as usize..(first + count) as usize].iter().any(|p| hit_prim(p, ray, &shear).is_some())
         })
     }
 
@@ -537,7 +539,7 @@ impl Blas {
             // The packet's own copy of the triangle: already in cache, unlike `prims`.
             let tri = packet.triangle(i);
             let found = if lanes.exact & (1 << i) != 0 {
-                tri.intersect(ray)
+                tri.intersect(ray, &r.shear)
             } else {
                 tri.finish(ray, lanes.e[0][i], lanes.e[1][i], lanes.e[2][i])
             };
@@ -955,7 +957,7 @@ impl SceneGeometry {
     /// Intersects one world-space primitive: (t, b1, b2).
     #[inline(always)]
     pub fn hit_prim(prim: &Prim, ray: &Ray) -> Option<(f32, f32, f32)> {
-        hit_prim(prim, ray)
+        hit_prim(prim, ray, &Shear::new(ray.dir))
     }
 
     /// Closest hit by testing every primitive of every instance (for tests and validation).
@@ -972,8 +974,9 @@ impl SceneGeometry {
                     None => continue,
                 }
             };
+            let shear = Shear::new(local.dir);
             for (slot, prim) in blas.prims.iter().enumerate() {
-                if let Some((t, b1, b2)) = hit_prim(prim, &local) {
+                if let Some((t, b1, b2)) = hit_prim(prim, &local, &shear) {
                     local.tmax = t;
                     ray.tmax = t + dt;
                     best = Some((i as u32, slot as u32, b1, b2));

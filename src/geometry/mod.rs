@@ -10,4 +10,4 @@ pub mod world_space;
 
 pub use accel::{Object, Prim, SceneGeometry, Shape};
 pub use hit::{SpawnOrigins, SurfaceHit};
-pub use ray::Ray;
+pub use ray::{Ray, Shear};

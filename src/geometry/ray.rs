@@ -1,4 +1,5 @@
-//! Rays with the per-ray constants that the slab and watertight triangle tests need.
+//! Rays with the per-ray constant of the slab test, and the watertight triangle test's own
+//! per-ray constants ([`Shear`]), computed only once a ray reaches a triangle.
 
 use glam::{Vec3A, Vec3Swizzles};
 
@@ -13,27 +14,13 @@ pub struct Ray {
     pub inv_dir: Vec3A,
     /// Far end of the segment.
     pub tmax: f32,
-    /// Axis of the largest |dir| component, then the two others (cyclic order).
-    pub axes: [usize; 3],
-    /// Shear taking `dir` to +z in the permuted frame: (−dx/dz, −dy/dz, 1/dz).
-    pub shear: Vec3A,
 }
 
 impl Ray {
     /// A ray from `origin` along `dir` up to `tmax`.
     #[inline]
     pub fn new(origin: Vec3A, dir: Vec3A, tmax: f32) -> Self {
-        // The axes (kx, ky, kz), kz that of the largest |dir| component, and `dir` in that order.
-        let abs = dir.abs();
-        let (axes, d) = if abs.x > abs.y {
-            if abs.x > abs.z { ([1, 2, 0], dir.yzx()) } else { ([0, 1, 2], dir) }
-        } else if abs.y > abs.z {
-            ([2, 0, 1], dir.zxy())
-        } else {
-            ([0, 1, 2], dir)
-        };
-        // One vector division: the same quotients as three scalar ones.
-        Ray { origin, dir, inv_dir: dir.recip(), tmax, axes, shear: Vec3A::new(-d.x, -d.y, 1.0) / d.z }
+        Ray { origin, dir, inv_dir: dir.recip(), tmax }
     }
 
     /// The same ray with another far end.
@@ -46,6 +33,33 @@ impl Ray {
     #[inline]
     pub fn at(&self, t: f32) -> Vec3A {
         self.origin + self.dir * t
+    }
+}
+
+/// The watertight triangle test's constants for a ray direction (Woop, Benthin, Wald 2013).
+#[derive(Clone, Copy, Debug)]
+pub struct Shear {
+    /// Axis of the largest |dir| component, then the two others (cyclic order).
+    pub axes: [usize; 3],
+    /// Shear taking `dir` to +z in the permuted frame: (−dx/dz, −dy/dz, 1/dz).
+    pub s: Vec3A,
+}
+
+impl Shear {
+    /// The constants of direction `dir`.
+    #[inline]
+    pub fn new(dir: Vec3A) -> Self {
+        // The axes (kx, ky, kz), kz that of the largest |dir| component, and `dir` in that order.
+        let abs = dir.abs();
+        let (axes, d) = if abs.x > abs.y {
+            if abs.x > abs.z { ([1, 2, 0], dir.yzx()) } else { ([0, 1, 2], dir) }
+        } else if abs.y > abs.z {
+            ([2, 0, 1], dir.zxy())
+        } else {
+            ([0, 1, 2], dir)
+        };
+        // One vector division: the same quotients as three scalar ones.
+        Shear { axes, s: Vec3A::new(-d.x, -d.y, 1.0) / d.z }
     }
 }
 
@@ -64,12 +78,12 @@ mod tests {
             Vec3A::new(1e-30, -3e-7, 2.5e-7),
         ];
         for dir in dirs {
-            let ray = Ray::new(Vec3A::ZERO, dir, 1.0);
-            let [kx, ky, kz] = ray.axes;
+            let shear = Shear::new(dir);
+            let [kx, ky, kz] = shear.axes;
             let abs = dir.abs();
             assert!(abs[kz] >= abs[kx] && abs[kz] >= abs[ky] && (kz + 1) % 3 == kx && (kx + 1) % 3 == ky, "{dir}");
             let dz = dir[kz];
-            assert_eq!(ray.shear, Vec3A::new(-dir[kx] / dz, -dir[ky] / dz, 1.0 / dz), "{dir}");
+            assert_eq!(shear.s, Vec3A::new(-dir[kx] / dz, -dir[ky] / dz, 1.0 / dz), "{dir}");
         }
     }
 }

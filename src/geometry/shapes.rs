@@ -3,7 +3,10 @@
 
 use glam::Vec3A;
 
-use super::{hit::SurfaceHit, ray::Ray};
+use super::{
+    hit::SurfaceHit,
+    ray::{Ray, Shear},
+};
 use crate::math::gamma;
 
 /// A triangle by its three vertices.
@@ -24,9 +27,10 @@ impl Triangle {
     /// edges and vertices hit exactly one of the adjacent triangles or more, never none.
     /// Returns (t, b1, b2) for a hit with 0 < t < tmax, `t` conservatively above zero.
     #[inline(always)]
-    pub fn intersect(&self, ray: &Ray) -> Option<(f32, f32, f32)> {
-        let [kx, ky, kz] = ray.axes;
-        let s = ray.shear;
+    /// `shear` is [`Shear::new`]`(ray.dir)`, computed once for all the ray's triangles.
+    pub fn intersect(&self, ray: &Ray, shear: &Shear) -> Option<(f32, f32, f32)> {
+        let [kx, ky, kz] = shear.axes;
+        let s = shear.s;
         // Translate to the ray origin, permute so the ray runs along +z, shear.
         // (Three explicit calls: `array::map` is not always inlined into the traversal loops.)
         let f = |p: Vec3A| {

@@ -7,7 +7,10 @@
 
 use glam::{Vec3A, Vec4};
 
-use super::{ray::Ray, shapes::Triangle};
+use super::{
+    ray::{Ray, Shear},
+    shapes::Triangle,
+};
 
 /// Four triangles (fewer in a leaf's last packet: unused lanes have slot `u32::MAX`).
 #[derive(Clone, Copy, Debug)]
@@ -26,6 +29,8 @@ pub struct RayTri4 {
     axes: [usize; 3],
     sx: Vec4,
     sy: Vec4,
+    /// The scalar test's constants, for lanes that need it.
+    pub shear: Shear,
 }
 
 impl RayTri4 {
@@ -33,11 +38,13 @@ impl RayTri4 {
     #[inline(always)]
     pub fn new(ray: &Ray) -> Self {
         let o = ray.origin;
+        let shear = Shear::new(ray.dir);
         RayTri4 {
             origin: [Vec4::splat(o.x), Vec4::splat(o.y), Vec4::splat(o.z)],
-            axes: ray.axes,
-            sx: Vec4::splat(ray.shear.x),
-            sy: Vec4::splat(ray.shear.y),
+            axes: shear.axes,
+            sx: Vec4::splat(shear.s.x),
+            sy: Vec4::splat(shear.s.y),
+            shear,
         }
     }
 }
