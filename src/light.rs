@@ -192,6 +192,17 @@ pub trait PlacedLight: Send + Sync + 'static {
     /// The light arriving at `at` for the sample values `u`, or `None` when this sample
     /// contributes nothing (behind the surface, outside a cone, …): then no shadow ray is traced.
     fn sample(&self, at: &ShadingPoint, u: &LightSamples) -> Option<LightSample>;
+
+    /// [`PlacedLight::sample`] for each sample of a run at one shading point: `out[j]` for the
+    /// sample values whose dimension `k` is `values[k * out.len() + j]`. An implementation may
+    /// compute several samples at once, but must give the same values as `sample`.
+    #[inline]
+    fn sample_run(&self, at: &ShadingPoint, values: &[Vec2], out: &mut [Option<LightSample>]) {
+        let n = out.len();
+        for (j, o) in out.iter_mut().enumerate() {
+            *o = self.sample(at, &LightSamples::from_columns(values, j, n));
+        }
+    }
 }
 
 /// A light component. Implement it, then register the type once with

@@ -6,7 +6,7 @@ use glam::{Vec2, Vec3};
 
 use crate::{
     geometry::{Ray, SceneGeometry, SpawnOrigins, SurfaceHit},
-    light::{LightGroup, LightSamples, PlacedLight, ShadingPoint, Shadow, Term},
+    light::{LightGroup, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term},
     resources::AovValues,
     sampling::{SampleSets, dims},
 };
@@ -106,6 +106,8 @@ pub struct Tracer {
     samples: Vec<Vec2>,
     /// One light group's arriving light for a run of samples.
     arriving: Vec<Vec3>,
+    /// One light's samples for a run of samples that share a hit.
+    drawn: Vec<Option<LightSample>>,
     /// Every light dimension's samples for a pixel's run of camera samples that do not share a
     /// hit (jittered or lens rays), computed ahead by [`Tracer::prepare_run`].
     run: RunSamples,
@@ -248,6 +250,8 @@ impl Tracer {
         // Each light's sample values for the whole run, dimension after dimension.
         let mut values = std::mem::take(&mut self.samples);
         values.resize(n * P::DIMS as usize, Vec2::ZERO);
+        let mut drawn = std::mem::take(&mut self.drawn);
+        drawn.resize(n, None);
         let run = std::mem::take(&mut self.run);
         let ahead = run.at.filter(|_| n == 1);
         for (l, light) in lights.iter().enumerate() {
@@ -257,20 +261,21 @@ impl Tracer {
                     scene.sets.fill(pixel, first, dim + k, column);
                 }
             }
+            if ahead.is_none() && P::DIMS > 0 {
+                light.sample_run(at, &values, &mut drawn);
+            }
             for (j, sum) in arriving.iter_mut().enumerate() {
-                let u = if P::DIMS == 0 {
-                    LightSamples::from_sets(scene.sets, pixel, first.wrapping_add(j as u32), dim, 0)
-                } else if let Some(at) = ahead {
+                let drawn = if P::DIMS == 0 {
+                    let u = LightSamples::from_sets(scene.sets, pixel, first.wrapping_add(j as u32), dim, 0);
+                    light.sample(at, &u)
+                } else if let Some(at_sample) = ahead {
                     let start = (dim - dims::LIGHTS) as usize * run.stride;
-                    LightSamples::from_columns(
-                        &run.values[start..start + P::DIMS as usize * run.stride],
-                        at,
-                        run.stride,
-                    )
+                    let columns = &run.values[start..start + P::DIMS as usize * run.stride];
+                    light.sample(at, &LightSamples::from_columns(columns, at_sample, run.stride))
                 } else {
-                    LightSamples::from_columns(&values, j, n)
+                    drawn[j]
                 };
-                let Some(s) = light.sample(at, &u) else { continue };
+                let Some(s) = drawn else { continue };
                 *sum += match s.shadow {
                     // A shadow ray only when its answer changes the result.
                     Some(shadow) if s.unoccluded != s.occluded => {
@@ -285,6 +290,7 @@ impl Tracer {
             }
         }
         self.samples = values;
+        self.drawn = drawn;
         self.run = run;
     }
 

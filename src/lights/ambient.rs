@@ -1,12 +1,12 @@
 //! The ambient occluder, written on the light extension point like any other light.
 
 use bevy_ecs::prelude::Component;
-use glam::{Vec3, Vec3A};
+use glam::{Vec2, Vec3, Vec3A, Vec4};
 
 use crate::{
     components::Transform,
     light::{Light, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term, check_emission},
-    sampling::warp::cosine_power_hemisphere,
+    sampling::warp::{cosine_power_hemisphere, cosine_power_hemisphere4},
 };
 
 /// RTGU's ambient occluder (Suffern ch. 17) as a light: it adds
@@ -85,16 +85,70 @@ impl PlacedLight for PlacedOccluder {
     /// w = cos θ / (π·pdf), so the estimate of the cosine-weighted AO is unbiased for every e.
     #[inline]
     fn sample(&self, at: &ShadingPoint, u: &LightSamples) -> Option<LightSample> {
-        let floor = self.radiance * self.min_amount;
         let s = cosine_power_hemisphere(u.get(0), self.exponent);
-        if s.weight <= 0.0 {
-            return Some(LightSample { unoccluded: floor, occluded: floor, shadow: None });
+        Some(self.light_sample(s.weight, || Vec3A::from(at.frame.to_world(s.dir))))
+    }
+
+    /// Four directions at a time.
+    #[inline]
+    fn sample_run(&self, at: &ShadingPoint, values: &[Vec2], out: &mut [Option<LightSample>]) {
+        let n = out.len();
+        for (chunk, u) in out.chunks_mut(4).zip(values[..n].chunks(4)) {
+            let lane = |f: fn(&Vec2) -> f32| Vec4::from_array(std::array::from_fn(|i| u.get(i).map_or(0.5, f)));
+            self.sample_lanes(at, lane(|v| v.x), lane(|v| v.y), chunk);
         }
-        let dir = Vec3A::from(at.frame.to_world(s.dir));
-        Some(LightSample {
-            unoccluded: self.radiance * (self.min_amount + (1.0 - self.min_amount) * s.weight),
+    }
+}
+
+impl PlacedOccluder {
+    /// The samples for the sample points (`u0[i]`, `u1[i]`) into `out[i]` (up to four).
+    #[inline(always)]
+    fn sample_lanes(&self, at: &ShadingPoint, u0: Vec4, u1: Vec4, out: &mut [Option<LightSample>]) {
+        let s = cosine_power_hemisphere4(u0, u1, self.exponent);
+        // The frame's to_world lane by lane, in its order of operations: u·x + v·y + w·z.
+        let f = &at.frame;
+        let world = |a: usize| Vec4::splat(f.u[a]) * s.x + Vec4::splat(f.v[a]) * s.y + Vec4::splat(f.w[a]) * s.z;
+        let (x, y, z) = (world(0), world(1), world(2));
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = Some(self.light_sample(s.weight[i], || Vec3A::new(x[i], y[i], z[i])));
+        }
+    }
+
+    /// The sample of a direction (`dir()`, world space) of weight `weight`.
+    #[inline(always)]
+    fn light_sample(&self, weight: f32, dir: impl FnOnce() -> Vec3A) -> LightSample {
+        let floor = self.radiance * self.min_amount;
+        if weight <= 0.0 {
+            return LightSample { unoccluded: floor, occluded: floor, shadow: None };
+        }
+        LightSample {
+            unoccluded: self.radiance * (self.min_amount + (1.0 - self.min_amount) * weight),
             occluded: floor,
-            shadow: Some(Shadow::Along { dir, max_distance: self.max_distance }),
-        })
+            shadow: Some(Shadow::Along { dir: dir(), max_distance: self.max_distance }),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{components::Matte, sampling::hash::SplitMix64};
+
+    #[test]
+    fn a_run_gives_each_sample_s_bits() {
+        let mut rng = SplitMix64::new(9);
+        for exponent in [1.0, 0.0, 3.0] {
+            let light = AmbientOccluder { min_amount: 0.25, max_distance: 7.0, exponent, ..Default::default() };
+            let placed = light.place(&Transform::default()).unwrap();
+            let normal = Vec3A::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, rng.next_f32() - 0.5).normalize();
+            let at = ShadingPoint::new(Vec3A::ONE, normal, Matte::default());
+            // 11 samples: two full groups of four and a partial one.
+            let values: Vec<Vec2> = (0..11).map(|_| Vec2::new(rng.next_f32(), rng.next_f32())).collect();
+            let mut run = vec![None; values.len()];
+            placed.sample_run(&at, &values, &mut run);
+            for (j, &u) in values.iter().enumerate() {
+                assert_eq!(run[j], placed.sample(&at, &LightSamples::fixed(u)), "sample {j}, e = {exponent}");
+            }
+        }
     }
 }

@@ -1,8 +1,8 @@
 //! Maps from the unit square to the unit disk and to the hemisphere.
 
-use std::f32::consts::{FRAC_PI_4, PI};
+use std::f32::consts::{FRAC_PI_4, TAU};
 
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec4};
 
 /// Shirley–Chiu concentric mapping of [0,1)² onto the unit disk: area-preserving, low
 /// distortion, and continuous, so stratification survives the mapping.
@@ -29,22 +29,93 @@ pub struct HemisphereSample {
     pub weight: f32,
 }
 
+/// Four [`HemisphereSample`]s, component by component.
+#[derive(Clone, Copy, Debug)]
+pub struct HemisphereSamples4 {
+    /// x of each direction.
+    pub x: Vec4,
+    /// y of each direction.
+    pub y: Vec4,
+    /// z (cos θ) of each direction.
+    pub z: Vec4,
+    /// Each sample's weight.
+    pub weight: Vec4,
+}
+
 /// RTGU's cosine-power mapping (Suffern §7.3): φ = 2π u₀, cos θ = (1 − u₁)^{1/(e+1)}.
 /// The pdf is (e+1)/(2π) cos^e θ; the returned weight makes the AO estimate unbiased for any e.
+/// Lane 0 of [`cosine_power_hemisphere4`], so both give the same bits.
 #[inline]
 pub fn cosine_power_hemisphere(u: Vec2, e: f32) -> HemisphereSample {
-    let phi = 2.0 * PI * u.x;
+    let (sin_phi, cos_phi) = sin_cos_2pi_one(u.x);
     let cos_theta = if e == 1.0 { (1.0 - u.y).sqrt() } else { (1.0 - u.y).powf(1.0 / (e + 1.0)) };
     let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
-    let dir = Vec3::new(sin_theta * phi.cos(), sin_theta * phi.sin(), cos_theta);
-    let weight = if e == 1.0 {
-        1.0
-    } else if cos_theta > 0.0 {
-        2.0 * cos_theta.powf(1.0 - e) / (e + 1.0)
-    } else {
-        0.0
-    };
-    HemisphereSample { dir, weight: if weight.is_finite() { weight } else { 0.0 } }
+    let weight = if e == 1.0 { 1.0 } else { cosine_power_weight(cos_theta, e) };
+    HemisphereSample { dir: Vec3::new(sin_theta * cos_phi, sin_theta * sin_phi, cos_theta), weight }
+}
+
+/// The weight 2 cos^{1−e} θ / (e + 1) of a direction with cosine `c` (0 where not finite).
+#[inline]
+fn cosine_power_weight(c: f32, e: f32) -> f32 {
+    let w = if c > 0.0 { 2.0 * c.powf(1.0 - e) / (e + 1.0) } else { 0.0 };
+    if w.is_finite() { w } else { 0.0 }
+}
+
+/// [`cosine_power_hemisphere`] for four sample points (u₀, u₁) = (`u0[i]`, `u1[i]`), in SIMD
+/// lanes (SSE on x86_64): sin and cos of 2πu₀ come from one polynomial evaluation.
+#[inline]
+pub fn cosine_power_hemisphere4(u0: Vec4, u1: Vec4, e: f32) -> HemisphereSamples4 {
+    let (sin_phi, cos_phi) = sin_cos_2pi(u0);
+    let cos_theta = if e == 1.0 { (Vec4::ONE - u1).sqrt() } else { (Vec4::ONE - u1).powf(1.0 / (e + 1.0)) };
+    let sin_theta = (Vec4::ONE - cos_theta * cos_theta).max(Vec4::ZERO).sqrt();
+    let weight =
+        if e == 1.0 { Vec4::ONE } else { Vec4::from_array(cos_theta.to_array().map(|c| cosine_power_weight(c, e))) };
+    HemisphereSamples4 { x: sin_theta * cos_phi, y: sin_theta * sin_phi, z: cos_theta, weight }
+}
+
+/// Adding and removing 2²³ rounds to the nearest integer (exactly, below 2²²).
+const ROUNDER: f32 = 8_388_608.0;
+/// Cephes's sinf polynomial on [−π/4, π/4]: x + x³(S0 + x²(S1 + x²·S2)), in Horner order.
+const SIN: [f32; 3] = [-1.951_529_6e-4, 8.332_161e-3, -1.666_665_5e-1];
+/// Cephes's cosf polynomial on [−π/4, π/4]: 1 − x²/2 + x⁴(C0 + x²(C1 + x²·C2)).
+const COS: [f32; 3] = [2.443_315_7e-5, -1.388_731_6e-3, 4.166_664_6e-2];
+
+/// (sin 2πu, cos 2πu) for u in [0, 1], within 2e-7 of the true values. The angle is reduced
+/// exactly to a quarter turn q/4 plus r in [−1/8, 1/8]; sin and cos of 2πr are Cephes's sinf
+/// and cosf polynomials, then rotated by q quarter turns. [`sin_cos_2pi_one`] does the same
+/// operations on one value, so both give the same bits.
+#[inline(always)]
+fn sin_cos_2pi(u: Vec4) -> (Vec4, Vec4) {
+    let round = |x: Vec4| (x + Vec4::splat(ROUNDER)) - Vec4::splat(ROUNDER);
+    let q = round(u * 4.0);
+    // Exact: q/4 is a float within 1/8 of u.
+    let x = (u - q * 0.25) * TAU;
+    let z = x * x;
+    let sin = ((Vec4::splat(SIN[0]) * z + Vec4::splat(SIN[1])) * z + Vec4::splat(SIN[2])) * z * x + x;
+    let cos = ((Vec4::splat(COS[0]) * z + Vec4::splat(COS[1])) * z + Vec4::splat(COS[2])) * z * z - z * 0.5 + Vec4::ONE;
+    // Quarter turns: q odd swaps sin and cos; sin < 0 for q mod 4 in {2, 3}, cos for {1, 2}.
+    let half = q * 0.5;
+    let odd = half.cmpne(round(half));
+    let (s, c) = (Vec4::select(odd, cos, sin), Vec4::select(odd, sin, cos));
+    let sin_negative = q.cmpge(Vec4::splat(2.0)) & q.cmplt(Vec4::splat(4.0));
+    let cos_negative = q.cmpge(Vec4::ONE) & q.cmplt(Vec4::splat(3.0));
+    (Vec4::select(sin_negative, -s, s), Vec4::select(cos_negative, -c, c))
+}
+
+/// [`sin_cos_2pi`] of one value.
+#[inline(always)]
+fn sin_cos_2pi_one(u: f32) -> (f32, f32) {
+    let round = |x: f32| (x + ROUNDER) - ROUNDER;
+    let q = round(u * 4.0);
+    let x = (u - q * 0.25) * TAU;
+    let z = x * x;
+    let sin = ((SIN[0] * z + SIN[1]) * z + SIN[2]) * z * x + x;
+    let cos = ((COS[0] * z + COS[1]) * z + COS[2]) * z * z - z * 0.5 + 1.0;
+    let half = q * 0.5;
+    let (s, c) = if half != round(half) { (cos, sin) } else { (sin, cos) };
+    let sin_negative = (2.0..4.0).contains(&q);
+    let cos_negative = (1.0..3.0).contains(&q);
+    (if sin_negative { -s } else { s }, if cos_negative { -c } else { c })
 }
 
 #[cfg(test)]
@@ -68,14 +139,45 @@ mod tests {
             let r2 = p.length_squared();
             assert!(r2 <= 1.0 + 1e-6, "{p} outside the disk");
             let ring = ((r2 * rings as f32) as usize).min(rings - 1);
-            let angle = p.y.atan2(p.x).rem_euclid(2.0 * PI);
-            let sector = ((angle / (2.0 * PI) * sectors as f32) as usize).min(sectors - 1);
+            let angle = p.y.atan2(p.x).rem_euclid(TAU);
+            let sector = ((angle / (TAU) * sectors as f32) as usize).min(sectors - 1);
             counts[ring * sectors + sector] += 1.0;
         }
         let expected = n as f64 / counts.len() as f64;
         let chi2: f64 = counts.iter().map(|c| (c - expected).powi(2) / expected).sum();
         // 63 degrees of freedom: the 99.9 % quantile is 103.4.
         assert!(chi2 < 103.4, "chi² = {chi2}");
+    }
+
+    #[test]
+    fn sin_cos_2pi_is_within_2e_7_of_f64() {
+        let mut worst = 0.0f64;
+        for i in 0..=100_000u32 {
+            let u = i as f32 / 100_000.0;
+            let (s, c) = sin_cos_2pi(Vec4::splat(u));
+            assert_eq!((s.x, c.x), sin_cos_2pi_one(u), "u = {u}");
+            let a = std::f64::consts::TAU * u as f64;
+            worst = worst.max((s.x as f64 - a.sin()).abs()).max((c.x as f64 - a.cos()).abs());
+        }
+        assert!(worst < 2e-7, "max error {worst}");
+    }
+
+    #[test]
+    fn four_lanes_give_the_one_lane_bits() {
+        let pts = uniform_points(4_000, 3);
+        for e in [0.0f32, 1.0, 2.5] {
+            for q in pts.chunks_exact(4) {
+                let s = cosine_power_hemisphere4(
+                    Vec4::from_array(std::array::from_fn(|i| q[i].x)),
+                    Vec4::from_array(std::array::from_fn(|i| q[i].y)),
+                    e,
+                );
+                for (i, &u) in q.iter().enumerate() {
+                    let one = cosine_power_hemisphere(u, e);
+                    assert_eq!((one.dir, one.weight), (Vec3::new(s.x[i], s.y[i], s.z[i]), s.weight[i]), "{u} e={e}");
+                }
+            }
+        }
     }
 
     #[test]
