@@ -340,6 +340,10 @@ fn bake_static_meshes(entries: &[ShapeData], found: &mut Vec<String>) -> (HashSe
         let converted =
             world_space::validate_material(matte).and_then(|()| world_space::mesh(&mesh.0, transform, object as u32));
         match converted {
+            Ok(c) if prims.is_empty() => {
+                prims = c.prims;
+                degenerate += c.degenerate;
+            }
             Ok(c) => {
                 prims.extend(c.prims);
                 degenerate += c.degenerate;

@@ -27,6 +27,7 @@ use obvhs::{
     },
     triangle::Triangle as ObvhsTriangle,
 };
+use rayon::prelude::*;
 
 use super::{
     hit::SurfaceHit,
@@ -88,6 +89,9 @@ fn hit_prim(prim: &Prim, ray: &Ray, shear: &Shear) -> Option<(f32, f32, f32)> {
         Shape::Sphere(s) => s.intersect(ray).map(|t| (t, 0.0, 0.0)),
     }
 }
+
+/// Primitives per task in the BVH build's parallel loops.
+const PAR_CHUNK: usize = 4096;
 
 /// The wide tree traversal uses: eight children per node where the CPU has AVX, else four.
 #[derive(Clone, Debug)]
@@ -299,24 +303,23 @@ impl Blas {
         let params = build_params(prims.len());
         // obvhs splits only triangles, given as its own type: all or nothing.
         let split_tris = || -> Option<Vec<ObvhsTriangle>> {
-            prims
-                .iter()
-                .map(|p| match p.shape {
-                    Shape::Triangle(t) => Some(ObvhsTriangle { v0: t.p[0], v1: t.p[1], v2: t.p[2] }),
-                    Shape::Sphere(_) => None,
-                })
-                .collect()
+            let all_triangles = prims.iter().all(|p| matches!(p.shape, Shape::Triangle(_)));
+            let as_obvhs = |p: &Prim| match p.shape {
+                Shape::Triangle(t) => ObvhsTriangle { v0: t.p[0], v1: t.p[1], v2: t.p[2] },
+                Shape::Sphere(_) => unreachable!("all triangles"),
+            };
+            all_triangles.then(|| prims.par_iter().with_min_len(PAR_CHUNK).map(as_obvhs).collect())
         };
         let bvh = if prims.is_empty() {
             Bvh2::default()
         } else if let Some(tris) = split.then(split_tris).flatten() {
             build_bvh2_from_tris(&tris, BvhBuildParams { pre_split: true, ..params }, &mut Duration::default())
         } else {
-            let aabbs: Vec<Aabb> = prims.iter().map(Prim::bounds).collect();
+            let aabbs: Vec<Aabb> = prims.par_iter().with_min_len(PAR_CHUNK).map(Prim::bounds).collect();
             build_bvh2(&aabbs, params, &mut Duration::default())
         };
         let unique_prims = prims.len();
-        let prims = bvh.primitive_indices.iter().map(|&i| prims[i as usize]).collect();
+        let prims = bvh.primitive_indices.par_iter().with_min_len(PAR_CHUNK).map(|&i| prims[i as usize]).collect();
         let depth = subtree_depth(&bvh.nodes);
         let mut blas = Blas {
             bvh,
@@ -345,14 +348,18 @@ impl Blas {
             Shape::Triangle(t) => (k, t),
             Shape::Sphere(_) => unreachable!("an all-triangle BLAS"),
         };
-        let packets = &mut self.packets;
+        // Leaves in node order get consecutive packet ranges; the packets are filled in parallel.
+        let mut lanes = Vec::new();
         self.tree.map_leaves(|first, count| {
-            let start = packets.len() as u32;
-            for lane0 in (first..first + count).step_by(4) {
-                packets.push(Tri4::pack((lane0..(lane0 + 4).min(first + count)).map(triangle)));
-            }
-            (start, packets.len() as u32 - start)
+            let start = lanes.len() as u32;
+            lanes.extend((first..first + count).step_by(4).map(|lane0| (lane0, (lane0 + 4).min(first + count))));
+            (start, lanes.len() as u32 - start)
         });
+        self.packets = lanes
+            .par_iter()
+            .with_min_len(PAR_CHUNK / 4)
+            .map(|&(first, end)| Tri4::pack((first..end).map(triangle)))
+            .collect();
     }
 
     /// A mesh's triangles in its own frame; zero-area triangles are counted and skipped.
