@@ -28,6 +28,15 @@ impl RayCounts {
         self.primary + self.ao + self.shadow
     }
 
+    /// Counts `n` shadow rays of a light with term `term`.
+    #[inline]
+    fn count(&mut self, term: Term, n: u64) {
+        match term {
+            Term::Ambient => self.ao += n,
+            Term::Diffuse => self.shadow += n,
+        }
+    }
+
     /// Adds another count to this one.
     pub fn add(&mut self, other: &RayCounts) {
         self.primary += other.primary;
@@ -108,6 +117,9 @@ pub struct Tracer {
     arriving: Vec<Vec3>,
     /// One light's samples for a run of samples that share a hit.
     drawn: Vec<Option<LightSample>>,
+    /// The shadow rays of such a run, and which of them are blocked.
+    shadow_rays: Vec<Ray>,
+    shadow_blocked: Vec<bool>,
     /// Every light dimension's samples for a pixel's run of camera samples that do not share a
     /// hit (jittered or lens rays), computed ahead by [`Tracer::prepare_run`].
     run: RunSamples,
@@ -263,17 +275,20 @@ impl Tracer {
             }
             if ahead.is_none() && P::DIMS > 0 {
                 light.sample_run(at, &values, &mut drawn);
+                self.add_run(scene, spawn, &drawn, P::TERM, arriving);
+                continue;
             }
             for (j, sum) in arriving.iter_mut().enumerate() {
-                let drawn = if P::DIMS == 0 {
-                    let u = LightSamples::from_sets(scene.sets, pixel, first.wrapping_add(j as u32), dim, 0);
-                    light.sample(at, &u)
-                } else if let Some(at_sample) = ahead {
-                    let start = (dim - dims::LIGHTS) as usize * run.stride;
-                    let columns = &run.values[start..start + P::DIMS as usize * run.stride];
-                    light.sample(at, &LightSamples::from_columns(columns, at_sample, run.stride))
-                } else {
-                    drawn[j]
+                let drawn = match ahead {
+                    Some(at_sample) if P::DIMS > 0 => {
+                        let start = (dim - dims::LIGHTS) as usize * run.stride;
+                        let columns = &run.values[start..start + P::DIMS as usize * run.stride];
+                        light.sample(at, &LightSamples::from_columns(columns, at_sample, run.stride))
+                    }
+                    _ => {
+                        let u = LightSamples::from_sets(scene.sets, pixel, first.wrapping_add(j as u32), dim, 0);
+                        light.sample(at, &u)
+                    }
                 };
                 let Some(s) = drawn else { continue };
                 *sum += match s.shadow {
@@ -294,20 +309,48 @@ impl Tracer {
         self.run = run;
     }
 
+    /// Adds a run of samples drawn at one hit to `arriving`, tracing the shadow rays whose answer
+    /// matters in one call.
+    fn add_run(
+        &mut self,
+        scene: &Scene,
+        spawn: &SpawnOrigins,
+        drawn: &[Option<LightSample>],
+        term: Term,
+        arriving: &mut [Vec3],
+    ) {
+        // A shadow ray only when its answer changes the result.
+        let needs_ray = |s: &LightSample| s.shadow.filter(|_| s.unoccluded != s.occluded);
+        let rays = &mut self.shadow_rays;
+        rays.clear();
+        rays.extend(drawn.iter().flatten().filter_map(needs_ray).map(|shadow| shadow_ray(spawn, shadow)));
+        self.shadow_blocked.resize(rays.len(), false);
+        scene.geometry.occluded_many(rays, &mut self.stack, &mut self.shadow_blocked);
+        self.rays.count(term, rays.len() as u64);
+        let mut blocked = self.shadow_blocked.iter();
+        for (sum, s) in arriving.iter_mut().zip(drawn) {
+            let Some(s) = s else { continue };
+            let occluded = needs_ray(s).is_some() && blocked.next().copied().unwrap_or(false);
+            *sum += if occluded { s.occluded } else { s.unoccluded };
+        }
+    }
+
     /// Traces a shadow segment from a hit, counted by the light's term; true if blocked.
     #[inline]
     fn blocked(&mut self, scene: &Scene, spawn: &SpawnOrigins, shadow: Shadow, term: Term) -> bool {
-        let ray = match shadow {
-            Shadow::ToPoint(q) => {
-                let origin = spawn.towards(q - spawn.p);
-                Ray::new(origin, q - origin, 1.0 - SHADOW_EPSILON)
-            }
-            Shadow::Along { dir, max_distance } => Ray::new(spawn.towards(dir), dir, max_distance),
-        };
-        match term {
-            Term::Ambient => self.rays.ao += 1,
-            Term::Diffuse => self.rays.shadow += 1,
+        self.rays.count(term, 1);
+        scene.geometry.occluded(&shadow_ray(spawn, shadow), &mut self.stack)
+    }
+}
+
+/// The ray that tests `shadow` from a hit, its origin just off the surface on the ray's side.
+#[inline]
+fn shadow_ray(spawn: &SpawnOrigins, shadow: Shadow) -> Ray {
+    match shadow {
+        Shadow::ToPoint(q) => {
+            let origin = spawn.towards(q - spawn.p);
+            Ray::new(origin, q - origin, 1.0 - SHADOW_EPSILON)
         }
-        scene.geometry.occluded(&ray, &mut self.stack)
+        Shadow::Along { dir, max_distance } => Ray::new(spawn.towards(dir), dir, max_distance),
     }
 }

@@ -149,3 +149,44 @@ fn axis_parallel_rays_and_rays_in_slab_planes_are_handled() {
         }
     }
 }
+
+#[test]
+fn a_batch_of_occlusion_queries_answers_as_single_queries_do() {
+    use std::sync::Arc;
+
+    use glam::{Affine3A, Quat};
+    use hemi::geometry::accel::{Blas, Instance};
+    // One world-space BLAS with a plane, and twelve rotated, scaled instances of a torus knot.
+    let baked = scene();
+    let blas = Arc::new(Blas::from_mesh(&torus_knot(2, 3, 0.8, 0.15, 120, 10)));
+    let mut rng = SplitMix64::new(11);
+    let instances = (0..12)
+        .map(|i| {
+            let p = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 8.0 - 4.0;
+            let m = Affine3A::from_scale_rotation_translation(
+                Vec3::splat(0.5 + rng.next_f32()),
+                Quat::from_rotation_y(i as f32),
+                p,
+            );
+            Instance::new(0, blas.bounds().unwrap(), m, Some(0)).unwrap()
+        })
+        .collect();
+    let object = Object { entity: Entity::PLACEHOLDER, material: Matte::default() };
+    let instanced = SceneGeometry::from_instances(vec![blas], instances, vec![], vec![object]);
+    let mut stack = Vec::new();
+    for geometry in [&baked, &instanced] {
+        let rays: Vec<Ray> = (0..3_000)
+            .map(|i| {
+                let origin = (Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 12.0) - 6.0;
+                let tmax = if i % 2 == 0 { f32::INFINITY } else { rng.next_f32() * 6.0 };
+                Ray::new(origin, random_unit(&mut rng), tmax)
+            })
+            .collect();
+        let single: Vec<bool> = rays.iter().map(|r| geometry.occluded(r, &mut stack)).collect();
+        let mut batch = vec![false; rays.len()];
+        geometry.occluded_many(&rays, &mut stack, &mut batch);
+        assert_eq!(batch, single);
+        let blocked = single.iter().filter(|&&b| b).count();
+        assert!(blocked > 150 && blocked < 2_850, "{blocked} of 3000 blocked");
+    }
+}

@@ -207,6 +207,48 @@ impl TreeQuery for BlasOccluded<'_> {
     }
 }
 
+/// [`BlasOccluded`] for each ray not yet known to be blocked.
+struct BlasOccludedMany<'a> {
+    blas: &'a Blas,
+    rays: &'a [Ray],
+    stack: &'a mut Vec<(u32, f32)>,
+    blocked: &'a mut [bool],
+}
+
+impl TreeQuery for BlasOccludedMany<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn run<const W: usize>(self, tree: &WideBvh<W>)
+    where
+        Node<W>: NodeTest<W>,
+    {
+        for (ray, b) in self.rays.iter().zip(self.blocked.iter_mut()) {
+            *b = *b || self.blas.occluded_in(tree, ray, self.stack);
+        }
+    }
+}
+
+/// [`TopOccluded`] for each ray not yet known to be blocked.
+struct TopOccludedMany<'a> {
+    scene: &'a SceneGeometry,
+    rays: &'a [Ray],
+    stack: &'a mut Vec<(u32, f32)>,
+    blocked: &'a mut [bool],
+}
+
+impl TreeQuery for TopOccludedMany<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn run<const W: usize>(self, tree: &WideBvh<W>)
+    where
+        Node<W>: NodeTest<W>,
+    {
+        for (ray, b) in self.rays.iter().zip(self.blocked.iter_mut()) {
+            *b = *b || self.scene.occluded_through(tree, ray, self.stack);
+        }
+    }
+}
+
 /// Closest hit through the top level: (instance, primitive slot, b1, b2).
 struct TopClosest<'a> {
     scene: &'a SceneGeometry,
@@ -941,6 +983,24 @@ impl SceneGeometry {
             return self.blases[inst.blas as usize].occluded(ray, stack);
         }
         self.top.query(TopOccluded { scene: self, ray, stack })
+    }
+
+    /// [`SceneGeometry::occluded`] for each of `rays` into `blocked` (same length), in one call:
+    /// the dispatch to the tree's width and the traversal's set-up outside the loop over rays.
+    pub fn occluded_many(&self, rays: &[Ray], stack: &mut Vec<(u32, f32)>, blocked: &mut [bool]) {
+        for (ray, b) in rays.iter().zip(blocked.iter_mut()) {
+            *b = self.planes.iter().any(|p| p.intersect(ray).is_some());
+        }
+        stack.clear();
+        if let [inst] = &self.instances[..]
+            && inst.identity
+        {
+            let blas = &self.blases[inst.blas as usize];
+            return blas.tree.query(BlasOccludedMany { blas, rays, stack, blocked });
+        }
+        if !self.instances.is_empty() {
+            self.top.query(TopOccludedMany { scene: self, rays, stack, blocked });
+        }
     }
 
     /// Occlusion through the top-level tree `top`.
