@@ -108,9 +108,10 @@ impl PlacedOccluder {
         // The frame's to_world lane by lane, in its order of operations: u·x + v·y + w·z.
         let f = &at.frame;
         let world = |a: usize| Vec4::splat(f.u[a]) * s.x + Vec4::splat(f.v[a]) * s.y + Vec4::splat(f.w[a]) * s.z;
-        let (x, y, z) = (world(0), world(1), world(2));
+        let (x, y, z) = (world(0).to_array(), world(1).to_array(), world(2).to_array());
+        let weight = s.weight.to_array();
         for (i, o) in out.iter_mut().enumerate() {
-            *o = Some(self.light_sample(s.weight[i], || Vec3A::new(x[i], y[i], z[i])));
+            *o = Some(self.light_sample(weight[i], || Vec3A::new(x[i], y[i], z[i])));
         }
     }
 
