@@ -323,7 +323,10 @@ impl Tracer {
         let needs_ray = |s: &LightSample| s.shadow.filter(|_| s.unoccluded != s.occluded);
         let rays = &mut self.shadow_rays;
         rays.clear();
-        rays.extend(drawn.iter().flatten().filter_map(needs_ray).map(|shadow| shadow_ray(spawn, shadow)));
+        rays.reserve(drawn.len());
+        for shadow in drawn.iter().flatten().filter_map(needs_ray) {
+            rays.push(shadow_ray(spawn, shadow));
+        }
         self.shadow_blocked.resize(rays.len(), false);
         scene.geometry.occluded_many(rays, &mut self.stack, &mut self.shadow_blocked);
         self.rays.count(term, rays.len() as u64);

@@ -178,22 +178,21 @@ fn trace_tile<C: CameraRays>(
             // (point lights) once.
             let shared = (!job.jitter && !C::USES_LENS)
                 .then(|| tracer.primary(scene, &camera.ray(x, y, Vec2::splat(0.5), Vec2::ZERO)));
-            samples.clear();
+            // What the lights that draw no samples add to every sample (shared hits only).
+            let mut fixed = SampleResult::default();
             match &shared {
                 Some(Some(hit)) => {
-                    let mut fixed = [SampleResult::default()];
-                    tracer.shade(scene, hit, pixel, first, !job.aovs, Lights::Fixed, &mut fixed);
+                    tracer.shade(scene, hit, pixel, first, !job.aovs, Lights::Fixed, std::slice::from_mut(&mut fixed));
+                    // `shade` sets every field of every sample: no need to clear them first.
                     samples.resize(count as usize, SampleResult::default());
                     tracer.shade(scene, hit, pixel, first, !job.aovs, Lights::Sampled, &mut samples);
-                    for s in &mut samples {
-                        s.radiance += fixed[0].radiance;
-                        s.direct += fixed[0].direct;
-                    }
                 }
                 Some(None) => {
+                    samples.clear();
                     samples.resize(count as usize, SampleResult { radiance: scene.background, ..Default::default() })
                 }
                 None => {
+                    samples.clear();
                     // Every sample has a camera ray of its own: compute the run's samples of
                     // every dimension ahead, then trace and shade sample by sample.
                     films.clear();
@@ -214,6 +213,7 @@ fn trace_tile<C: CameraRays>(
                 }
             }
             for s in &samples {
+                let s = &SampleResult { radiance: s.radiance + fixed.radiance, direct: s.direct + fixed.direct, ..*s };
                 let values = job.aovs.then(|| s.aov_values());
                 if !s.radiance.is_finite() || values.is_some_and(|v| v.iter().any(|x| !x.is_finite())) {
                     nonfinite += 1;
