@@ -25,7 +25,7 @@ use crate::{
     geometry::SpawnOrigins,
     math::Onb,
     sampling::SampleSets,
-    shading::{Scene, Tracer},
+    shading::{RunPoint, Scene, Tracer},
     systems::{FrameStage, scene_changes::detect_scene_changes},
 };
 
@@ -246,6 +246,20 @@ pub trait LightGroup: Send + Sync {
         first_dim: u32,
         arriving: &mut [Vec3],
     );
+    /// Adds the group's light arriving at each of a run's shading points (one camera sample
+    /// each, its samples computed ahead) into `arriving`, one element per point.
+    #[allow(clippy::too_many_arguments)]
+    fn shade_points(
+        &self,
+        tracer: &mut Tracer,
+        scene: &Scene,
+        points: &[RunPoint],
+        pixel: u32,
+        first: u32,
+        first_dim: u32,
+        skip_black: bool,
+        arriving: &mut [Vec3],
+    );
 }
 
 struct Group<P>(Vec<P>);
@@ -276,6 +290,20 @@ impl<P: PlacedLight> LightGroup for Group<P> {
         arriving: &mut [Vec3],
     ) {
         tracer.shade_lights(scene, spawn, at, &self.0, pixel, first, first_dim, arriving)
+    }
+
+    fn shade_points(
+        &self,
+        tracer: &mut Tracer,
+        scene: &Scene,
+        points: &[RunPoint],
+        pixel: u32,
+        first: u32,
+        first_dim: u32,
+        skip_black: bool,
+        arriving: &mut [Vec3],
+    ) {
+        tracer.shade_points_lights(scene, points, &self.0, pixel, first, first_dim, skip_black, arriving)
     }
 }
 

@@ -89,8 +89,6 @@ impl SampleResult {
 /// Which lights [`Tracer::shade`] evaluates.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Lights {
-    /// Every light.
-    All,
     /// Lights that use no random numbers (e.g. point lights): the same at a given hit for
     /// every sample, so evaluated once when samples share a hit.
     Fixed,
@@ -123,17 +121,28 @@ pub struct Tracer {
     /// Every light dimension's samples for a pixel's run of camera samples that do not share a
     /// hit (jittered or lens rays), computed ahead by [`Tracer::prepare_run`].
     run: RunSamples,
+    /// The shading points of such a run.
+    points: Vec<RunPoint>,
     /// Rays traced by this tracer.
     pub rays: RayCounts,
 }
 
 /// Light samples of a run computed ahead: dimension `dims::LIGHTS + k` of sample `j` is
-/// `values[k * stride + j]`; `at` is the sample being shaded.
+/// `values[k * stride + j]`.
 #[derive(Default)]
 struct RunSamples {
     values: Vec<Vec2>,
     stride: usize,
-    at: Option<usize>,
+}
+
+/// A camera sample of a run whose ray hit something, ready to be lit.
+pub struct RunPoint {
+    /// Index of the sample in the run.
+    j: u32,
+    /// The lit point.
+    at: ShadingPoint,
+    /// Where its shadow rays start.
+    spawn: SpawnOrigins,
 }
 
 /// pbrt-v4's ShadowEpsilon: shadow rays to a point stop this fraction short of it.
@@ -141,7 +150,7 @@ const SHADOW_EPSILON: f32 = 1e-4;
 
 impl Tracer {
     /// Computes every light dimension's samples for samples `first..first + count` of `pixel`
-    /// at once (one hash per pass, vectorised patterns), for [`Tracer::sample_in_run`].
+    /// at once (one hash per pass, vectorised patterns), for [`Tracer::shade_run`].
     pub fn prepare_run(&mut self, scene: &Scene, pixel: u32, first: u32, count: u32) {
         let dims = scene.lights.iter().map(|(d, g)| d + g.dims()).max().unwrap_or(dims::LIGHTS) - dims::LIGHTS;
         let run = &mut self.run;
@@ -152,33 +161,57 @@ impl Tracer {
         }
     }
 
-    /// [`Tracer::sample`] for sample `first + j` of the run last given to
-    /// [`Tracer::prepare_run`], reading the light samples computed there.
-    #[inline(always)]
-    pub fn sample_in_run(
+    /// Light reflected for the run of samples `first, first + 1, …` of `pixel` last given to
+    /// [`Tracer::prepare_run`], each at its own camera hit (`hits[j]`, `None` where the camera
+    /// ray escaped), into `out[j]`. `skip_black` lets lights whose reflectance is zero at a hit
+    /// be skipped there (no rays); AOVs need them traced. Each light type is called once for
+    /// the whole run, reading the light samples computed ahead.
+    pub fn shade_run(
         &mut self,
         scene: &Scene,
-        ray: &Ray,
+        hits: &[Option<PrimaryHit>],
         pixel: u32,
         first: u32,
-        j: u32,
         skip_black: bool,
-    ) -> SampleResult {
-        self.run.at = Some(j as usize);
-        let s = self.sample(scene, ray, pixel, first + j, skip_black);
-        self.run.at = None;
-        s
-    }
-
-    /// What the camera ray sees for sample `index` of `pixel`. `skip_black` lets lights whose
-    /// reflectance is zero at the hit be skipped (no rays); AOVs need them traced.
-    #[inline(always)]
-    pub fn sample(&mut self, scene: &Scene, ray: &Ray, pixel: u32, index: u32, skip_black: bool) -> SampleResult {
-        let mut out = [SampleResult { radiance: scene.background, ..Default::default() }];
-        if let Some(hit) = self.primary(scene, ray) {
-            self.shade(scene, &hit, pixel, index, skip_black, Lights::All, &mut out);
+        out: &mut [SampleResult],
+    ) {
+        let mut points = std::mem::take(&mut self.points);
+        points.clear();
+        for (j, (o, hit)) in out.iter_mut().zip(hits).enumerate() {
+            let Some(primary) = hit else {
+                *o = SampleResult { radiance: scene.background, ..Default::default() };
+                continue;
+            };
+            let hit = &primary.hit;
+            let material = scene.geometry.objects[hit.object as usize].material;
+            *o = SampleResult {
+                albedo: material.cd,
+                normal: hit.normal.into(),
+                depth: primary.depth,
+                hit: true,
+                ..Default::default()
+            };
+            let at = ShadingPoint::new(hit.p, hit.normal, material);
+            points.push(RunPoint { j: j as u32, at, spawn: hit.spawn_origins() });
         }
-        out[0]
+        let mut arriving = std::mem::take(&mut self.arriving);
+        for &(first_dim, group) in scene.lights {
+            arriving.clear();
+            arriving.resize(points.len(), Vec3::ZERO);
+            group.shade_points(self, scene, &points, pixel, first, first_dim, skip_black, &mut arriving);
+            let term = group.term();
+            for (p, &a) in points.iter().zip(&arriving) {
+                let o = &mut out[p.j as usize];
+                let reflected = term.reflectance(&p.at.material) * a;
+                o.radiance += reflected;
+                match term {
+                    Term::Ambient => o.ao += a.element_sum() / 3.0,
+                    Term::Diffuse => o.direct += reflected,
+                }
+            }
+        }
+        self.arriving = arriving;
+        self.points = points;
     }
 
     /// The camera ray's first hit (one primary ray), with the distance it travelled.
@@ -264,48 +297,66 @@ impl Tracer {
         values.resize(n * P::DIMS as usize, Vec2::ZERO);
         let mut drawn = std::mem::take(&mut self.drawn);
         drawn.resize(n, None);
-        let run = std::mem::take(&mut self.run);
-        let ahead = run.at.filter(|_| n == 1);
         for (l, light) in lights.iter().enumerate() {
             let dim = first_dim + l as u32 * P::DIMS;
-            if ahead.is_none() {
+            if P::DIMS > 0 {
                 for (k, column) in (0..P::DIMS).zip(values.chunks_exact_mut(n.max(1))) {
                     scene.sets.fill(pixel, first, dim + k, column);
                 }
-            }
-            if ahead.is_none() && P::DIMS > 0 {
                 light.sample_run(at, &values, &mut drawn);
-                self.add_run(scene, spawn, &drawn, P::TERM, arriving);
-                continue;
+            } else {
+                for (j, d) in drawn.iter_mut().enumerate() {
+                    *d = light
+                        .sample(at, &LightSamples::from_sets(scene.sets, pixel, first.wrapping_add(j as u32), dim, 0));
+                }
             }
-            for (j, sum) in arriving.iter_mut().enumerate() {
-                let drawn = match ahead {
-                    Some(at_sample) if P::DIMS > 0 => {
-                        let start = (dim - dims::LIGHTS) as usize * run.stride;
-                        let columns = &run.values[start..start + P::DIMS as usize * run.stride];
-                        light.sample(at, &LightSamples::from_columns(columns, at_sample, run.stride))
-                    }
-                    _ => {
-                        let u = LightSamples::from_sets(scene.sets, pixel, first.wrapping_add(j as u32), dim, 0);
-                        light.sample(at, &u)
-                    }
-                };
-                let Some(s) = drawn else { continue };
-                *sum += match s.shadow {
-                    // A shadow ray only when its answer changes the result.
-                    Some(shadow) if s.unoccluded != s.occluded => {
-                        if self.blocked(scene, spawn, shadow, P::TERM) {
-                            s.occluded
-                        } else {
-                            s.unoccluded
-                        }
-                    }
-                    _ => s.unoccluded,
-                };
-            }
+            self.add_run(scene, spawn, &drawn, P::TERM, arriving);
         }
         self.samples = values;
         self.drawn = drawn;
+    }
+
+    /// Adds the light arriving from `lights` (all of one type) at each of a run's `points`
+    /// (sample `first + p.j` of `pixel`, its light samples read from the run computed ahead)
+    /// into `arriving`; points whose reflectance for `P::TERM` is black are skipped when
+    /// `skip_black`.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn shade_points_lights<P: PlacedLight>(
+        &mut self,
+        scene: &Scene,
+        points: &[RunPoint],
+        lights: &[P],
+        pixel: u32,
+        first: u32,
+        first_dim: u32,
+        skip_black: bool,
+        arriving: &mut [Vec3],
+    ) {
+        let run = std::mem::take(&mut self.run);
+        for (l, light) in lights.iter().enumerate() {
+            let dim = first_dim + l as u32 * P::DIMS;
+            let start = (dim - dims::LIGHTS) as usize * run.stride;
+            let columns = &run.values[start..start + P::DIMS as usize * run.stride];
+            for (p, sum) in points.iter().zip(arriving.iter_mut()) {
+                if skip_black && P::TERM.reflectance(&p.at.material).max_element() <= 0.0 {
+                    continue;
+                }
+                let u = if P::DIMS == 0 {
+                    LightSamples::from_sets(scene.sets, pixel, first.wrapping_add(p.j), dim, 0)
+                } else {
+                    LightSamples::from_columns(columns, p.j as usize, run.stride)
+                };
+                let Some(s) = light.sample(&p.at, &u) else { continue };
+                *sum +=
+                    match s.shadow {
+                        // A shadow ray only when its answer changes the result.
+                        Some(shadow) if s.unoccluded != s.occluded => {
+                            if self.blocked(scene, &p.spawn, shadow, P::TERM) { s.occluded } else { s.unoccluded }
+                        }
+                        _ => s.unoccluded,
+                    };
+            }
+        }
         self.run = run;
     }
 

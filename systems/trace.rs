@@ -147,7 +147,7 @@ fn trace_tile<C: CameraRays>(
     let mut tracer = Tracer::default();
     // One pixel's samples of this frame.
     let mut samples = Vec::with_capacity(job.count as usize);
-    let (mut films, mut lenses) = (Vec::new(), Vec::new());
+    let (mut films, mut lenses, mut hits) = (Vec::new(), Vec::new(), Vec::new());
     let mut nonfinite = 0;
     let pixels = ((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize;
     let mut sums = Vec::with_capacity(pixels);
@@ -192,9 +192,9 @@ fn trace_tile<C: CameraRays>(
                     samples.resize(count as usize, SampleResult { radiance: scene.background, ..Default::default() })
                 }
                 None => {
-                    samples.clear();
                     // Every sample has a camera ray of its own: compute the run's samples of
-                    // every dimension ahead, then trace and shade sample by sample.
+                    // every dimension ahead, trace the camera rays, then light every hit, one
+                    // call per light type for the whole run.
                     films.clear();
                     films.resize(count as usize, Vec2::splat(0.5));
                     lenses.clear();
@@ -206,10 +206,12 @@ fn trace_tile<C: CameraRays>(
                         scene.sets.fill(pixel, first, dims::LENS, &mut lenses);
                     }
                     tracer.prepare_run(scene, pixel, first, count);
-                    samples.extend((0..count).map(|j| {
-                        let ray = camera.ray(x, y, films[j as usize], lenses[j as usize]);
-                        tracer.sample_in_run(scene, &ray, pixel, first, j, !job.aovs)
-                    }));
+                    hits.clear();
+                    hits.extend(
+                        (0..count as usize).map(|j| tracer.primary(scene, &camera.ray(x, y, films[j], lenses[j]))),
+                    );
+                    samples.resize(count as usize, SampleResult::default());
+                    tracer.shade_run(scene, &hits, pixel, first, !job.aovs, &mut samples);
                 }
             }
             for s in &samples {
