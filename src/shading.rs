@@ -310,7 +310,7 @@ impl Tracer {
                         .sample(at, &LightSamples::from_sets(scene.sets, pixel, first.wrapping_add(j as u32), dim, 0));
                 }
             }
-            self.add_run(scene, spawn, &drawn, P::TERM, arriving);
+            self.add_run(scene, |_| spawn, &drawn, P::TERM, arriving);
         }
         self.samples = values;
         self.drawn = drawn;
@@ -333,39 +333,35 @@ impl Tracer {
         arriving: &mut [Vec3],
     ) {
         let run = std::mem::take(&mut self.run);
+        let mut drawn = std::mem::take(&mut self.drawn);
         for (l, light) in lights.iter().enumerate() {
             let dim = first_dim + l as u32 * P::DIMS;
             let start = (dim - dims::LIGHTS) as usize * run.stride;
             let columns = &run.values[start..start + P::DIMS as usize * run.stride];
-            for (p, sum) in points.iter().zip(arriving.iter_mut()) {
+            drawn.clear();
+            drawn.extend(points.iter().map(|p| {
                 if skip_black && P::TERM.reflectance(&p.at.material).max_element() <= 0.0 {
-                    continue;
+                    return None;
                 }
                 let u = if P::DIMS == 0 {
                     LightSamples::from_sets(scene.sets, pixel, first.wrapping_add(p.j), dim, 0)
                 } else {
                     LightSamples::from_columns(columns, p.j as usize, run.stride)
                 };
-                let Some(s) = light.sample(&p.at, &u) else { continue };
-                *sum +=
-                    match s.shadow {
-                        // A shadow ray only when its answer changes the result.
-                        Some(shadow) if s.unoccluded != s.occluded => {
-                            if self.blocked(scene, &p.spawn, shadow, P::TERM) { s.occluded } else { s.unoccluded }
-                        }
-                        _ => s.unoccluded,
-                    };
-            }
+                light.sample(&p.at, &u)
+            }));
+            self.add_run(scene, |k| &points[k].spawn, &drawn, P::TERM, arriving);
         }
+        self.drawn = drawn;
         self.run = run;
     }
 
-    /// Adds a run of samples drawn at one hit to `arriving`, tracing the shadow rays whose answer
-    /// matters in one call.
-    fn add_run(
+    /// Adds a run of drawn samples to `arriving`, tracing the shadow rays whose answer matters in
+    /// one call; sample `j`'s rays start at `spawn(j)`.
+    fn add_run<'a>(
         &mut self,
         scene: &Scene,
-        spawn: &SpawnOrigins,
+        spawn: impl Fn(usize) -> &'a SpawnOrigins,
         drawn: &[Option<LightSample>],
         term: Term,
         arriving: &mut [Vec3],
@@ -375,8 +371,10 @@ impl Tracer {
         let rays = &mut self.shadow_rays;
         rays.clear();
         rays.reserve(drawn.len());
-        for shadow in drawn.iter().flatten().filter_map(needs_ray) {
-            rays.push(shadow_ray(spawn, shadow));
+        for (j, s) in drawn.iter().enumerate() {
+            if let Some(shadow) = s.as_ref().and_then(needs_ray) {
+                rays.push(shadow_ray(spawn(j), shadow));
+            }
         }
         self.shadow_blocked.resize(rays.len(), false);
         scene.geometry.occluded_many(rays, &mut self.stack, &mut self.shadow_blocked);
@@ -387,13 +385,6 @@ impl Tracer {
             let occluded = needs_ray(s).is_some() && blocked.next().copied().unwrap_or(false);
             *sum += if occluded { s.occluded } else { s.unoccluded };
         }
-    }
-
-    /// Traces a shadow segment from a hit, counted by the light's term; true if blocked.
-    #[inline]
-    fn blocked(&mut self, scene: &Scene, spawn: &SpawnOrigins, shadow: Shadow, term: Term) -> bool {
-        self.rays.count(term, 1);
-        scene.geometry.occluded(&shadow_ray(spawn, shadow), &mut self.stack)
     }
 }
 
