@@ -113,9 +113,9 @@ pub struct Tracer {
     samples: Vec<Vec2>,
     /// One light group's arriving light for a run of samples.
     arriving: Vec<Vec3>,
-    /// One light's samples for a run of samples that share a hit.
+    /// One light's samples for a run of samples.
     drawn: Vec<Option<LightSample>>,
-    /// The shadow rays of such a run, and which of them are blocked.
+    /// The shadow rays of a run, and which of them are blocked.
     shadow_rays: Vec<Ray>,
     shadow_blocked: Vec<bool>,
     /// Every light dimension's samples for a pixel's run of camera samples that do not share a
