@@ -183,9 +183,11 @@ fn a_batch_of_occlusion_queries_answers_as_single_queries_do() {
             })
             .collect();
         let single: Vec<bool> = rays.iter().map(|r| geometry.occluded(r, &mut stack)).collect();
+        let truth: Vec<bool> = rays.iter().map(|r| geometry.intersect_brute_force(r).is_some()).collect();
         let mut batch = vec![false; rays.len()];
         geometry.occluded_many(&rays, &mut stack, &mut batch);
-        assert_eq!(batch, single);
+        assert_eq!(batch, truth);
+        assert_eq!(single, truth);
         let blocked = single.iter().filter(|&&b| b).count();
         assert!(blocked > 150 && blocked < 2_850, "{blocked} of 3000 blocked");
     }

@@ -189,33 +189,24 @@ impl TreeQuery for BlasClosest<'_> {
     }
 }
 
-/// Whether anything in a BLAS blocks the ray.
-struct BlasOccluded<'a> {
-    blas: &'a Blas,
-    ray: &'a Ray,
-    stack: &'a mut Vec<(u32, f32)>,
-}
-
-impl TreeQuery for BlasOccluded<'_> {
-    type Output = bool;
-    #[inline(always)]
-    fn run<const W: usize>(self, tree: &WideBvh<W>) -> bool
-    where
-        Node<W>: NodeTest<W>,
-    {
-        self.blas.occluded_in(tree, self.ray, self.stack)
-    }
-}
-
-/// [`BlasOccluded`] for each ray not yet known to be blocked.
-struct BlasOccludedMany<'a> {
-    blas: &'a Blas,
+/// Occlusion of each of `rays` not yet known to be blocked (`blocked`, same length), by
+/// `target`'s traversal of the tree: one call, one dispatch to the tree's width.
+struct OccludedEach<'a, T> {
+    target: &'a T,
     rays: &'a [Ray],
     stack: &'a mut Vec<(u32, f32)>,
     blocked: &'a mut [bool],
 }
 
-impl TreeQuery for BlasOccludedMany<'_> {
+/// What an [`OccludedEach`] query traverses: a BLAS, or the scene through its top level.
+trait Occluder {
+    /// Whether anything reached through `tree` blocks `ray`. Uses `stack` above its length.
+    fn occluded_in<const W: usize>(&self, tree: &WideBvh<W>, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool
+    where
+        Node<W>: NodeTest<W>;
+}
+
+impl<T: Occluder> TreeQuery for OccludedEach<'_, T> {
     type Output = ();
     #[inline(always)]
     fn run<const W: usize>(self, tree: &WideBvh<W>)
@@ -223,28 +214,7 @@ impl TreeQuery for BlasOccludedMany<'_> {
         Node<W>: NodeTest<W>,
     {
         for (ray, b) in self.rays.iter().zip(self.blocked.iter_mut()) {
-            *b = *b || self.blas.occluded_in(tree, ray, self.stack);
-        }
-    }
-}
-
-/// [`TopOccluded`] for each ray not yet known to be blocked.
-struct TopOccludedMany<'a> {
-    scene: &'a SceneGeometry,
-    rays: &'a [Ray],
-    stack: &'a mut Vec<(u32, f32)>,
-    blocked: &'a mut [bool],
-}
-
-impl TreeQuery for TopOccludedMany<'_> {
-    type Output = ();
-    #[inline(always)]
-    fn run<const W: usize>(self, tree: &WideBvh<W>)
-    where
-        Node<W>: NodeTest<W>,
-    {
-        for (ray, b) in self.rays.iter().zip(self.blocked.iter_mut()) {
-            *b = *b || self.scene.occluded_through(tree, ray, self.stack);
+            *b = *b || self.target.occluded_in(tree, ray, self.stack);
         }
     }
 }
@@ -264,24 +234,6 @@ impl TreeQuery for TopClosest<'_> {
         Node<W>: NodeTest<W>,
     {
         self.scene.closest_through(tree, self.ray, self.stack)
-    }
-}
-
-/// Whether anything reached through the top level blocks the ray.
-struct TopOccluded<'a> {
-    scene: &'a SceneGeometry,
-    ray: &'a Ray,
-    stack: &'a mut Vec<(u32, f32)>,
-}
-
-impl TreeQuery for TopOccluded<'_> {
-    type Output = bool;
-    #[inline(always)]
-    fn run<const W: usize>(self, tree: &WideBvh<W>) -> bool
-    where
-        Node<W>: NodeTest<W>,
-    {
-        self.scene.occluded_through(tree, self.ray, self.stack)
     }
 }
 
@@ -536,22 +488,10 @@ impl Blas {
     /// Whether any primitive blocks `ray` in (0, tmax). Uses `stack` above its current length.
     #[inline]
     fn occluded(&self, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool {
-        self.tree.query(BlasOccluded { blas: self, ray, stack })
-    }
-
-    #[inline(always)]
-    fn occluded_in<const W: usize>(&self, tree: &WideBvh<W>, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool
-    where
-        Node<W>: NodeTest<W>,
-    {
-        let prims = &self.prims;
-        if !self.packets.is_empty() {
-            return tree.occluded(ray, stack, |first, count, _| self.packets_block(first, count, ray));
-        }
-        let shear = Shear::new(ray.dir);
-        tree.occluded(ray, stack, |first, count, _| {
-            prims[first as usize..(first + count) as usize].iter().any(|p| hit_prim(p, ray, &shear).is_some())
-        })
+        let mut blocked = [false];
+        let rays = std::slice::from_ref(ray);
+        self.tree.query(OccludedEach { target: self, rays, stack, blocked: &mut blocked });
+        blocked[0]
     }
 
     /// Whether a triangle in packets `first..first + count` blocks `ray`. Kept out of line: the
@@ -607,6 +547,23 @@ impl Blas {
             Shape::Triangle(tri) => tri.surface(ray, ray.tmax, b1, b2, object),
             Shape::Sphere(s) => s.surface(ray, ray.tmax, object),
         }
+    }
+}
+
+impl Occluder for Blas {
+    #[inline(always)]
+    fn occluded_in<const W: usize>(&self, tree: &WideBvh<W>, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool
+    where
+        Node<W>: NodeTest<W>,
+    {
+        let prims = &self.prims;
+        if !self.packets.is_empty() {
+            return tree.occluded(ray, stack, |first, count, _| self.packets_block(first, count, ray));
+        }
+        let shear = Shear::new(ray.dir);
+        tree.occluded(ray, stack, |first, count, _| {
+            prims[first as usize..(first + count) as usize].iter().any(|p| hit_prim(p, ray, &shear).is_some())
+        })
     }
 }
 
@@ -973,16 +930,9 @@ impl SceneGeometry {
     /// Whether anything blocks `ray` in (0, tmax); stops at the first blocker found.
     #[inline]
     pub fn occluded(&self, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool {
-        if self.planes.iter().any(|p| p.intersect(ray).is_some()) {
-            return true;
-        }
-        stack.clear();
-        if let [inst] = &self.instances[..]
-            && inst.identity
-        {
-            return self.blases[inst.blas as usize].occluded(ray, stack);
-        }
-        self.top.query(TopOccluded { scene: self, ray, stack })
+        let mut blocked = [false];
+        self.occluded_many(std::slice::from_ref(ray), stack, &mut blocked);
+        blocked[0]
     }
 
     /// [`SceneGeometry::occluded`] for each of `rays` into `blocked` (same length), in one call:
@@ -995,30 +945,12 @@ impl SceneGeometry {
         if let [inst] = &self.instances[..]
             && inst.identity
         {
-            let blas = &self.blases[inst.blas as usize];
-            return blas.tree.query(BlasOccludedMany { blas, rays, stack, blocked });
+            // One world-space BLAS (a static scene): no top level to traverse.
+            let blas = &*self.blases[inst.blas as usize];
+            blas.tree.query(OccludedEach { target: blas, rays, stack, blocked });
+        } else {
+            self.top.query(OccludedEach { target: self, rays, stack, blocked });
         }
-        if !self.instances.is_empty() {
-            self.top.query(TopOccludedMany { scene: self, rays, stack, blocked });
-        }
-    }
-
-    /// Occlusion through the top-level tree `top`.
-    #[inline(always)]
-    fn occluded_through<const W: usize>(&self, top: &WideBvh<W>, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool
-    where
-        Node<W>: NodeTest<W>,
-    {
-        top.occluded(ray, stack, |first, count, stack| {
-            self.instances[first as usize..(first + count) as usize].iter().any(|inst| {
-                let blas = &self.blases[inst.blas as usize];
-                if inst.identity {
-                    blas.occluded(ray, stack)
-                } else {
-                    inst.local_ray(ray).is_some_and(|(local, _)| blas.occluded(&local, stack))
-                }
-            })
-        })
     }
 
     /// Intersects one world-space primitive: (t, b1, b2).
@@ -1058,6 +990,26 @@ impl SceneGeometry {
             }
         }
         plane_hit.or_else(|| best.map(|(i, slot, b1, b2)| self.surface(i, slot, &ray, b1, b2)))
+    }
+}
+
+/// Occlusion through the top-level tree.
+impl Occluder for SceneGeometry {
+    #[inline(always)]
+    fn occluded_in<const W: usize>(&self, top: &WideBvh<W>, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool
+    where
+        Node<W>: NodeTest<W>,
+    {
+        top.occluded(ray, stack, |first, count, stack| {
+            self.instances[first as usize..(first + count) as usize].iter().any(|inst| {
+                let blas = &self.blases[inst.blas as usize];
+                if inst.identity {
+                    blas.occluded(ray, stack)
+                } else {
+                    inst.local_ray(ray).is_some_and(|(local, _)| blas.occluded(&local, stack))
+                }
+            })
+        })
     }
 }
 
