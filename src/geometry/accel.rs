@@ -297,7 +297,7 @@ impl Blas {
         let params = build_params(prims.len());
         // obvhs splits only triangles, given as its own type: all or nothing.
         let split_tris = || -> Option<Vec<ObvhsTriangle>> {
-            let all_triangles = prims.iter().all(|p| matches!(p.shape, Shape::Triangle(_)));
+            let all_triangles = triangle_count == prims.len();
             let as_obvhs = |p: &Prim| match p.shape {
                 Shape::Triangle(t) => ObvhsTriangle { v0: t.p[0], v1: t.p[1], v2: t.p[2] },
                 Shape::Sphere(_) => unreachable!("all triangles"),
@@ -335,7 +335,7 @@ impl Blas {
         self.tree = Tree::from_bvh2(&self.bvh.nodes);
         self.packets.clear();
         let prims = &self.prims;
-        if prims.is_empty() || prims.iter().any(|p| matches!(p.shape, Shape::Sphere(_))) {
+        if prims.is_empty() || self.triangle_count != self.unique_prims {
             return;
         }
         let triangle = |k: u32| match prims[k as usize].shape {
