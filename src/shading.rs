@@ -5,6 +5,7 @@
 use glam::{Vec2, Vec3};
 
 use crate::{
+    components::Matte,
     geometry::{Ray, SceneGeometry, SpawnOrigins, SurfaceHit},
     light::{LightGroup, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term},
     resources::AovValues,
@@ -78,6 +79,29 @@ pub struct SampleResult {
 }
 
 impl SampleResult {
+    /// A sample at a camera hit on `material`, before any light.
+    #[inline]
+    fn at_hit(primary: &PrimaryHit, material: &Matte) -> Self {
+        SampleResult {
+            albedo: material.cd,
+            normal: primary.hit.normal.into(),
+            depth: primary.depth,
+            hit: true,
+            ..Default::default()
+        }
+    }
+
+    /// Adds light `a` arriving from a light of `term`, reflected by `reflectance`.
+    #[inline]
+    fn add_light(&mut self, term: Term, reflectance: Vec3, a: Vec3) {
+        let reflected = reflectance * a;
+        self.radiance += reflected;
+        match term {
+            Term::Ambient => self.ao += a.element_sum() / 3.0,
+            Term::Diffuse => self.direct += reflected,
+        }
+    }
+
     /// The AOVs in the [`AovValues`] layout.
     #[inline]
     pub fn aov_values(&self) -> AovValues {
@@ -184,13 +208,7 @@ impl Tracer {
             };
             let hit = &primary.hit;
             let material = scene.geometry.objects[hit.object as usize].material;
-            *o = SampleResult {
-                albedo: material.cd,
-                normal: hit.normal.into(),
-                depth: primary.depth,
-                hit: true,
-                ..Default::default()
-            };
+            *o = SampleResult::at_hit(primary, &material);
             let at = ShadingPoint::new(hit.p, hit.normal, material);
             points.push(RunPoint { j: j as u32, at, spawn: hit.spawn_origins() });
         }
@@ -201,13 +219,7 @@ impl Tracer {
             group.shade_points(self, scene, &points, pixel, first, first_dim, skip_black, &mut arriving);
             let term = group.term();
             for (p, &a) in points.iter().zip(&arriving) {
-                let o = &mut out[p.j as usize];
-                let reflected = term.reflectance(&p.at.material) * a;
-                o.radiance += reflected;
-                match term {
-                    Term::Ambient => o.ao += a.element_sum() / 3.0,
-                    Term::Diffuse => o.direct += reflected,
-                }
+                out[p.j as usize].add_light(term, term.reflectance(&p.at.material), a);
             }
         }
         self.arriving = arriving;
@@ -242,13 +254,7 @@ impl Tracer {
         let material = scene.geometry.objects[hit.object as usize].material;
         let at = ShadingPoint::new(hit.p, hit.normal, material);
         let spawn = hit.spawn_origins();
-        out.fill(SampleResult {
-            albedo: material.cd,
-            normal: hit.normal.into(),
-            depth: primary.depth,
-            hit: true,
-            ..Default::default()
-        });
+        out.fill(SampleResult::at_hit(primary, &material));
         let mut arriving = std::mem::take(&mut self.arriving);
         for &(first_dim, group) in scene.lights {
             let fixed = group.dims() == 0;
@@ -264,12 +270,7 @@ impl Tracer {
             arriving.resize(out.len(), Vec3::ZERO);
             group.shade(self, scene, &spawn, &at, pixel, first, first_dim, &mut arriving);
             for (o, &a) in out.iter_mut().zip(&arriving) {
-                let reflected = reflectance * a;
-                o.radiance += reflected;
-                match term {
-                    Term::Ambient => o.ao += a.element_sum() / 3.0,
-                    Term::Diffuse => o.direct += reflected,
-                }
+                o.add_light(term, reflectance, a);
             }
         }
         self.arriving = arriving;
