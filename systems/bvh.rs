@@ -340,12 +340,13 @@ fn bake_static_meshes(entries: &[ShapeData], found: &mut Vec<String>) -> (HashSe
         let converted =
             world_space::validate_material(matte).and_then(|()| world_space::mesh(&mesh.0, transform, object as u32));
         match converted {
-            Ok(c) if prims.is_empty() => {
-                prims = c.prims;
-                degenerate += c.degenerate;
-            }
             Ok(c) => {
-                prims.extend(c.prims);
+                // The first mesh's primitives are moved, not copied.
+                if prims.is_empty() {
+                    prims = c.prims
+                } else {
+                    prims.extend(c.prims)
+                }
                 degenerate += c.degenerate;
             }
             Err(e) => found.push(describe(entity, name, e)),

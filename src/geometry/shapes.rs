@@ -26,8 +26,8 @@ impl Triangle {
     /// Watertight intersection (Woop, Benthin, Wald 2013, as in pbrt-v4): rays through shared
     /// edges and vertices hit exactly one of the adjacent triangles or more, never none.
     /// Returns (t, b1, b2) for a hit with 0 < t < tmax, `t` conservatively above zero.
-    #[inline(always)]
     /// `shear` is [`Shear::new`]`(ray.dir)`, computed once for all the ray's triangles.
+    #[inline(always)]
     pub fn intersect(&self, ray: &Ray, shear: &Shear) -> Option<(f32, f32, f32)> {
         let [kx, ky, kz] = shear.axes;
         let s = shear.s;

@@ -26,10 +26,10 @@ pub struct Tri4 {
 #[derive(Clone, Copy)]
 pub struct RayTri4 {
     origin: [Vec4; 3],
-    axes: [usize; 3],
     sx: Vec4,
     sy: Vec4,
-    /// The scalar test's constants, for lanes that need it.
+    /// The scalar test's constants (axes for the lanes here too; the scalar test for lanes
+    /// that need it).
     pub shear: Shear,
 }
 
@@ -41,7 +41,6 @@ impl RayTri4 {
         let shear = Shear::new(ray.dir);
         RayTri4 {
             origin: [Vec4::splat(o.x), Vec4::splat(o.y), Vec4::splat(o.z)],
-            axes: shear.axes,
             sx: Vec4::splat(shear.s.x),
             sy: Vec4::splat(shear.s.y),
             shear,
@@ -84,7 +83,7 @@ impl Tri4 {
     /// Edge tests of the four lanes (unused lanes come back in `exact`; skip them by slot).
     #[inline(always)]
     pub fn edges(&self, r: &RayTri4) -> Lanes {
-        let [kx, ky, kz] = r.axes;
+        let [kx, ky, kz] = r.shear.axes;
         let o = &r.origin;
         // Translate to the ray origin, permute so the ray runs along +z, shear.
         let f = |v: usize| {

@@ -140,7 +140,7 @@ mod tests {
             assert!(r2 <= 1.0 + 1e-6, "{p} outside the disk");
             let ring = ((r2 * rings as f32) as usize).min(rings - 1);
             let angle = p.y.atan2(p.x).rem_euclid(TAU);
-            let sector = ((angle / (TAU) * sectors as f32) as usize).min(sectors - 1);
+            let sector = ((angle / TAU * sectors as f32) as usize).min(sectors - 1);
             counts[ring * sectors + sector] += 1.0;
         }
         let expected = n as f64 / counts.len() as f64;
