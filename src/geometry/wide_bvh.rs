@@ -45,14 +45,15 @@ impl RayBox {
     #[inline(always)]
     pub fn new(ray: &Ray) -> Self {
         let inv = ray.inv_dir;
-        // inv_dir is never ±0 or NaN for a finite direction; its sign picks the near plane.
-        let (nx, ny, nz) =
-            (usize::from(inv.x < 0.0) * 3, 1 + usize::from(inv.y < 0.0) * 3, 2 + usize::from(inv.z < 0.0) * 3);
+        // inv_dir is never ±0 or NaN for a finite direction; its sign picks the near plane:
+        // row a (the minimum) for a positive one, row a + 3 (the maximum) for a negative one.
+        let neg = inv.cmplt(glam::Vec3A::ZERO).bitmask() as usize;
+        let (x, y, z) = (neg & 1, (neg >> 1) & 1, neg >> 2);
         RayBox {
             origin: ray.origin.to_array(),
             inv_dir: inv.to_array(),
-            near: [nx, ny, nz],
-            far: [(nx + 3) % 6, (ny + 3) % 6, (nz + 3) % 6],
+            near: [3 * x, 1 + 3 * y, 2 + 3 * z],
+            far: [3 - 3 * x, 4 - 3 * y, 5 - 3 * z],
         }
     }
 }
