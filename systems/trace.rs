@@ -6,7 +6,7 @@
 use std::time::Instant;
 
 use bevy_ecs::prelude::*;
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec3A};
 use rayon::prelude::*;
 
 use crate::{
@@ -116,6 +116,13 @@ pub fn trace(
     stats.record("trace", start.elapsed(), note);
 }
 
+/// Whether every component of `v` is finite, in one SIMD compare: x · 0 is ±0 exactly when x
+/// is finite (NaN for ±∞ and NaN).
+#[inline(always)]
+fn all_finite(v: Vec3) -> bool {
+    (Vec3A::from(v) * 0.0).cmpeq(Vec3A::ZERO).all()
+}
+
 /// Tiles covering the image in row-major order.
 fn tiles(width: u32, height: u32, size: u32) -> Vec<Tile> {
     let mut tiles = Vec::new();
@@ -217,7 +224,7 @@ fn trace_tile<C: CameraRays>(
             for s in &samples {
                 let s = &SampleResult { radiance: s.radiance + fixed.radiance, direct: s.direct + fixed.direct, ..*s };
                 let values = job.aovs.then(|| s.aov_values());
-                if !s.radiance.is_finite() || values.is_some_and(|v| v.iter().any(|x| !x.is_finite())) {
+                if !all_finite(s.radiance) || values.is_some_and(|v| v.iter().any(|x| !x.is_finite())) {
                     nonfinite += 1;
                     continue;
                 }
@@ -238,4 +245,23 @@ fn trace_tile<C: CameraRays>(
         }
     }
     TileResult { sums, counts, sq_sums, aovs, rays: tracer.rays, nonfinite }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn all_finite_is_glams_is_finite() {
+        let values =
+            [0.0, -0.0, 1.0, -3.0e38, f32::MAX, f32::MIN_POSITIVE, 1e-45, f32::INFINITY, f32::NEG_INFINITY, f32::NAN];
+        for &x in &values {
+            for &y in &values {
+                for &z in &values {
+                    let v = Vec3::new(x, y, z);
+                    assert_eq!(all_finite(v), v.is_finite(), "{v}");
+                }
+            }
+        }
+    }
 }
