@@ -498,11 +498,27 @@ impl Blas {
     /// packet test's set-up then runs per leaf reached, not per ray (most AO rays reach none).
     #[inline(never)]
     fn packets_block(&self, first: u32, count: u32, ray: &Ray) -> bool {
+        self.packets_block_body(first, count, ray)
+    }
+
+    /// [`Blas::packets_block`] compiled for AVX (three-operand encodings; same arithmetic).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    #[inline(never)]
+    fn packets_block_avx(&self, first: u32, count: u32, ray: &Ray) -> bool {
+        self.packets_block_body(first, count, ray)
+    }
+
+    #[inline(always)]
+    fn packets_block_body(&self, first: u32, count: u32, ray: &Ray) -> bool {
         let r = RayTri4::new(ray);
         let mut local = *ray;
-        self.packets[first as usize..(first + count) as usize]
-            .iter()
-            .any(|packet| self.packet_hits(packet, &r, &mut local, |_, _, _| true))
+        for k in first as usize..(first + count) as usize {
+            if self.packet_hits(&self.packets[k], &r, &mut local, |_, _, _| true) {
+                return true;
+            }
+        }
+        false
     }
 
     /// Tests the triangles of `packet` in lane order, calling `hit(slot, (t, b1, b2), ray)` for
@@ -558,6 +574,12 @@ impl Occluder for Blas {
     {
         let prims = &self.prims;
         if !self.packets.is_empty() {
+            #[cfg(target_arch = "x86_64")]
+            if W == 8 {
+                // SAFETY: eight-wide trees are built only where AVX was detected.
+                return tree
+                    .occluded(ray, stack, |first, count, _| unsafe { self.packets_block_avx(first, count, ray) });
+            }
             return tree.occluded(ray, stack, |first, count, _| self.packets_block(first, count, ray));
         }
         let shear = Shear::new(ray.dir);
