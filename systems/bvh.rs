@@ -309,11 +309,7 @@ fn update(
     let rests: Vec<usize> = cache.deforming.values().map(|d| key(&d.rest)).collect();
     cache.templates.retain(|k, _| rests.contains(k));
 
-    let g = SceneGeometry::from_instances(blases, instances, planes.clone(), objects.clone());
-    if std::env::var_os("HEMI_FLATTEN").is_some() {
-        return (SceneGeometry::build(g.world_prims(), planes, objects), problems, work);
-    }
-    (g, problems, work)
+    (SceneGeometry::from_instances(blases, instances, planes, objects), problems, work)
 }
 
 /// Bakes the static meshes that one entity each uses (no [`Dynamic`] marker, not deforming,
