@@ -494,10 +494,23 @@ impl Blas {
         blocked[0]
     }
 
-    /// Whether a triangle in packets `first..first + count` blocks `ray`. Kept out of line: the
-    /// packet test's set-up then runs per leaf reached, not per ray (most AO rays reach none).
+    /// Whether a triangle in packets `first..first + count` blocks `ray`, by the copy of the
+    /// test compiled for a tree of width `W`: for AVX under eight-wide trees. Both copies are
+    /// out of line, so the packet test's set-up runs per leaf reached, not per ray (most AO
+    /// rays reach none).
+    #[inline(always)]
+    fn packets_block<const W: usize>(&self, first: u32, count: u32, ray: &Ray) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if W == 8 {
+            // SAFETY: eight-wide trees are built only where AVX was detected.
+            return unsafe { self.packets_block_avx(first, count, ray) };
+        }
+        self.packets_block_baseline(first, count, ray)
+    }
+
+    /// [`Blas::packets_block`] for the target's baseline instruction set.
     #[inline(never)]
-    fn packets_block(&self, first: u32, count: u32, ray: &Ray) -> bool {
+    fn packets_block_baseline(&self, first: u32, count: u32, ray: &Ray) -> bool {
         self.packets_block_body(first, count, ray)
     }
 
@@ -574,13 +587,7 @@ impl Occluder for Blas {
     {
         let prims = &self.prims;
         if !self.packets.is_empty() {
-            #[cfg(target_arch = "x86_64")]
-            if W == 8 {
-                // SAFETY: eight-wide trees are built only where AVX was detected.
-                return tree
-                    .occluded(ray, stack, |first, count, _| unsafe { self.packets_block_avx(first, count, ray) });
-            }
-            return tree.occluded(ray, stack, |first, count, _| self.packets_block(first, count, ray));
+            return tree.occluded(ray, stack, |first, count, _| self.packets_block::<W>(first, count, ray));
         }
         let shear = Shear::new(ray.dir);
         tree.occluded(ray, stack, |first, count, _| {
