@@ -3,7 +3,7 @@
 use bevy_ecs::entity::Entity;
 use glam::{Vec3, Vec3A};
 use hemi::{
-    components::{Matte, Mesh, Transform},
+    components::{Matte, Mesh, Plane, Transform},
     geometry::{Object, Prim, Ray, SceneGeometry, Shape, shapes::SpherePrim, world_space},
     sampling::hash::SplitMix64,
     scene::mesh_gen::{torus_knot, uv_sphere},
@@ -191,4 +191,76 @@ fn a_batch_of_occlusion_queries_answers_as_single_queries_do() {
         let blocked = single.iter().filter(|&&b| b).count();
         assert!(blocked > 150 && blocked < 2_850, "{blocked} of 3000 blocked");
     }
+}
+
+/// A pixel's AO rays leave one surface point together: `occluded_many` traces such runs in
+/// packets (eight-wide trees over triangles), and each ray must get exactly the brute-force
+/// answer. The scene is all triangles (packets apply) plus a plane (rays it blocks are never
+/// traced); runs start on the meshes and the ground, with short and unbounded rays, rays at
+/// grid vertices (zero edge functions) and rays parallel to an axis.
+#[test]
+fn runs_from_surface_points_match_brute_force() {
+    let mut rng = SplitMix64::new(31);
+    let mut prims = Vec::new();
+    for (i, mesh) in [uv_sphere(1.0, 24, 48), torus_knot(2, 3, 0.8, 0.15, 200, 12)].iter().enumerate() {
+        let t = Transform::from_xyz(i as f32 * 2.5 - 1.25, 1.2, 0.0);
+        prims.extend(world_space::mesh(mesh, &t, i as u32).unwrap().prims);
+    }
+    // A ground of unit squares at y = 0, two triangles each.
+    let n = 8;
+    let ground = Mesh {
+        positions: (0..=n).flat_map(|z| (0..=n).map(move |x| Vec3::new(x as f32 - 4.0, 0.0, z as f32 - 4.0))).collect(),
+        indices: (0..n)
+            .flat_map(|z| {
+                (0..n).flat_map(move |x| {
+                    let i = z * (n + 1) + x;
+                    [[i, i + n + 1, i + 1], [i + 1, i + n + 1, i + n + 2]]
+                })
+            })
+            .collect(),
+    };
+    prims.extend(world_space::mesh(&ground, &Transform::IDENTITY, 2).unwrap().prims);
+    let wall = world_space::plane(&Plane { normal: Vec3::Z }, &Transform::from_xyz(0.0, 0.0, -3.0), 3);
+    let objects = vec![Object { entity: Entity::PLACEHOLDER, material: Matte::default() }; 4];
+    let geometry = SceneGeometry::build(prims, vec![wall.unwrap()], objects);
+    let mut stack = Vec::new();
+    let (mut blocked, mut total) = (0, 0);
+    for run in 0..300 {
+        // A surface point: the first hit of a ray from above, then 64 directions around its
+        // normal, some aimed at ground vertices, the last run short (a partial packet).
+        let from = Vec3A::new(rng.next_f32() * 8.0 - 4.0, 5.0, rng.next_f32() * 6.0 - 3.0);
+        let Some(hit) = geometry.intersect(&Ray::new(from, Vec3A::new(0.1, -1.0, 0.05), f32::INFINITY), &mut stack)
+        else {
+            continue;
+        };
+        let count = if run % 10 == 9 { 13 } else { 64 };
+        let rays: Vec<Ray> = (0..count)
+            .map(|i| {
+                let mut dir = random_unit(&mut rng);
+                if dir.dot(hit.normal) < 0.0 {
+                    dir = -dir;
+                }
+                if i % 9 == 0 {
+                    let vertex =
+                        Vec3A::new((rng.next_f32() * 8.0).floor() - 4.0, 0.0, (rng.next_f32() * 8.0).floor() - 4.0);
+                    dir = (vertex - hit.p).normalize_or(hit.normal);
+                }
+                if i % 13 == 0 {
+                    dir[i % 3] = 0.0;
+                    dir = dir.normalize_or(hit.normal);
+                }
+                let tmax = if i % 4 == 0 { rng.next_f32() * 2.0 } else { f32::INFINITY };
+                Ray::new(hit.spawn_origin(dir), dir, tmax)
+            })
+            .collect();
+        let truth: Vec<bool> = rays.iter().map(|r| geometry.intersect_brute_force(r).is_some()).collect();
+        let mut batch = vec![false; rays.len()];
+        geometry.occluded_many(&rays, &mut stack, &mut batch);
+        assert_eq!(batch, truth, "run {run}");
+        let single: Vec<bool> = rays.iter().map(|r| geometry.occluded(r, &mut stack)).collect();
+        assert_eq!(single, truth, "run {run}");
+        blocked += truth.iter().filter(|&&b| b).count();
+        total += rays.len();
+    }
+    assert!(total > 10_000 && blocked > total / 10 && blocked < total * 9 / 10, "{blocked} of {total} blocked");
 }

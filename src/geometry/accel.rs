@@ -36,6 +36,8 @@ use super::{
     tri4::{RayTri4, Tri4},
     wide_bvh::{Bvh4, Node, NodeTest, WideBvh},
 };
+#[cfg(target_arch = "x86_64")]
+use super::{tri4::RayTriPacket, wide_bvh::RayPacket};
 use crate::{
     components::{Matte, Mesh},
     math::gamma,
@@ -258,6 +260,10 @@ fn build_params(prims: usize) -> BvhBuildParams {
         medium
     }
 }
+
+/// Fewest rays in one [`Blas::occluded_many`] call for packet traversal (a point light's
+/// single shadow ray goes on its own).
+const PACKET_RUN: usize = 4;
 
 /// Primitive count under which a BLAS gets small leaves (see [`build_params`]).
 const SMALL_SET: usize = 1024;
@@ -492,6 +498,100 @@ impl Blas {
         let rays = std::slice::from_ref(ray);
         self.tree.query(OccludedEach { target: self, rays, stack, blocked: &mut blocked });
         blocked[0]
+    }
+
+    /// [`Blas::occluded`] for each of `rays` not yet `blocked` (same length), in one call: in
+    /// packets of eight rays where the tree is eight-wide and holds triangle packets.
+    fn occluded_many(&self, rays: &[Ray], stack: &mut Vec<(u32, f32)>, blocked: &mut [bool]) {
+        #[cfg(target_arch = "x86_64")]
+        if let Tree::Eight(tree) = &self.tree
+            && !self.packets.is_empty()
+            && rays.len() >= PACKET_RUN
+        {
+            // SAFETY: an eight-wide tree is built only where AVX was detected.
+            return unsafe { self.occluded_packets(tree, rays, stack, blocked) };
+        }
+        self.tree.query(OccludedEach { target: self, rays, stack, blocked });
+    }
+
+    /// [`Blas::occluded_many`] by packets of eight consecutive rays (a pixel's shadow rays,
+    /// which leave one point), traversed together while at least three of them enter a node.
+    /// Every ray gets exactly the answer of its own traversal.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn occluded_packets(
+        &self,
+        tree: &super::wide_bvh::Bvh8,
+        rays: &[Ray],
+        stack: &mut Vec<(u32, f32)>,
+        blocked: &mut [bool],
+    ) {
+        for (chunk, out) in rays.chunks(8).zip(blocked.chunks_mut(8)) {
+            let live = out.iter().enumerate().fold(0u32, |m, (k, &b)| if b { m } else { m | 1 << k });
+            if live == 0 {
+                continue;
+            }
+            let packet = RayPacket::new(chunk);
+            // The edge tests' constants, made when the packet first reaches a leaf.
+            let mut edges = None;
+            let hit = tree.occluded_packet(
+                &packet,
+                live,
+                |first, count, lanes| {
+                    if lanes.count_ones() == 1 {
+                        let lane = lanes.trailing_zeros() as usize;
+                        return if self.packets_block::<8>(first, count, &chunk[lane]) { lanes } else { 0 };
+                    }
+                    let r = edges.get_or_insert_with(|| RayTriPacket::new(chunk));
+                    self.packets_block_lanes(first, count, chunk, r, lanes)
+                },
+                |node, lane| {
+                    let ray = &chunk[lane];
+                    tree.occluded_from(node, ray, stack, |first, count, _| self.packets_block::<8>(first, count, ray))
+                },
+            );
+            for (k, b) in out.iter_mut().enumerate() {
+                *b |= hit & (1 << k) != 0;
+            }
+        }
+    }
+
+    /// The lanes of `lanes` whose ray in `rays` a triangle in packets `first..first + count`
+    /// blocks, each triangle tested against all those rays at once.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn packets_block_lanes(&self, first: u32, count: u32, rays: &[Ray], r: &RayTriPacket, lanes: u32) -> u32 {
+        let mut open = lanes;
+        for packet in &self.packets[first as usize..(first + count) as usize] {
+            for (lane, &slot) in packet.slot.iter().enumerate() {
+                if slot == u32::MAX {
+                    continue;
+                }
+                let edges = packet.edges_packet(lane, r);
+                let mut todo = (edges.pass | edges.exact) & open;
+                if todo == 0 {
+                    continue;
+                }
+                let tri = packet.triangle(lane);
+                while todo != 0 {
+                    let k = todo.trailing_zeros() as usize;
+                    todo &= todo - 1;
+                    let ray = &rays[k];
+                    let found = if edges.exact & (1 << k) != 0 {
+                        tri.intersect(ray, &Shear::new(ray.dir))
+                    } else {
+                        tri.finish(ray, edges.e[0][k], edges.e[1][k], edges.e[2][k])
+                    };
+                    if found.is_some() {
+                        open &= !(1 << k);
+                    }
+                }
+                if open == 0 {
+                    return lanes;
+                }
+            }
+        }
+        lanes & !open
     }
 
     /// Whether a triangle in packets `first..first + count` blocks `ray`, by the copy of the
@@ -975,8 +1075,7 @@ impl SceneGeometry {
             && inst.identity
         {
             // One world-space BLAS (a static scene): no top level to traverse.
-            let blas = &*self.blases[inst.blas as usize];
-            blas.tree.query(OccludedEach { target: blas, rays, stack, blocked });
+            self.blases[inst.blas as usize].occluded_many(rays, stack, blocked);
         } else {
             self.top.query(OccludedEach { target: self, rays, stack, blocked });
         }

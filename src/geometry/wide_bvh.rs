@@ -298,6 +298,18 @@ where
         &self,
         ray: &Ray,
         stack: &mut Vec<(u32, f32)>,
+        leaf: impl FnMut(u32, u32, &mut Vec<(u32, f32)>) -> bool,
+    ) -> bool {
+        self.occluded_from(0, ray, stack, leaf)
+    }
+
+    /// [`WideBvh::occluded`] of the subtree under node `start`.
+    #[inline(always)]
+    pub fn occluded_from(
+        &self,
+        start: u32,
+        ray: &Ray,
+        stack: &mut Vec<(u32, f32)>,
         mut leaf: impl FnMut(u32, u32, &mut Vec<(u32, f32)>) -> bool,
     ) -> bool {
         if self.nodes.is_empty() {
@@ -305,7 +317,7 @@ where
         }
         let r = RayBox::new(ray);
         let base = stack.len();
-        let mut node = 0u32;
+        let mut node = start;
         loop {
             let n = &self.nodes[node as usize];
             let (mut mask, _) = n.test(&r, ray.tmax);
@@ -404,9 +416,181 @@ where
     }
 }
 
+/// Up to eight rays in the lanes of AVX registers, for [`WideBvh::occluded_packet`].
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+pub struct RayPacket {
+    origin: [std::arch::x86_64::__m256; 3],
+    inv_dir: [std::arch::x86_64::__m256; 3],
+    /// All ones in the lanes whose direction is negative on each axis: they take a box's
+    /// maximum as their near plane.
+    negative: [std::arch::x86_64::__m256; 3],
+    tmax: std::arch::x86_64::__m256,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl RayPacket {
+    /// `rays` (one to eight) in lanes 0, 1, …; lanes past the last repeat it.
+    ///
+    /// # Safety
+    /// The CPU must have AVX.
+    #[target_feature(enable = "avx")]
+    pub fn new(rays: &[Ray]) -> Self {
+        use std::arch::x86_64::*;
+        let (origin, inv_dir, tmax) = lanes(rays);
+        let zero = _mm256_setzero_ps();
+        let negative = [
+            _mm256_cmp_ps::<_CMP_LT_OQ>(inv_dir[0], zero),
+            _mm256_cmp_ps::<_CMP_LT_OQ>(inv_dir[1], zero),
+            _mm256_cmp_ps::<_CMP_LT_OQ>(inv_dir[2], zero),
+        ];
+        RayPacket { origin, inv_dir, negative, tmax }
+    }
+}
+
+/// The origins, reciprocal directions and far ends of `rays` (one to eight) in AVX lanes,
+/// lanes past the last repeating it.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+fn lanes(rays: &[Ray]) -> ([std::arch::x86_64::__m256; 3], [std::arch::x86_64::__m256; 3], std::arch::x86_64::__m256) {
+    use std::arch::x86_64::*;
+    let mut columns = [[0.0f32; 8]; 7];
+    for k in 0..8 {
+        let r = &rays[k.min(rays.len() - 1)];
+        let (o, inv) = (r.origin.to_array(), r.inv_dir.to_array());
+        for a in 0..3 {
+            columns[a][k] = o[a];
+            columns[3 + a][k] = inv[a];
+        }
+        columns[6][k] = r.tmax;
+    }
+    // SAFETY: each column holds eight f32.
+    let load = |c: &[f32; 8]| unsafe { _mm256_loadu_ps(c.as_ptr()) };
+    (
+        [load(&columns[0]), load(&columns[1]), load(&columns[2])],
+        [load(&columns[3]), load(&columns[4]), load(&columns[5])],
+        load(&columns[6]),
+    )
+}
+
+/// Entries of the packet traversal's stack, which lives on the call stack; a subtree that
+/// would overflow it is traversed ray by ray instead.
+#[cfg(target_arch = "x86_64")]
+const PACKET_STACK: usize = 128;
+
+/// Fewest live rays for which a node is tested with the packet; fewer go on ray by ray.
+#[cfg(target_arch = "x86_64")]
+const PACKET_MIN_LANES: u32 = 3;
+
+#[cfg(target_arch = "x86_64")]
+impl Node<8> {
+    /// For each child, the lanes of `p` that enter it: the eight-child test's operations per
+    /// (ray, child), each ray's near and far planes picked by its own direction's signs, so
+    /// every lane decides exactly as [`NodeTest::test`] does for that ray.
+    #[target_feature(enable = "avx")]
+    fn test_packet(&self, p: &RayPacket) -> [u32; 8] {
+        use std::arch::x86_64::*;
+        let mut lanes = [0u32; 8];
+        for (c, out) in lanes.iter_mut().enumerate() {
+            let mut near = _mm256_set1_ps(NEAR_START);
+            let mut far = _mm256_set1_ps(f32::INFINITY);
+            for a in 0..3 {
+                let (lo, hi) = (_mm256_set1_ps(self.planes[a][c]), _mm256_set1_ps(self.planes[a + 3][c]));
+                let (near_plane, far_plane) =
+                    (_mm256_blendv_ps(lo, hi, p.negative[a]), _mm256_blendv_ps(hi, lo, p.negative[a]));
+                // vmaxps / vminps return their second operand when either is NaN.
+                near = _mm256_max_ps(_mm256_mul_ps(_mm256_sub_ps(near_plane, p.origin[a]), p.inv_dir[a]), near);
+                far = _mm256_min_ps(_mm256_mul_ps(_mm256_sub_ps(far_plane, p.origin[a]), p.inv_dir[a]), far);
+            }
+            let far = _mm256_min_ps(_mm256_mul_ps(far, _mm256_set1_ps(far_scale())), p.tmax);
+            *out = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
+        }
+        lanes
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl WideBvh<8> {
+    /// Any-hit traversal of a packet of rays together (Wald et al. 2001; Embree's hybrid
+    /// traversal): each node is tested against all the packet's live rays at once, and rays
+    /// go on one at a time from a node fewer than [`PACKET_MIN_LANES`] of them enter.
+    ///
+    /// `live` holds the lanes to answer. `leaf(first, count, lanes)` tests a leaf against
+    /// `lanes` and returns those it blocks; `single(node, lane)` answers one ray from node
+    /// `node`. Returns the blocked lanes.
+    ///
+    /// # Safety
+    /// The CPU must have AVX.
+    #[target_feature(enable = "avx")]
+    pub fn occluded_packet(
+        &self,
+        p: &RayPacket,
+        live: u32,
+        mut leaf: impl FnMut(u32, u32, u32) -> u32,
+        mut single: impl FnMut(u32, usize) -> bool,
+    ) -> u32 {
+        if self.nodes.is_empty() || live == 0 {
+            return 0;
+        }
+        let mut open = live;
+        let mut stack = [(0u32, 0u32); PACKET_STACK];
+        let mut len = 1;
+        stack[0] = (0, live);
+        while len > 0 {
+            len -= 1;
+            let (node, lanes) = stack[len];
+            let mut lanes = lanes & open;
+            if lanes.count_ones() < PACKET_MIN_LANES {
+                while lanes != 0 {
+                    let lane = lanes.trailing_zeros() as usize;
+                    lanes &= lanes - 1;
+                    if single(node, lane) {
+                        open &= !(1 << lane);
+                    }
+                }
+                if open == 0 {
+                    break;
+                }
+                continue;
+            }
+            let n = &self.nodes[node as usize];
+            for (c, entered) in n.test_packet(p).into_iter().enumerate() {
+                // Only rays that entered this node, and are not yet blocked, go on to its children.
+                let entered = entered & lanes & open;
+                if entered == 0 {
+                    continue;
+                }
+                if n.count[c] > 0 {
+                    open &= !leaf(n.child[c], n.count[c], entered);
+                    if open == 0 {
+                        return live;
+                    }
+                } else if len < PACKET_STACK {
+                    stack[len] = (n.child[c], entered);
+                    len += 1;
+                } else {
+                    let mut rest = entered;
+                    while rest != 0 {
+                        let lane = rest.trailing_zeros() as usize;
+                        rest &= rest - 1;
+                        if single(n.child[c], lane) {
+                            open &= !(1 << lane);
+                        }
+                    }
+                }
+            }
+        }
+        live & !open
+    }
+}
+
 #[cfg(test)]
 mod tests {
-    use std::{collections::BTreeSet, time::Duration};
+    use std::{
+        cell::{Cell, RefCell},
+        collections::BTreeSet,
+        time::Duration,
+    };
 
     use glam::{Vec3, Vec3A};
     use obvhs::{BvhBuildParams, bvh2::builder::build_bvh2};
@@ -474,6 +658,81 @@ mod tests {
         if let Some(eight) = Bvh8::from_bvh2(&bvh2) {
             assert_eq!((visited(&eight, &up).0, visited(&eight, &down).0), (up4, down4));
         }
+    }
+
+    /// Eight rays from one point, traversed as a packet: every ray must visit exactly the
+    /// leaves it enters (by brute force), whether it went through a leaf with the packet, on
+    /// its own from a node few rays entered, or both.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn a_packet_visits_exactly_the_leaves_each_ray_enters() {
+        let mut rng = SplitMix64::new(17);
+        let mut point = |scale: f32| Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * scale;
+        let mut boxes: Vec<Aabb> = (0..3_000)
+            .map(|_| {
+                let min = point(20.0) - 10.0;
+                Aabb::new(min.into(), (min + point(1.5)).into())
+            })
+            .collect();
+        // Flat boxes some packets start on.
+        boxes.extend((0..8).map(|i| Aabb::new(Vec3A::new(i as f32, 0.0, 0.0), Vec3A::new(i as f32 + 1.0, 0.0, 1.0))));
+        let bvh2 = build_bvh2(&boxes, BvhBuildParams::medium_build(), &mut Duration::default()).nodes;
+        let Some(tree) = Bvh8::from_bvh2(&bvh2) else {
+            eprintln!("no AVX on this CPU: packets are not used and not tested");
+            return;
+        };
+        let mut rng = SplitMix64::new(18);
+        let (packet_leaves, single_leaves) = (Cell::new(0), Cell::new(0));
+        for p in 0..300 {
+            let origin = if p % 5 == 0 {
+                Vec3A::new(rng.next_f32() * 8.0, 0.0, rng.next_f32())
+            } else {
+                Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 24.0 - 12.0
+            };
+            let rays: Vec<Ray> = (0..8)
+                .map(|i| {
+                    let mut dir = Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
+                    if i % 3 == 0 {
+                        dir[(i + p) % 3] = 0.0;
+                    }
+                    let tmax = if i % 2 == 0 { f32::INFINITY } else { rng.next_f32() * 20.0 };
+                    Ray::new(origin, dir.normalize_or(Vec3A::Y), tmax)
+                })
+                .collect();
+            let live = if p % 7 == 0 { 0b1011_0110 } else { 0xFF };
+            let seen = RefCell::new(vec![Leaves::new(); 8]);
+            let visit = |lane: usize, leaf: (u32, u32), count: &Cell<usize>| {
+                assert!(seen.borrow_mut()[lane].insert(leaf), "lane {lane} visits leaf {leaf:?} twice");
+                count.set(count.get() + 1);
+            };
+            let mut stack = Vec::new();
+            // SAFETY: the eight-wide tree exists, so the CPU has AVX.
+            let blocked = unsafe {
+                tree.occluded_packet(
+                    &RayPacket::new(&rays),
+                    live,
+                    |first, count, lanes| {
+                        for lane in (0..8).filter(|k| lanes & (1 << k) != 0) {
+                            visit(lane, (first, count), &packet_leaves);
+                        }
+                        0
+                    },
+                    |node, lane| {
+                        tree.occluded_from(node, &rays[lane], &mut stack, |first, count, _| {
+                            visit(lane, (first, count), &single_leaves);
+                            false
+                        })
+                    },
+                )
+            };
+            assert_eq!(blocked, 0);
+            for (lane, ray) in rays.iter().enumerate() {
+                let expected = if live & (1 << lane) != 0 { brute_force(&bvh2, ray) } else { Leaves::new() };
+                assert_eq!(seen.borrow()[lane], expected, "packet {p}, lane {lane}");
+            }
+        }
+        let (packet_leaves, single_leaves) = (packet_leaves.get(), single_leaves.get());
+        assert!(packet_leaves > 1_000 && single_leaves > 1_000, "{packet_leaves} by packet, {single_leaves} alone");
     }
 
     #[test]
