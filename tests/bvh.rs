@@ -200,12 +200,12 @@ fn a_batch_of_occlusion_queries_answers_as_single_queries_do() {
 /// grid vertices (zero edge functions) and rays parallel to an axis.
 #[test]
 fn runs_from_surface_points_match_brute_force() {
+    use std::sync::Arc;
+
+    use glam::{Affine3A, Quat};
+    use hemi::geometry::accel::{Blas, Instance};
+
     let mut rng = SplitMix64::new(31);
-    let mut prims = Vec::new();
-    for (i, mesh) in [uv_sphere(1.0, 24, 48), torus_knot(2, 3, 0.8, 0.15, 200, 12)].iter().enumerate() {
-        let t = Transform::from_xyz(i as f32 * 2.5 - 1.25, 1.2, 0.0);
-        prims.extend(world_space::mesh(mesh, &t, i as u32).unwrap().prims);
-    }
     // A ground of unit squares at y = 0, two triangles each.
     let n = 8;
     let ground = Mesh {
@@ -219,10 +219,36 @@ fn runs_from_surface_points_match_brute_force() {
             })
             .collect(),
     };
-    prims.extend(world_space::mesh(&ground, &Transform::IDENTITY, 2).unwrap().prims);
-    let wall = world_space::plane(&Plane { normal: Vec3::Z }, &Transform::from_xyz(0.0, 0.0, -3.0), 3);
+    let meshes = [uv_sphere(1.0, 24, 48), torus_knot(2, 3, 0.8, 0.15, 200, 12), ground];
+    let places = [
+        Affine3A::from_translation(Vec3::new(-1.25, 1.2, 0.0)),
+        Affine3A::from_scale_rotation_translation(
+            Vec3::splat(1.3),
+            Quat::from_rotation_y(0.7),
+            Vec3::new(1.25, 1.2, 0.0),
+        ),
+        Affine3A::IDENTITY,
+    ];
+    let wall =
+        || vec![world_space::plane(&Plane { normal: Vec3::Z }, &Transform::from_xyz(0.0, 0.0, -3.0), 3).unwrap()];
     let objects = vec![Object { entity: Entity::PLACEHOLDER, material: Matte::default() }; 4];
-    let geometry = SceneGeometry::build(prims, vec![wall.unwrap()], objects);
+    // The meshes baked into one world-space BLAS, and the same meshes as instances.
+    let mut prims = Vec::new();
+    for (i, (mesh, m)) in meshes.iter().zip(&places).enumerate() {
+        prims.extend(world_space::mesh(mesh, &Transform::from_affine(m), i as u32).unwrap().prims);
+    }
+    let baked = SceneGeometry::build(prims, wall(), objects.clone());
+    let blases: Vec<Arc<Blas>> = meshes.iter().map(|m| Arc::new(Blas::from_mesh(m))).collect();
+    let instances = (0..3)
+        .map(|i| Instance::new(i as u32, blases[i].bounds().unwrap(), places[i], Some(i as u32)).unwrap())
+        .collect();
+    let instanced = SceneGeometry::from_instances(blases, instances, wall(), objects);
+    for geometry in [&baked, &instanced] {
+        runs_match_brute_force(geometry, &mut rng);
+    }
+}
+
+fn runs_match_brute_force(geometry: &SceneGeometry, rng: &mut SplitMix64) {
     let mut stack = Vec::new();
     let (mut blocked, mut total) = (0, 0);
     for run in 0..300 {
@@ -236,7 +262,7 @@ fn runs_from_surface_points_match_brute_force() {
         let count = if run % 10 == 9 { 13 } else { 64 };
         let rays: Vec<Ray> = (0..count)
             .map(|i| {
-                let mut dir = random_unit(&mut rng);
+                let mut dir = random_unit(rng);
                 if dir.dot(hit.normal) < 0.0 {
                     dir = -dir;
                 }

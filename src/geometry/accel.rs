@@ -528,32 +528,47 @@ impl Blas {
     ) {
         for (chunk, out) in rays.chunks(8).zip(blocked.chunks_mut(8)) {
             let live = out.iter().enumerate().fold(0u32, |m, (k, &b)| if b { m } else { m | 1 << k });
-            if live == 0 {
-                continue;
-            }
-            let packet = RayPacket::new(chunk);
-            // The edge tests' constants, made when the packet first reaches a leaf.
-            let mut edges = None;
-            let hit = tree.occluded_packet(
-                &packet,
-                live,
-                |first, count, lanes| {
-                    if lanes.count_ones() == 1 {
-                        let lane = lanes.trailing_zeros() as usize;
-                        return if self.packets_block::<8>(first, count, &chunk[lane]) { lanes } else { 0 };
-                    }
-                    let r = edges.get_or_insert_with(|| RayTriPacket::new(chunk));
-                    self.packets_block_lanes(first, count, chunk, r, lanes)
-                },
-                |node, lane| {
-                    let ray = &chunk[lane];
-                    tree.occluded_from(node, ray, stack, |first, count, _| self.packets_block::<8>(first, count, ray))
-                },
-            );
+            let hit = self.occluded_lanes(tree, chunk, live, stack);
             for (k, b) in out.iter_mut().enumerate() {
                 *b |= hit & (1 << k) != 0;
             }
         }
+    }
+
+    /// The lanes of `live` whose ray in `rays` (one to eight) anything in this BLAS blocks,
+    /// the rays traced as one packet in `tree`, this BLAS's eight-wide tree.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn occluded_lanes(
+        &self,
+        tree: &super::wide_bvh::Bvh8,
+        rays: &[Ray],
+        live: u32,
+        stack: &mut Vec<(u32, f32)>,
+    ) -> u32 {
+        if live == 0 {
+            return 0;
+        }
+        let packet = RayPacket::new(rays);
+        // The edge tests' constants, made when the packet first reaches a leaf.
+        let mut edges = None;
+        tree.occluded_packet(
+            &packet,
+            live,
+            stack,
+            |first, count, lanes, _| {
+                if lanes.count_ones() == 1 {
+                    let lane = lanes.trailing_zeros() as usize;
+                    return if self.packets_block::<8>(first, count, &rays[lane]) { lanes } else { 0 };
+                }
+                let r = edges.get_or_insert_with(|| RayTriPacket::new(rays));
+                self.packets_block_lanes(first, count, rays, r, lanes)
+            },
+            |node, lane, stack| {
+                let ray = &rays[lane];
+                tree.occluded_from(node, ray, stack, |first, count, _| self.packets_block::<8>(first, count, ray))
+            },
+        )
     }
 
     /// The lanes of `lanes` whose ray in `rays` a triangle in packets `first..first + count`
@@ -1077,8 +1092,106 @@ impl SceneGeometry {
             // One world-space BLAS (a static scene): no top level to traverse.
             self.blases[inst.blas as usize].occluded_many(rays, stack, blocked);
         } else {
+            #[cfg(target_arch = "x86_64")]
+            if let Tree::Eight(top) = &self.top
+                && rays.len() >= PACKET_RUN
+            {
+                // SAFETY: an eight-wide tree is built only where AVX was detected.
+                return unsafe { self.occluded_packets(top, rays, stack, blocked) };
+            }
             self.top.query(OccludedEach { target: self, rays, stack, blocked });
         }
+    }
+
+    /// Whether anything in instance `inst` blocks `ray` (world space).
+    #[inline(always)]
+    fn instance_blocks(&self, inst: &Instance, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool {
+        let blas = &self.blases[inst.blas as usize];
+        if inst.identity {
+            blas.occluded(ray, stack)
+        } else {
+            inst.local_ray(ray).is_some_and(|(local, _)| blas.occluded(&local, stack))
+        }
+    }
+
+    /// [`SceneGeometry::occluded_many`] through the top level by packets of eight consecutive
+    /// rays, as [`Blas::occluded_many`] does within one BLAS; an instance reached by two or
+    /// more of a packet's rays gets them as one packet in its own frame.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn occluded_packets(
+        &self,
+        top: &super::wide_bvh::Bvh8,
+        rays: &[Ray],
+        stack: &mut Vec<(u32, f32)>,
+        blocked: &mut [bool],
+    ) {
+        for (chunk, out) in rays.chunks(8).zip(blocked.chunks_mut(8)) {
+            let live = out.iter().enumerate().fold(0u32, |m, (k, &b)| if b { m } else { m | 1 << k });
+            if live == 0 {
+                continue;
+            }
+            let hit = top.occluded_packet(
+                &RayPacket::new(chunk),
+                live,
+                stack,
+                |first, count, lanes, stack| {
+                    let mut open = lanes;
+                    for inst in &self.instances[first as usize..(first + count) as usize] {
+                        open &= !self.instance_blocks_lanes(inst, chunk, open, stack);
+                        if open == 0 {
+                            break;
+                        }
+                    }
+                    lanes & !open
+                },
+                |node, lane, stack| {
+                    let ray = &chunk[lane];
+                    top.occluded_from(node, ray, stack, |first, count, stack| {
+                        let instances = &self.instances[first as usize..(first + count) as usize];
+                        instances.iter().any(|inst| self.instance_blocks(inst, ray, stack))
+                    })
+                },
+            );
+            for (k, b) in out.iter_mut().enumerate() {
+                *b |= hit & (1 << k) != 0;
+            }
+        }
+    }
+
+    /// The lanes of `lanes` whose ray in `rays` (world space) instance `inst` blocks: as one
+    /// packet in the instance's frame where its BLAS takes packets and two or more rays reach it.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    fn instance_blocks_lanes(&self, inst: &Instance, rays: &[Ray], lanes: u32, stack: &mut Vec<(u32, f32)>) -> u32 {
+        let blas = &self.blases[inst.blas as usize];
+        let tree = match &blas.tree {
+            Tree::Eight(tree) if !blas.packets.is_empty() && lanes.count_ones() >= 2 => tree,
+            _ => {
+                let mut hit = 0;
+                for (k, ray) in rays.iter().enumerate() {
+                    if lanes & (1 << k) != 0 && self.instance_blocks(inst, ray, stack) {
+                        hit |= 1 << k;
+                    }
+                }
+                return hit;
+            }
+        };
+        if inst.identity {
+            return blas.occluded_lanes(tree, rays, lanes, stack);
+        }
+        // Lanes not traced keep a copy of a traced ray: they only fill the packet.
+        let mut local = [rays[lanes.trailing_zeros() as usize]; 8];
+        let mut live = 0;
+        for (k, ray) in rays.iter().enumerate() {
+            if lanes & (1 << k) != 0
+                && let Some((ray, _)) = inst.local_ray(ray)
+            {
+                local[k] = ray;
+                live |= 1 << k;
+            }
+        }
+        blas.occluded_lanes(tree, &local, live, stack)
     }
 
     /// Intersects one world-space primitive: (t, b1, b2).
@@ -1129,14 +1242,8 @@ impl Occluder for SceneGeometry {
         Node<W>: NodeTest<W>,
     {
         top.occluded(ray, stack, |first, count, stack| {
-            self.instances[first as usize..(first + count) as usize].iter().any(|inst| {
-                let blas = &self.blases[inst.blas as usize];
-                if inst.identity {
-                    blas.occluded(ray, stack)
-                } else {
-                    inst.local_ray(ray).is_some_and(|(local, _)| blas.occluded(&local, stack))
-                }
-            })
+            let instances = &self.instances[first as usize..(first + count) as usize];
+            instances.iter().any(|inst| self.instance_blocks(inst, ray, stack))
         })
     }
 }

@@ -515,9 +515,9 @@ impl WideBvh<8> {
     /// traversal): each node is tested against all the packet's live rays at once, and rays
     /// go on one at a time from a node fewer than [`PACKET_MIN_LANES`] of them enter.
     ///
-    /// `live` holds the lanes to answer. `leaf(first, count, lanes)` tests a leaf against
-    /// `lanes` and returns those it blocks; `single(node, lane)` answers one ray from node
-    /// `node`. Returns the blocked lanes.
+    /// `live` holds the lanes to answer. `leaf(first, count, lanes, stack)` tests a leaf
+    /// against `lanes` and returns those it blocks; `single(node, lane, stack)` answers one ray
+    /// from node `node`. Both may use `stack` above its length. Returns the blocked lanes.
     ///
     /// # Safety
     /// The CPU must have AVX.
@@ -526,25 +526,26 @@ impl WideBvh<8> {
         &self,
         p: &RayPacket,
         live: u32,
-        mut leaf: impl FnMut(u32, u32, u32) -> u32,
-        mut single: impl FnMut(u32, usize) -> bool,
+        stack: &mut Vec<(u32, f32)>,
+        mut leaf: impl FnMut(u32, u32, u32, &mut Vec<(u32, f32)>) -> u32,
+        mut single: impl FnMut(u32, usize, &mut Vec<(u32, f32)>) -> bool,
     ) -> u32 {
         if self.nodes.is_empty() || live == 0 {
             return 0;
         }
         let mut open = live;
-        let mut stack = [(0u32, 0u32); PACKET_STACK];
+        let mut todo = [(0u32, 0u32); PACKET_STACK];
         let mut len = 1;
-        stack[0] = (0, live);
+        todo[0] = (0, live);
         while len > 0 {
             len -= 1;
-            let (node, lanes) = stack[len];
+            let (node, lanes) = todo[len];
             let mut lanes = lanes & open;
             if lanes.count_ones() < PACKET_MIN_LANES {
                 while lanes != 0 {
                     let lane = lanes.trailing_zeros() as usize;
                     lanes &= lanes - 1;
-                    if single(node, lane) {
+                    if single(node, lane, stack) {
                         open &= !(1 << lane);
                     }
                 }
@@ -561,19 +562,19 @@ impl WideBvh<8> {
                     continue;
                 }
                 if n.count[c] > 0 {
-                    open &= !leaf(n.child[c], n.count[c], entered);
+                    open &= !leaf(n.child[c], n.count[c], entered, stack);
                     if open == 0 {
                         return live;
                     }
                 } else if len < PACKET_STACK {
-                    stack[len] = (n.child[c], entered);
+                    todo[len] = (n.child[c], entered);
                     len += 1;
                 } else {
                     let mut rest = entered;
                     while rest != 0 {
                         let lane = rest.trailing_zeros() as usize;
                         rest &= rest - 1;
-                        if single(n.child[c], lane) {
+                        if single(n.child[c], lane, stack) {
                             open &= !(1 << lane);
                         }
                     }
@@ -711,14 +712,15 @@ mod tests {
                 tree.occluded_packet(
                     &RayPacket::new(&rays),
                     live,
-                    |first, count, lanes| {
+                    &mut stack,
+                    |first, count, lanes, _| {
                         for lane in (0..8).filter(|k| lanes & (1 << k) != 0) {
                             visit(lane, (first, count), &packet_leaves);
                         }
                         0
                     },
-                    |node, lane| {
-                        tree.occluded_from(node, &rays[lane], &mut stack, |first, count, _| {
+                    |node, lane, stack| {
+                        tree.occluded_from(node, &rays[lane], stack, |first, count, _| {
                             visit(lane, (first, count), &single_leaves);
                             false
                         })
