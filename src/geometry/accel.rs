@@ -261,6 +261,42 @@ fn build_params(prims: usize) -> BvhBuildParams {
     }
 }
 
+/// Calls `trace(packet, live)` for packets of up to eight of the `rays` not yet `blocked`, and
+/// marks blocked the rays of the lanes it returns. Within each block of 64 consecutive rays, the
+/// rays still to answer are grouped by the octant of their direction: a pixel's run leaves one
+/// point, so a packet then holds rays from one point into one octant, which share more nodes.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn by_packets(rays: &[Ray], blocked: &mut [bool], mut trace: impl FnMut(&[Ray], u32) -> u32) {
+    for (block, done) in rays.chunks(64).zip(blocked.chunks_mut(64)) {
+        let octant = |r: &Ray| r.inv_dir.cmplt(Vec3A::ZERO).bitmask() as usize;
+        // A counting sort of the live rays by octant.
+        let mut start = [0u8; 9];
+        for (r, _) in block.iter().zip(done.iter()).filter(|(_, b)| !**b) {
+            start[octant(r) + 1] += 1;
+        }
+        for o in 1..9 {
+            start[o] += start[o - 1];
+        }
+        let live = start[8] as usize;
+        let mut sorted = [block[0]; 64];
+        let mut index = [0u8; 64];
+        for (k, (r, _)) in block.iter().zip(done.iter()).enumerate().filter(|(_, (_, b))| !**b) {
+            let at = &mut start[octant(r)];
+            sorted[*at as usize] = *r;
+            index[*at as usize] = k as u8;
+            *at += 1;
+        }
+        for (packet, index) in sorted[..live].chunks(8).zip(index[..live].chunks(8)) {
+            let mut hit = trace(packet, (1 << packet.len()) - 1);
+            while hit != 0 {
+                done[index[hit.trailing_zeros() as usize] as usize] = true;
+                hit &= hit - 1;
+            }
+        }
+    }
+}
+
 /// Fewest rays in one [`Blas::occluded_many`] call for packet traversal (a point light's
 /// single shadow ray goes on its own).
 const PACKET_RUN: usize = 4;
@@ -526,13 +562,7 @@ impl Blas {
         stack: &mut Vec<(u32, f32)>,
         blocked: &mut [bool],
     ) {
-        for (chunk, out) in rays.chunks(8).zip(blocked.chunks_mut(8)) {
-            let live = out.iter().enumerate().fold(0u32, |m, (k, &b)| if b { m } else { m | 1 << k });
-            let hit = self.occluded_lanes(tree, chunk, live, stack);
-            for (k, b) in out.iter_mut().enumerate() {
-                *b |= hit & (1 << k) != 0;
-            }
-        }
+        by_packets(rays, blocked, |packet, live| self.occluded_lanes(tree, packet, live, stack));
     }
 
     /// The lanes of `live` whose ray in `rays` (one to eight) anything in this BLAS blocks,
@@ -1126,12 +1156,8 @@ impl SceneGeometry {
         stack: &mut Vec<(u32, f32)>,
         blocked: &mut [bool],
     ) {
-        for (chunk, out) in rays.chunks(8).zip(blocked.chunks_mut(8)) {
-            let live = out.iter().enumerate().fold(0u32, |m, (k, &b)| if b { m } else { m | 1 << k });
-            if live == 0 {
-                continue;
-            }
-            let hit = top.occluded_packet(
+        by_packets(rays, blocked, |chunk, live| {
+            top.occluded_packet(
                 &RayPacket::new(chunk),
                 live,
                 stack,
@@ -1152,11 +1178,8 @@ impl SceneGeometry {
                         instances.iter().any(|inst| self.instance_blocks(inst, ray, stack))
                     })
                 },
-            );
-            for (k, b) in out.iter_mut().enumerate() {
-                *b |= hit & (1 << k) != 0;
-            }
-        }
+            )
+        });
     }
 
     /// The lanes of `lanes` whose ray in `rays` (world space) instance `inst` blocks: as one

@@ -484,28 +484,25 @@ const PACKET_MIN_LANES: u32 = 3;
 
 #[cfg(target_arch = "x86_64")]
 impl Node<8> {
-    /// For each child, the lanes of `p` that enter it: the eight-child test's operations per
-    /// (ray, child), each ray's near and far planes picked by its own direction's signs, so
-    /// every lane decides exactly as [`NodeTest::test`] does for that ray.
+    /// The lanes of `p` that enter child `c`: the eight-child test's operations per ray, each
+    /// ray's near and far planes picked by its own direction's signs, so every lane decides
+    /// exactly as [`NodeTest::test`] does for that ray.
     #[target_feature(enable = "avx")]
-    fn test_packet(&self, p: &RayPacket) -> [u32; 8] {
+    #[inline]
+    fn test_packet(&self, c: usize, p: &RayPacket) -> u32 {
         use std::arch::x86_64::*;
-        let mut lanes = [0u32; 8];
-        for (c, out) in lanes.iter_mut().enumerate() {
-            let mut near = _mm256_set1_ps(NEAR_START);
-            let mut far = _mm256_set1_ps(f32::INFINITY);
-            for a in 0..3 {
-                let (lo, hi) = (_mm256_set1_ps(self.planes[a][c]), _mm256_set1_ps(self.planes[a + 3][c]));
-                let (near_plane, far_plane) =
-                    (_mm256_blendv_ps(lo, hi, p.negative[a]), _mm256_blendv_ps(hi, lo, p.negative[a]));
-                // vmaxps / vminps return their second operand when either is NaN.
-                near = _mm256_max_ps(_mm256_mul_ps(_mm256_sub_ps(near_plane, p.origin[a]), p.inv_dir[a]), near);
-                far = _mm256_min_ps(_mm256_mul_ps(_mm256_sub_ps(far_plane, p.origin[a]), p.inv_dir[a]), far);
-            }
-            let far = _mm256_min_ps(_mm256_mul_ps(far, _mm256_set1_ps(far_scale())), p.tmax);
-            *out = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
+        let mut near = _mm256_set1_ps(NEAR_START);
+        let mut far = _mm256_set1_ps(f32::INFINITY);
+        for a in 0..3 {
+            let (lo, hi) = (_mm256_set1_ps(self.planes[a][c]), _mm256_set1_ps(self.planes[a + 3][c]));
+            let (near_plane, far_plane) =
+                (_mm256_blendv_ps(lo, hi, p.negative[a]), _mm256_blendv_ps(hi, lo, p.negative[a]));
+            // vmaxps / vminps return their second operand when either is NaN.
+            near = _mm256_max_ps(_mm256_mul_ps(_mm256_sub_ps(near_plane, p.origin[a]), p.inv_dir[a]), near);
+            far = _mm256_min_ps(_mm256_mul_ps(_mm256_sub_ps(far_plane, p.origin[a]), p.inv_dir[a]), far);
         }
-        lanes
+        let far = _mm256_min_ps(_mm256_mul_ps(far, _mm256_set1_ps(far_scale())), p.tmax);
+        _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32
     }
 }
 
@@ -555,9 +552,13 @@ impl WideBvh<8> {
                 continue;
             }
             let n = &self.nodes[node as usize];
-            for (c, entered) in n.test_packet(p).into_iter().enumerate() {
+            for c in 0..8 {
+                // A node's children fill its first slots: the rest are empty.
+                if n.count[c] == 0 && n.child[c] == 0 {
+                    break;
+                }
                 // Only rays that entered this node, and are not yet blocked, go on to its children.
-                let entered = entered & lanes & open;
+                let entered = n.test_packet(c, p) & lanes & open;
                 if entered == 0 {
                     continue;
                 }
