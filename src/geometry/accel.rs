@@ -37,7 +37,11 @@ use super::{
     wide_bvh::{Bvh4, Node, NodeTest, WideBvh},
 };
 #[cfg(target_arch = "x86_64")]
-use super::{tri4::RayTriPacket, wide_bvh::RayPacket};
+use super::{
+    lanes::{Avx, Avx512, Lanes},
+    tri4::RayTriPacket,
+    wide_bvh::{Bvh8, RayPacket},
+};
 use crate::{
     components::{Matte, Mesh},
     math::gamma,
@@ -261,13 +265,13 @@ fn build_params(prims: usize) -> BvhBuildParams {
     }
 }
 
-/// Calls `trace(packet, live)` for packets of up to eight of the `rays` not yet `blocked`, and
+/// Calls `trace(packet, live)` for packets of up to `L::WIDTH` of the `rays` not yet `blocked`, and
 /// marks blocked the rays of the lanes it returns. Within each block of 64 consecutive rays, the
 /// rays still to answer are grouped by the octant of their direction: a pixel's run leaves one
 /// point, so a packet then holds rays from one point into one octant, which share more nodes.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-fn by_packets(rays: &[Ray], blocked: &mut [bool], mut trace: impl FnMut(&[Ray], u32) -> u32) {
+fn by_packets<L: Lanes>(rays: &[Ray], blocked: &mut [bool], mut trace: impl FnMut(&[Ray], u32) -> u32) {
     for (block, done) in rays.chunks(64).zip(blocked.chunks_mut(64)) {
         let octant = |r: &Ray| r.inv_dir.cmplt(Vec3A::ZERO).bitmask() as usize;
         // A counting sort of the live rays by octant.
@@ -287,7 +291,7 @@ fn by_packets(rays: &[Ray], blocked: &mut [bool], mut trace: impl FnMut(&[Ray], 
             index[*at as usize] = k as u8;
             *at += 1;
         }
-        for (packet, index) in sorted[..live].chunks(8).zip(index[..live].chunks(8)) {
+        for (packet, index) in sorted[..live].chunks(L::WIDTH).zip(index[..live].chunks(L::WIDTH)) {
             let mut hit = trace(packet, (1 << packet.len()) - 1);
             while hit != 0 {
                 done[index[hit.trailing_zeros() as usize] as usize] = true;
@@ -296,6 +300,155 @@ fn by_packets(rays: &[Ray], blocked: &mut [bool], mut trace: impl FnMut(&[Ray], 
         }
     }
 }
+
+/// Rays per packet: sixteen where the CPU has AVX-512, eight with AVX only (or when the
+/// environment variable `HEMI_PACKET_LANES` is `8`).
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+enum PacketWidth {
+    Eight,
+    Sixteen,
+}
+
+/// The packet width this CPU and environment get (checked once).
+#[cfg(target_arch = "x86_64")]
+fn packet_width() -> PacketWidth {
+    static LANES: std::sync::OnceLock<PacketWidth> = std::sync::OnceLock::new();
+    *LANES.get_or_init(|| {
+        let eight = std::env::var("HEMI_PACKET_LANES").is_ok_and(|w| w.trim() == "8");
+        if !eight && std::arch::is_x86_feature_detected!("avx512f") { PacketWidth::Sixteen } else { PacketWidth::Eight }
+    })
+}
+
+/// Defines, for one lane type and the instruction set it needs, the packet occlusion kernels:
+/// `Blas::$packets` and `SceneGeometry::$scene` (a run of rays by packets, within one BLAS or
+/// through the top level), and the per-packet `Blas::$lanes` and `SceneGeometry::$instance`
+/// they use. Each is compiled for that instruction set, and the closures they hand to the
+/// generic traversal are written inside them so that they are compiled for it too (a closure
+/// gets the instruction set of the function it is written in, not of the one it is inlined
+/// into). Callers must make sure the CPU has the instruction set.
+#[cfg(target_arch = "x86_64")]
+macro_rules! packet_kernels {
+    ($lanes_type:ty, $feature:literal, $packets:ident, $lanes:ident, $scene:ident, $instance:ident) => {
+        impl Blas {
+            /// [`Blas::occluded_many`] by packets of consecutive rays (a pixel's shadow rays,
+            /// which leave one point), traversed together while at least three of them enter
+            /// a node. Every ray gets exactly the answer of its own traversal.
+            #[target_feature(enable = $feature)]
+            fn $packets(&self, tree: &Bvh8, rays: &[Ray], stack: &mut Vec<(u32, f32)>, blocked: &mut [bool]) {
+                by_packets::<$lanes_type>(rays, blocked, |packet, live| self.$lanes(tree, packet, live, stack));
+            }
+
+            /// The lanes of `live` whose ray in `rays` (one packet) anything in this BLAS
+            /// blocks, the rays traced together in `tree`, this BLAS's eight-wide tree.
+            #[target_feature(enable = $feature)]
+            fn $lanes(&self, tree: &Bvh8, rays: &[Ray], live: u32, stack: &mut Vec<(u32, f32)>) -> u32 {
+                if live == 0 {
+                    return 0;
+                }
+                // SAFETY (all blocks below): this function is compiled for the lane type's
+                // instruction set and AVX, which the caller's CPU has.
+                let packet = unsafe { RayPacket::<$lanes_type>::new(rays) };
+                // The edge tests' constants, made when the packet first reaches a leaf.
+                let mut edges = None;
+                let leaf = |first, count, lanes: u32, _: &mut Vec<(u32, f32)>| {
+                    if lanes.count_ones() == 1 {
+                        let lane = lanes.trailing_zeros() as usize;
+                        return if self.packets_block::<8>(first, count, &rays[lane]) { lanes } else { 0 };
+                    }
+                    if edges.is_none() {
+                        edges = Some(unsafe { RayTriPacket::<$lanes_type>::new(rays) });
+                    }
+                    let r = edges.as_ref().expect("made above");
+                    unsafe { self.packets_block_lanes(first, count, rays, r, lanes) }
+                };
+                let single = |node, lane: usize, stack: &mut Vec<(u32, f32)>| {
+                    let ray = &rays[lane];
+                    tree.occluded_from(node, ray, stack, |first, count, _| self.packets_block::<8>(first, count, ray))
+                };
+                unsafe { tree.occluded_packet(&packet, live, stack, leaf, single) }
+            }
+        }
+
+        impl SceneGeometry {
+            /// [`SceneGeometry::occluded_many`] through the top level by packets of consecutive
+            /// rays, as within one BLAS; an instance reached by two or more of a packet's rays
+            /// gets them as one packet in its own frame.
+            #[target_feature(enable = $feature)]
+            fn $scene(&self, top: &Bvh8, rays: &[Ray], stack: &mut Vec<(u32, f32)>, blocked: &mut [bool]) {
+                by_packets::<$lanes_type>(rays, blocked, |chunk, live| {
+                    let leaf = |first: u32, count: u32, lanes: u32, stack: &mut Vec<(u32, f32)>| {
+                        let mut open = lanes;
+                        for inst in &self.instances[first as usize..(first + count) as usize] {
+                            open &= !self.$instance(inst, chunk, open, stack);
+                            if open == 0 {
+                                break;
+                            }
+                        }
+                        lanes & !open
+                    };
+                    let single = |node, lane: usize, stack: &mut Vec<(u32, f32)>| {
+                        let ray = &chunk[lane];
+                        top.occluded_from(node, ray, stack, |first, count, stack| {
+                            let instances = &self.instances[first as usize..(first + count) as usize];
+                            instances.iter().any(|inst| self.instance_blocks(inst, ray, stack))
+                        })
+                    };
+                    // SAFETY: this function is compiled for the lane type's instruction set and
+                    // AVX, which the caller's CPU has.
+                    unsafe { top.occluded_packet(&RayPacket::<$lanes_type>::new(chunk), live, stack, leaf, single) }
+                });
+            }
+
+            /// The lanes of `lanes` whose ray in `rays` (world space) instance `inst` blocks:
+            /// as one packet in the instance's frame where its BLAS takes packets and two or
+            /// more rays reach it.
+            #[target_feature(enable = $feature)]
+            fn $instance(&self, inst: &Instance, rays: &[Ray], lanes: u32, stack: &mut Vec<(u32, f32)>) -> u32 {
+                let blas = &self.blases[inst.blas as usize];
+                let tree = match &blas.tree {
+                    Tree::Eight(tree) if !blas.packets.is_empty() && lanes.count_ones() >= 2 => tree,
+                    _ => {
+                        let mut hit = 0;
+                        for (k, ray) in rays.iter().enumerate() {
+                            if lanes & (1 << k) != 0 && self.instance_blocks(inst, ray, stack) {
+                                hit |= 1 << k;
+                            }
+                        }
+                        return hit;
+                    }
+                };
+                if inst.identity {
+                    return blas.$lanes(tree, rays, lanes, stack);
+                }
+                // Lanes not traced keep a copy of a traced ray: they only fill the packet.
+                let mut local = [rays[lanes.trailing_zeros() as usize]; 16];
+                let mut live = 0;
+                for (k, ray) in rays.iter().enumerate() {
+                    if lanes & (1 << k) != 0
+                        && let Some((ray, _)) = inst.local_ray(ray)
+                    {
+                        local[k] = ray;
+                        live |= 1 << k;
+                    }
+                }
+                blas.$lanes(tree, &local[..rays.len()], live, stack)
+            }
+        }
+    };
+}
+
+#[cfg(target_arch = "x86_64")]
+packet_kernels!(Avx, "avx", occluded_packets_avx, occluded_lanes_avx, occluded_packets_avx, instance_blocks_avx);
+#[cfg(target_arch = "x86_64")]
+packet_kernels!(
+    Avx512,
+    "avx512f",
+    occluded_packets_avx512,
+    occluded_lanes_avx512,
+    occluded_packets_avx512,
+    instance_blocks_avx512
+);
 
 /// Fewest rays in one [`Blas::occluded_many`] call for packet traversal (a point light's
 /// single shadow ray goes on its own).
@@ -544,75 +697,41 @@ impl Blas {
             && !self.packets.is_empty()
             && rays.len() >= PACKET_RUN
         {
-            // SAFETY: an eight-wide tree is built only where AVX was detected.
-            return unsafe { self.occluded_packets(tree, rays, stack, blocked) };
+            // SAFETY: an eight-wide tree is built only where AVX was detected, and sixteen-lane
+            // packets are chosen only where AVX-512 was.
+            return unsafe {
+                match packet_width() {
+                    PacketWidth::Sixteen => self.occluded_packets_avx512(tree, rays, stack, blocked),
+                    PacketWidth::Eight => self.occluded_packets_avx(tree, rays, stack, blocked),
+                }
+            };
         }
         self.tree.query(OccludedEach { target: self, rays, stack, blocked });
     }
 
-    /// [`Blas::occluded_many`] by packets of eight consecutive rays (a pixel's shadow rays,
-    /// which leave one point), traversed together while at least three of them enter a node.
-    /// Every ray gets exactly the answer of its own traversal.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx")]
-    fn occluded_packets(
-        &self,
-        tree: &super::wide_bvh::Bvh8,
-        rays: &[Ray],
-        stack: &mut Vec<(u32, f32)>,
-        blocked: &mut [bool],
-    ) {
-        by_packets(rays, blocked, |packet, live| self.occluded_lanes(tree, packet, live, stack));
-    }
-
-    /// The lanes of `live` whose ray in `rays` (one to eight) anything in this BLAS blocks,
-    /// the rays traced as one packet in `tree`, this BLAS's eight-wide tree.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx")]
-    fn occluded_lanes(
-        &self,
-        tree: &super::wide_bvh::Bvh8,
-        rays: &[Ray],
-        live: u32,
-        stack: &mut Vec<(u32, f32)>,
-    ) -> u32 {
-        if live == 0 {
-            return 0;
-        }
-        let packet = RayPacket::new(rays);
-        // The edge tests' constants, made when the packet first reaches a leaf.
-        let mut edges = None;
-        tree.occluded_packet(
-            &packet,
-            live,
-            stack,
-            |first, count, lanes, _| {
-                if lanes.count_ones() == 1 {
-                    let lane = lanes.trailing_zeros() as usize;
-                    return if self.packets_block::<8>(first, count, &rays[lane]) { lanes } else { 0 };
-                }
-                let r = edges.get_or_insert_with(|| RayTriPacket::new(rays));
-                self.packets_block_lanes(first, count, rays, r, lanes)
-            },
-            |node, lane, stack| {
-                let ray = &rays[lane];
-                tree.occluded_from(node, ray, stack, |first, count, _| self.packets_block::<8>(first, count, ray))
-            },
-        )
-    }
-
     /// The lanes of `lanes` whose ray in `rays` a triangle in packets `first..first + count`
     /// blocks, each triangle tested against all those rays at once.
+    ///
+    /// # Safety
+    /// The CPU must have `L`'s instruction set.
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx")]
-    fn packets_block_lanes(&self, first: u32, count: u32, rays: &[Ray], r: &RayTriPacket, lanes: u32) -> u32 {
+    #[inline(always)]
+    unsafe fn packets_block_lanes<L: Lanes>(
+        &self,
+        first: u32,
+        count: u32,
+        rays: &[Ray],
+        r: &RayTriPacket<L>,
+        lanes: u32,
+    ) -> u32 {
         let mut open = lanes;
         for packet in &self.packets[first as usize..(first + count) as usize] {
             for (lane, &slot) in packet.slot.iter().enumerate() {
                 if slot == u32::MAX {
                     continue;
                 }
-                let edges = packet.edges_packet(lane, r);
+                // SAFETY: the caller's CPU has `L`'s instruction set.
+                let edges = unsafe { packet.edges_packet(lane, r) };
                 let mut todo = (edges.pass | edges.exact) & open;
                 if todo == 0 {
                     continue;
@@ -1126,8 +1245,14 @@ impl SceneGeometry {
             if let Tree::Eight(top) = &self.top
                 && rays.len() >= PACKET_RUN
             {
-                // SAFETY: an eight-wide tree is built only where AVX was detected.
-                return unsafe { self.occluded_packets(top, rays, stack, blocked) };
+                // SAFETY: an eight-wide tree is built only where AVX was detected, and
+                // sixteen-lane packets are chosen only where AVX-512 was.
+                return unsafe {
+                    match packet_width() {
+                        PacketWidth::Sixteen => self.occluded_packets_avx512(top, rays, stack, blocked),
+                        PacketWidth::Eight => self.occluded_packets_avx(top, rays, stack, blocked),
+                    }
+                };
             }
             self.top.query(OccludedEach { target: self, rays, stack, blocked });
         }
@@ -1142,79 +1267,6 @@ impl SceneGeometry {
         } else {
             inst.local_ray(ray).is_some_and(|(local, _)| blas.occluded(&local, stack))
         }
-    }
-
-    /// [`SceneGeometry::occluded_many`] through the top level by packets of eight consecutive
-    /// rays, as [`Blas::occluded_many`] does within one BLAS; an instance reached by two or
-    /// more of a packet's rays gets them as one packet in its own frame.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx")]
-    fn occluded_packets(
-        &self,
-        top: &super::wide_bvh::Bvh8,
-        rays: &[Ray],
-        stack: &mut Vec<(u32, f32)>,
-        blocked: &mut [bool],
-    ) {
-        by_packets(rays, blocked, |chunk, live| {
-            top.occluded_packet(
-                &RayPacket::new(chunk),
-                live,
-                stack,
-                |first, count, lanes, stack| {
-                    let mut open = lanes;
-                    for inst in &self.instances[first as usize..(first + count) as usize] {
-                        open &= !self.instance_blocks_lanes(inst, chunk, open, stack);
-                        if open == 0 {
-                            break;
-                        }
-                    }
-                    lanes & !open
-                },
-                |node, lane, stack| {
-                    let ray = &chunk[lane];
-                    top.occluded_from(node, ray, stack, |first, count, stack| {
-                        let instances = &self.instances[first as usize..(first + count) as usize];
-                        instances.iter().any(|inst| self.instance_blocks(inst, ray, stack))
-                    })
-                },
-            )
-        });
-    }
-
-    /// The lanes of `lanes` whose ray in `rays` (world space) instance `inst` blocks: as one
-    /// packet in the instance's frame where its BLAS takes packets and two or more rays reach it.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx")]
-    fn instance_blocks_lanes(&self, inst: &Instance, rays: &[Ray], lanes: u32, stack: &mut Vec<(u32, f32)>) -> u32 {
-        let blas = &self.blases[inst.blas as usize];
-        let tree = match &blas.tree {
-            Tree::Eight(tree) if !blas.packets.is_empty() && lanes.count_ones() >= 2 => tree,
-            _ => {
-                let mut hit = 0;
-                for (k, ray) in rays.iter().enumerate() {
-                    if lanes & (1 << k) != 0 && self.instance_blocks(inst, ray, stack) {
-                        hit |= 1 << k;
-                    }
-                }
-                return hit;
-            }
-        };
-        if inst.identity {
-            return blas.occluded_lanes(tree, rays, lanes, stack);
-        }
-        // Lanes not traced keep a copy of a traced ray: they only fill the packet.
-        let mut local = [rays[lanes.trailing_zeros() as usize]; 8];
-        let mut live = 0;
-        for (k, ray) in rays.iter().enumerate() {
-            if lanes & (1 << k) != 0
-                && let Some((ray, _)) = inst.local_ray(ray)
-            {
-                local[k] = ray;
-                live |= 1 << k;
-            }
-        }
-        blas.occluded_lanes(tree, &local, live, stack)
     }
 
     /// Intersects one world-space primitive: (t, b1, b2).

@@ -2,6 +2,8 @@
 
 pub mod accel;
 pub mod hit;
+#[cfg(target_arch = "x86_64")]
+pub(crate) mod lanes;
 pub mod ray;
 pub mod shapes;
 pub mod tri4;

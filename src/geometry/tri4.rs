@@ -7,6 +7,8 @@
 
 use glam::{Vec3A, Vec4};
 
+#[cfg(target_arch = "x86_64")]
+use super::lanes::Lanes;
 use super::{
     ray::{Ray, Shear},
     shapes::Triangle,
@@ -49,7 +51,7 @@ impl RayTri4 {
 }
 
 /// Lanes of a packet after the edge tests.
-pub struct Lanes {
+pub struct Edges {
     /// Lanes whose edge functions are all non-zero and of one sign: call [`Triangle::finish`].
     pub pass: u32,
     /// Lanes with a zero or NaN edge function: call the scalar [`Triangle::intersect`].
@@ -82,7 +84,7 @@ impl Tri4 {
 
     /// Edge tests of the four lanes (unused lanes come back in `exact`; skip them by slot).
     #[inline(always)]
-    pub fn edges(&self, r: &RayTri4) -> Lanes {
+    pub fn edges(&self, r: &RayTri4) -> Edges {
         let [kx, ky, kz] = r.shear.axes;
         let o = &r.origin;
         // Translate to the ray origin, permute so the ray runs along +z, shear.
@@ -102,34 +104,31 @@ impl Tri4 {
         let pos = e0.cmpgt(zero) & e1.cmpgt(zero) & e2.cmpgt(zero);
         let neg = e0.cmplt(zero) & e1.cmplt(zero) & e2.cmplt(zero);
         let exact = exact.bitmask();
-        Lanes { pass: (pos | neg).bitmask() & !exact, exact, e: [e0.to_array(), e1.to_array(), e2.to_array()] }
+        Edges { pass: (pos | neg).bitmask() & !exact, exact, e: [e0.to_array(), e1.to_array(), e2.to_array()] }
     }
 }
 
-/// A packet of up to eight rays' constants for the edge tests, one ray per AVX lane: origin,
-/// shear, and which axis each ray's shear runs along.
+/// A packet of rays' constants for the edge tests, one ray per lane: origin, shear, and which
+/// axis each ray's shear runs along.
 #[cfg(target_arch = "x86_64")]
-pub struct RayTriPacket {
-    origin: [std::arch::x86_64::__m256; 3],
-    sx: std::arch::x86_64::__m256,
-    sy: std::arch::x86_64::__m256,
-    /// All ones in lanes whose kz is x (resp. y, where it is not x); kz is z in the others.
-    x_wins: std::arch::x86_64::__m256,
-    y_wins: std::arch::x86_64::__m256,
+pub(crate) struct RayTriPacket<L: Lanes> {
+    origin: [L; 3],
+    sx: L,
+    sy: L,
+    axes: Axes<L>,
 }
 
 #[cfg(target_arch = "x86_64")]
-impl RayTriPacket {
-    /// The constants of `rays` (one to eight) in lanes 0, 1, …; lanes past the last repeat it.
-    /// Each lane's axes and shear are [`Shear::new`]'s for its ray, bit for bit.
+impl<L: Lanes> RayTriPacket<L> {
+    /// The constants of `rays` (one to `L::WIDTH`) in lanes 0, 1, …; lanes past the last
+    /// repeat it. Each lane's axes and shear are [`Shear::new`]'s for its ray, bit for bit.
     ///
     /// # Safety
-    /// The CPU must have AVX.
-    #[target_feature(enable = "avx")]
-    pub fn new(rays: &[Ray]) -> Self {
-        use std::arch::x86_64::*;
-        let mut columns = [[0.0f32; 8]; 6];
-        for k in 0..8 {
+    /// The CPU must have `L`'s instruction set.
+    #[inline(always)]
+    pub(crate) unsafe fn new(rays: &[Ray]) -> Self {
+        let mut columns = [[0.0f32; 16]; 6];
+        for k in 0..L::WIDTH {
             let r = &rays[k.min(rays.len() - 1)];
             let (o, d) = (r.origin.to_array(), r.dir.to_array());
             for a in 0..3 {
@@ -137,56 +136,69 @@ impl RayTriPacket {
                 columns[3 + a][k] = d[a];
             }
         }
-        // SAFETY: each column holds eight f32.
-        let load = |c: &[f32; 8]| unsafe { _mm256_loadu_ps(c.as_ptr()) };
-        let d = [load(&columns[3]), load(&columns[4]), load(&columns[5])];
-        let sign = _mm256_set1_ps(-0.0);
-        let abs = [_mm256_andnot_ps(sign, d[0]), _mm256_andnot_ps(sign, d[1]), _mm256_andnot_ps(sign, d[2])];
-        let x_over_y = _mm256_cmp_ps::<_CMP_GT_OQ>(abs[0], abs[1]);
-        let x_wins = _mm256_and_ps(x_over_y, _mm256_cmp_ps::<_CMP_GT_OQ>(abs[0], abs[2]));
-        let y_wins = _mm256_andnot_ps(x_over_y, _mm256_cmp_ps::<_CMP_GT_OQ>(abs[1], abs[2]));
-        let [dx, dy, dz] = Axes { x_wins, y_wins }.permute(d);
-        RayTriPacket {
-            origin: [load(&columns[0]), load(&columns[1]), load(&columns[2])],
-            sx: _mm256_div_ps(_mm256_xor_ps(dx, sign), dz),
-            sy: _mm256_div_ps(_mm256_xor_ps(dy, sign), dz),
-            x_wins,
-            y_wins,
+        // SAFETY: the caller's CPU has `L`'s instruction set. (No closures in this packet code:
+        // a closure is compiled on its own, without the instruction set of its caller.)
+        unsafe {
+            let d = [L::load(&columns[3]), L::load(&columns[4]), L::load(&columns[5])];
+            let abs = [d[0].abs(), d[1].abs(), d[2].abs()];
+            let x_over_y = abs[0].gt(abs[1]);
+            let x_wins = L::and(x_over_y, abs[0].gt(abs[2]));
+            let y_wins = L::andnot(x_over_y, abs[1].gt(abs[2]));
+            let axes = Axes { x_wins, y_wins };
+            let [dx, dy, dz] = axes.permute(d);
+            RayTriPacket {
+                origin: [L::load(&columns[0]), L::load(&columns[1]), L::load(&columns[2])],
+                sx: dx.neg().div(dz),
+                sy: dy.neg().div(dz),
+                axes,
+            }
         }
     }
 }
 
 /// Each lane's axis order (kx, ky, kz) as [`Shear::new`] picks it.
 #[cfg(target_arch = "x86_64")]
-struct Axes {
-    x_wins: std::arch::x86_64::__m256,
-    y_wins: std::arch::x86_64::__m256,
+#[derive(Clone, Copy)]
+struct Axes<L: Lanes> {
+    /// Lanes whose kz is x.
+    x_wins: L::Mask,
+    /// Lanes whose kz is y (kz is z in the others).
+    y_wins: L::Mask,
 }
 
 #[cfg(target_arch = "x86_64")]
-impl Axes {
+impl<L: Lanes> Axes<L> {
     /// Lanes of `v` (x, y, z) in each lane's (kx, ky, kz) order: (y, z, x) where kz is x,
     /// (z, x, y) where it is y, (x, y, z) elsewhere.
-    #[target_feature(enable = "avx")]
-    #[inline]
-    fn permute(&self, v: [std::arch::x86_64::__m256; 3]) -> [std::arch::x86_64::__m256; 3] {
-        use std::arch::x86_64::*;
-        let pick = |if_x: usize, if_y: usize, otherwise: usize| {
-            _mm256_blendv_ps(_mm256_blendv_ps(v[otherwise], v[if_y], self.y_wins), v[if_x], self.x_wins)
-        };
-        [pick(1, 2, 0), pick(2, 0, 1), pick(0, 1, 2)]
+    ///
+    /// # Safety
+    /// The CPU must have `L`'s instruction set.
+    #[inline(always)]
+    unsafe fn permute(&self, v: [L; 3]) -> [L; 3] {
+        // SAFETY: the caller's CPU has `L`'s instruction set.
+        unsafe { [self.pick(&v, 1, 2, 0), self.pick(&v, 2, 0, 1), self.pick(&v, 0, 1, 2)] }
+    }
+
+    /// `v[if_x]` where kz is x, `v[if_y]` where it is y, `v[otherwise]` elsewhere.
+    ///
+    /// # Safety
+    /// The CPU must have `L`'s instruction set.
+    #[inline(always)]
+    unsafe fn pick(&self, v: &[L; 3], if_x: usize, if_y: usize, otherwise: usize) -> L {
+        // SAFETY: the caller's CPU has `L`'s instruction set.
+        unsafe { v[otherwise].select(self.y_wins, v[if_y]).select(self.x_wins, v[if_x]) }
     }
 }
 
 /// A triangle's edge tests against a packet of rays.
 #[cfg(target_arch = "x86_64")]
-pub struct PacketLanes {
+pub(crate) struct PacketEdges {
     /// Rays whose edge functions are all non-zero and of one sign: call [`Triangle::finish`].
     pub pass: u32,
     /// Rays with a zero or NaN edge function: call the scalar [`Triangle::intersect`].
     pub exact: u32,
     /// The edge functions (e0, e1, e2) of each ray.
-    pub e: [[f32; 8]; 3],
+    pub e: [[f32; 16]; 3],
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -195,45 +207,58 @@ impl Tri4 {
     /// [`Tri4::edges`] in the same order, so each ray's edge functions are bit-identical to it.
     ///
     /// # Safety
-    /// The CPU must have AVX.
-    #[target_feature(enable = "avx")]
-    pub fn edges_packet(&self, lane: usize, r: &RayTriPacket) -> PacketLanes {
-        use std::arch::x86_64::*;
-        let axes = Axes { x_wins: r.x_wins, y_wins: r.y_wins };
-        // Translate to each ray's origin, permute so that ray runs along +z, shear.
-        let f = |v: usize| {
-            let p = &self.p[v];
-            let q = [
-                _mm256_sub_ps(_mm256_set1_ps(p[0].as_ref()[lane]), r.origin[0]),
-                _mm256_sub_ps(_mm256_set1_ps(p[1].as_ref()[lane]), r.origin[1]),
-                _mm256_sub_ps(_mm256_set1_ps(p[2].as_ref()[lane]), r.origin[2]),
-            ];
-            let [x, y, z] = axes.permute(q);
-            (_mm256_add_ps(x, _mm256_mul_ps(r.sx, z)), _mm256_add_ps(y, _mm256_mul_ps(r.sy, z)))
-        };
-        let (v0, v1, v2) = (f(0), f(1), f(2));
-        let cross =
-            |a: (__m256, __m256), b: (__m256, __m256)| _mm256_sub_ps(_mm256_mul_ps(a.0, b.1), _mm256_mul_ps(a.1, b.0));
-        let e = [cross(v1, v2), cross(v2, v0), cross(v0, v1)];
-        let zero = _mm256_setzero_ps();
-        let mut exact = zero;
-        let (mut pos, mut neg) =
-            (_mm256_castsi256_ps(_mm256_set1_epi32(-1)), _mm256_castsi256_ps(_mm256_set1_epi32(-1)));
-        for &x in &e {
-            // Zero or NaN.
-            exact = _mm256_or_ps(exact, _mm256_cmp_ps::<_CMP_EQ_UQ>(x, zero));
-            pos = _mm256_and_ps(pos, _mm256_cmp_ps::<_CMP_GT_OQ>(x, zero));
-            neg = _mm256_and_ps(neg, _mm256_cmp_ps::<_CMP_LT_OQ>(x, zero));
+    /// The CPU must have `L`'s instruction set.
+    #[inline(always)]
+    pub(crate) unsafe fn edges_packet<L: Lanes>(&self, lane: usize, r: &RayTriPacket<L>) -> PacketEdges {
+        // SAFETY: the caller's CPU has `L`'s instruction set.
+        unsafe {
+            let (v0, v1, v2) = (self.sheared(0, lane, r), self.sheared(1, lane, r), self.sheared(2, lane, r));
+            let cross = cross_2d::<L>;
+            let e = [cross(v1, v2), cross(v2, v0), cross(v0, v1)];
+            let zero = L::splat(0.0);
+            // Zero or NaN, then all of one sign.
+            let exact = L::or(L::or(e[0].eq_or_nan(zero), e[1].eq_or_nan(zero)), e[2].eq_or_nan(zero));
+            let pos = L::and(L::and(e[0].gt(zero), e[1].gt(zero)), e[2].gt(zero));
+            let neg = L::and(L::and(e[0].lt(zero), e[1].lt(zero)), e[2].lt(zero));
+            let exact = L::bits(exact);
+            let mut out = [[0.0; 16]; 3];
+            for k in 0..3 {
+                e[k].store(&mut out[k]);
+            }
+            PacketEdges { pass: L::bits(L::or(pos, neg)) & !exact, exact, e: out }
         }
-        let exact = _mm256_movemask_ps(exact) as u32;
-        let pass = _mm256_movemask_ps(_mm256_or_ps(pos, neg)) as u32 & !exact;
-        let mut out = [[0.0; 8]; 3];
-        for k in 0..3 {
-            // SAFETY: each row of `out` holds eight f32.
-            unsafe { _mm256_storeu_ps(out[k].as_mut_ptr(), e[k]) };
-        }
-        PacketLanes { pass, exact, e: out }
     }
+
+    /// Vertex `v` of triangle `lane` in each ray's frame: translated to its origin, permuted so
+    /// that the ray runs along +z, sheared; (x, y).
+    ///
+    /// # Safety
+    /// The CPU must have `L`'s instruction set.
+    #[inline(always)]
+    unsafe fn sheared<L: Lanes>(&self, v: usize, lane: usize, r: &RayTriPacket<L>) -> (L, L) {
+        let p = &self.p[v];
+        // SAFETY: the caller's CPU has `L`'s instruction set.
+        unsafe {
+            let q = [
+                L::splat(p[0].as_ref()[lane]).sub(r.origin[0]),
+                L::splat(p[1].as_ref()[lane]).sub(r.origin[1]),
+                L::splat(p[2].as_ref()[lane]).sub(r.origin[2]),
+            ];
+            let [x, y, z] = r.axes.permute(q);
+            (x.add(r.sx.mul(z)), y.add(r.sy.mul(z)))
+        }
+    }
+}
+
+/// `a.x·b.y − a.y·b.x` per lane.
+///
+/// # Safety
+/// The CPU must have `L`'s instruction set.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn cross_2d<L: Lanes>(a: (L, L), b: (L, L)) -> L {
+    // SAFETY: the caller's CPU has `L`'s instruction set.
+    unsafe { a.0.mul(b.1).sub(a.1.mul(b.0)) }
 }
 
 #[cfg(all(test, target_arch = "x86_64"))]
@@ -246,10 +271,25 @@ mod tests {
     /// rays parallel to an axis.
     #[test]
     fn packet_edges_are_the_single_ray_edges_bit_for_bit() {
+        use crate::geometry::lanes::{Avx, Avx512};
         if !std::arch::is_x86_feature_detected!("avx") {
             eprintln!("no AVX on this CPU: packets are not used and not tested");
             return;
         }
+        // SAFETY: AVX was detected; AVX-512 is checked.
+        unsafe { packet_edges_are_single_ray_edges::<Avx>() };
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            unsafe { packet_edges_are_single_ray_edges::<Avx512>() };
+        } else {
+            eprintln!("no AVX-512 on this CPU: sixteen-lane packets are not used and not tested");
+        }
+    }
+
+    /// [`packet_edges_are_the_single_ray_edges_bit_for_bit`] for packets of `L::WIDTH` rays.
+    ///
+    /// # Safety
+    /// The CPU must have `L`'s instruction set.
+    unsafe fn packet_edges_are_single_ray_edges<L: Lanes>() {
         let mut rng = SplitMix64::new(23);
         let mut v = |s: f32| Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * s - s * 0.5;
         let tris: Vec<(u32, Triangle)> = (0..4)
@@ -260,7 +300,7 @@ mod tests {
         let (mut passed, mut exact) = (0, 0);
         for p in 0..400 {
             let origin = if p % 4 == 0 { Vec3A::new(0.0, 1.0, 0.0) } else { v(6.0) };
-            let rays: Vec<Ray> = (0..8)
+            let rays: Vec<Ray> = (0..L::WIDTH)
                 .map(|i| {
                     let target = match (p + i) % 4 {
                         // A vertex or an edge midpoint of the last triangle: zero edge functions.
@@ -269,26 +309,27 @@ mod tests {
                         _ => v(3.0),
                     };
                     let mut dir = target - origin;
-                    if i == 7 {
+                    if i == L::WIDTH - 1 {
                         dir[p % 3] = 0.0;
                     }
                     Ray::new(origin, dir.normalize_or(Vec3A::Y), f32::INFINITY)
                 })
                 .collect();
-            // SAFETY: AVX was detected above.
-            let r = unsafe { RayTriPacket::new(&rays) };
+            // SAFETY: the caller's CPU has `L`'s instruction set.
+            let r = unsafe { RayTriPacket::<L>::new(&rays) };
             for packet in &packets {
                 for lane in 0..4 {
-                    // SAFETY: AVX was detected above.
+                    // SAFETY: the caller's CPU has `L`'s instruction set.
                     let lanes = unsafe { packet.edges_packet(lane, &r) };
                     for (k, ray) in rays.iter().enumerate() {
                         let one = packet.edges(&RayTri4::new(ray));
                         let bit = |mask: u32, i: usize| (mask >> i) & 1;
-                        assert_eq!(bit(lanes.exact, k), bit(one.exact, lane), "packet {p}, ray {k}, lane {lane}");
+                        let at = format!("{} lanes, packet {p}, ray {k}, lane {lane}", L::WIDTH);
+                        assert_eq!(bit(lanes.exact, k), bit(one.exact, lane), "{at}");
                         if one.exact & (1 << lane) == 0 {
-                            assert_eq!(bit(lanes.pass, k), bit(one.pass, lane), "packet {p}, ray {k}, lane {lane}");
+                            assert_eq!(bit(lanes.pass, k), bit(one.pass, lane), "{at}");
                             for e in 0..3 {
-                                assert_eq!(lanes.e[e][k].to_bits(), one.e[e][lane].to_bits(), "packet {p}, ray {k}");
+                                assert_eq!(lanes.e[e][k].to_bits(), one.e[e][lane].to_bits(), "{at}");
                             }
                         }
                         passed += bit(lanes.pass, k);

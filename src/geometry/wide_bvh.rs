@@ -14,6 +14,8 @@
 use glam::Vec4;
 use obvhs::{aabb::Aabb, bvh2::node::Bvh2Node};
 
+#[cfg(target_arch = "x86_64")]
+use super::lanes::Lanes;
 use super::ray::Ray;
 use crate::math::gamma;
 
@@ -416,61 +418,50 @@ where
     }
 }
 
-/// Up to eight rays in the lanes of AVX registers, for [`WideBvh::occluded_packet`].
+/// A packet of rays in SIMD lanes ([`Lanes`]: eight with AVX, sixteen with AVX-512), for
+/// [`WideBvh::occluded_packet`].
 #[cfg(target_arch = "x86_64")]
 #[derive(Clone, Copy)]
-pub struct RayPacket {
-    origin: [std::arch::x86_64::__m256; 3],
-    inv_dir: [std::arch::x86_64::__m256; 3],
-    /// All ones in the lanes whose direction is negative on each axis: they take a box's
-    /// maximum as their near plane.
-    negative: [std::arch::x86_64::__m256; 3],
-    tmax: std::arch::x86_64::__m256,
+pub(crate) struct RayPacket<L: Lanes> {
+    origin: [L; 3],
+    inv_dir: [L; 3],
+    /// The lanes whose direction is negative on each axis: they take a box's maximum as their
+    /// near plane.
+    negative: [L::Mask; 3],
+    tmax: L,
 }
 
 #[cfg(target_arch = "x86_64")]
-impl RayPacket {
-    /// `rays` (one to eight) in lanes 0, 1, …; lanes past the last repeat it.
+impl<L: Lanes> RayPacket<L> {
+    /// `rays` (one to `L::WIDTH`) in lanes 0, 1, …; lanes past the last repeat it.
     ///
     /// # Safety
-    /// The CPU must have AVX.
-    #[target_feature(enable = "avx")]
-    pub fn new(rays: &[Ray]) -> Self {
-        use std::arch::x86_64::*;
-        let (origin, inv_dir, tmax) = lanes(rays);
-        let zero = _mm256_setzero_ps();
-        let negative = [
-            _mm256_cmp_ps::<_CMP_LT_OQ>(inv_dir[0], zero),
-            _mm256_cmp_ps::<_CMP_LT_OQ>(inv_dir[1], zero),
-            _mm256_cmp_ps::<_CMP_LT_OQ>(inv_dir[2], zero),
-        ];
-        RayPacket { origin, inv_dir, negative, tmax }
-    }
-}
-
-/// The origins, reciprocal directions and far ends of `rays` (one to eight) in AVX lanes,
-/// lanes past the last repeating it.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx")]
-fn lanes(rays: &[Ray]) -> ([std::arch::x86_64::__m256; 3], [std::arch::x86_64::__m256; 3], std::arch::x86_64::__m256) {
-    use std::arch::x86_64::*;
-    let mut columns = [[0.0f32; 8]; 7];
-    for k in 0..8 {
-        let r = &rays[k.min(rays.len() - 1)];
-        let (o, inv) = (r.origin.to_array(), r.inv_dir.to_array());
-        for a in 0..3 {
-            columns[a][k] = o[a];
-            columns[3 + a][k] = inv[a];
+    /// The CPU must have `L`'s instruction set.
+    #[inline(always)]
+    pub(crate) unsafe fn new(rays: &[Ray]) -> Self {
+        let mut columns = [[0.0f32; 16]; 7];
+        for k in 0..L::WIDTH {
+            let r = &rays[k.min(rays.len() - 1)];
+            let (o, inv) = (r.origin.to_array(), r.inv_dir.to_array());
+            for a in 0..3 {
+                columns[a][k] = o[a];
+                columns[3 + a][k] = inv[a];
+            }
+            columns[6][k] = r.tmax;
         }
-        columns[6][k] = r.tmax;
+        // SAFETY: the caller's CPU has `L`'s instruction set. (No closures here: a closure is
+        // compiled on its own, without the instruction set of the function it ends up in.)
+        unsafe {
+            let inv_dir = [L::load(&columns[3]), L::load(&columns[4]), L::load(&columns[5])];
+            let zero = L::splat(0.0);
+            RayPacket {
+                origin: [L::load(&columns[0]), L::load(&columns[1]), L::load(&columns[2])],
+                inv_dir,
+                negative: [inv_dir[0].lt(zero), inv_dir[1].lt(zero), inv_dir[2].lt(zero)],
+                tmax: L::load(&columns[6]),
+            }
+        }
     }
-    // SAFETY: each column holds eight f32.
-    let load = |c: &[f32; 8]| unsafe { _mm256_loadu_ps(c.as_ptr()) };
-    (
-        [load(&columns[0]), load(&columns[1]), load(&columns[2])],
-        [load(&columns[3]), load(&columns[4]), load(&columns[5])],
-        load(&columns[6]),
-    )
 }
 
 /// Entries of the packet traversal's stack, which lives on the call stack; a subtree that
@@ -487,22 +478,25 @@ impl Node<8> {
     /// The lanes of `p` that enter child `c`: the eight-child test's operations per ray, each
     /// ray's near and far planes picked by its own direction's signs, so every lane decides
     /// exactly as [`NodeTest::test`] does for that ray.
-    #[target_feature(enable = "avx")]
-    #[inline]
-    fn test_packet(&self, c: usize, p: &RayPacket) -> u32 {
-        use std::arch::x86_64::*;
-        let mut near = _mm256_set1_ps(NEAR_START);
-        let mut far = _mm256_set1_ps(f32::INFINITY);
-        for a in 0..3 {
-            let (lo, hi) = (_mm256_set1_ps(self.planes[a][c]), _mm256_set1_ps(self.planes[a + 3][c]));
-            let (near_plane, far_plane) =
-                (_mm256_blendv_ps(lo, hi, p.negative[a]), _mm256_blendv_ps(hi, lo, p.negative[a]));
-            // vmaxps / vminps return their second operand when either is NaN.
-            near = _mm256_max_ps(_mm256_mul_ps(_mm256_sub_ps(near_plane, p.origin[a]), p.inv_dir[a]), near);
-            far = _mm256_min_ps(_mm256_mul_ps(_mm256_sub_ps(far_plane, p.origin[a]), p.inv_dir[a]), far);
+    ///
+    /// # Safety
+    /// The CPU must have `L`'s instruction set.
+    #[inline(always)]
+    unsafe fn test_packet<L: Lanes>(&self, c: usize, p: &RayPacket<L>) -> u32 {
+        // SAFETY: the caller's CPU has `L`'s instruction set.
+        unsafe {
+            let mut near = L::splat(NEAR_START);
+            let mut far = L::splat(f32::INFINITY);
+            for a in 0..3 {
+                let (lo, hi) = (L::splat(self.planes[a][c]), L::splat(self.planes[a + 3][c]));
+                let (near_plane, far_plane) = (lo.select(p.negative[a], hi), hi.select(p.negative[a], lo));
+                // maxps / minps return their second operand when either is NaN.
+                near = near_plane.sub(p.origin[a]).mul(p.inv_dir[a]).max_keep(near);
+                far = far_plane.sub(p.origin[a]).mul(p.inv_dir[a]).min_keep(far);
+            }
+            let far = far.mul(L::splat(far_scale())).min_keep(p.tmax);
+            L::bits(near.le(far))
         }
-        let far = _mm256_min_ps(_mm256_mul_ps(far, _mm256_set1_ps(far_scale())), p.tmax);
-        _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32
     }
 }
 
@@ -517,11 +511,11 @@ impl WideBvh<8> {
     /// from node `node`. Both may use `stack` above its length. Returns the blocked lanes.
     ///
     /// # Safety
-    /// The CPU must have AVX.
-    #[target_feature(enable = "avx")]
-    pub fn occluded_packet(
+    /// The CPU must have `L`'s instruction set (and AVX, for this eight-wide tree).
+    #[inline(always)]
+    pub(crate) unsafe fn occluded_packet<L: Lanes>(
         &self,
-        p: &RayPacket,
+        p: &RayPacket<L>,
         live: u32,
         stack: &mut Vec<(u32, f32)>,
         mut leaf: impl FnMut(u32, u32, u32, &mut Vec<(u32, f32)>) -> u32,
@@ -558,7 +552,8 @@ impl WideBvh<8> {
                     break;
                 }
                 // Only rays that entered this node, and are not yet blocked, go on to its children.
-                let entered = n.test_packet(c, p) & lanes & open;
+                // SAFETY: the caller's CPU has `L`'s instruction set.
+                let entered = unsafe { n.test_packet(c, p) } & lanes & open;
                 if entered == 0 {
                     continue;
                 }
@@ -668,6 +663,7 @@ mod tests {
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn a_packet_visits_exactly_the_leaves_each_ray_enters() {
+        use crate::geometry::lanes::{Avx, Avx512};
         let mut rng = SplitMix64::new(17);
         let mut point = |scale: f32| Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * scale;
         let mut boxes: Vec<Aabb> = (0..3_000)
@@ -683,15 +679,31 @@ mod tests {
             eprintln!("no AVX on this CPU: packets are not used and not tested");
             return;
         };
+        // SAFETY: the eight-wide tree exists, so the CPU has AVX; AVX-512 is checked.
+        unsafe { packets_visit_the_leaves_rays_enter::<Avx>(&bvh2, &tree) };
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            unsafe { packets_visit_the_leaves_rays_enter::<Avx512>(&bvh2, &tree) };
+        } else {
+            eprintln!("no AVX-512 on this CPU: sixteen-lane packets are not used and not tested");
+        }
+    }
+
+    /// [`a_packet_visits_exactly_the_leaves_each_ray_enters`] for packets of `L::WIDTH` rays.
+    ///
+    /// # Safety
+    /// The CPU must have `L`'s instruction set and AVX.
+    #[cfg(target_arch = "x86_64")]
+    unsafe fn packets_visit_the_leaves_rays_enter<L: crate::geometry::lanes::Lanes>(bvh2: &[Bvh2Node], tree: &Bvh8) {
         let mut rng = SplitMix64::new(18);
         let (packet_leaves, single_leaves) = (Cell::new(0), Cell::new(0));
+        let all = (1u32 << L::WIDTH) - 1;
         for p in 0..300 {
             let origin = if p % 5 == 0 {
                 Vec3A::new(rng.next_f32() * 8.0, 0.0, rng.next_f32())
             } else {
                 Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 24.0 - 12.0
             };
-            let rays: Vec<Ray> = (0..8)
+            let rays: Vec<Ray> = (0..L::WIDTH)
                 .map(|i| {
                     let mut dir = Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
                     if i % 3 == 0 {
@@ -701,21 +713,21 @@ mod tests {
                     Ray::new(origin, dir.normalize_or(Vec3A::Y), tmax)
                 })
                 .collect();
-            let live = if p % 7 == 0 { 0b1011_0110 } else { 0xFF };
-            let seen = RefCell::new(vec![Leaves::new(); 8]);
+            let live = if p % 7 == 0 { 0b1011_0110_1101_0110 & all } else { all };
+            let seen = RefCell::new(vec![Leaves::new(); L::WIDTH]);
             let visit = |lane: usize, leaf: (u32, u32), count: &Cell<usize>| {
                 assert!(seen.borrow_mut()[lane].insert(leaf), "lane {lane} visits leaf {leaf:?} twice");
                 count.set(count.get() + 1);
             };
             let mut stack = Vec::new();
-            // SAFETY: the eight-wide tree exists, so the CPU has AVX.
+            // SAFETY: the caller's CPU has `L`'s instruction set and AVX.
             let blocked = unsafe {
                 tree.occluded_packet(
-                    &RayPacket::new(&rays),
+                    &RayPacket::<L>::new(&rays),
                     live,
                     &mut stack,
                     |first, count, lanes, _| {
-                        for lane in (0..8).filter(|k| lanes & (1 << k) != 0) {
+                        for lane in (0..L::WIDTH).filter(|k| lanes & (1 << k) != 0) {
                             visit(lane, (first, count), &packet_leaves);
                         }
                         0
@@ -730,8 +742,8 @@ mod tests {
             };
             assert_eq!(blocked, 0);
             for (lane, ray) in rays.iter().enumerate() {
-                let expected = if live & (1 << lane) != 0 { brute_force(&bvh2, ray) } else { Leaves::new() };
-                assert_eq!(seen.borrow()[lane], expected, "packet {p}, lane {lane}");
+                let expected = if live & (1 << lane) != 0 { brute_force(bvh2, ray) } else { Leaves::new() };
+                assert_eq!(seen.borrow()[lane], expected, "{} lanes, packet {p}, lane {lane}", L::WIDTH);
             }
         }
         let (packet_leaves, single_leaves) = (packet_leaves.get(), single_leaves.get());
