@@ -273,28 +273,32 @@ fn build_params(prims: usize) -> BvhBuildParams {
 #[inline(always)]
 fn by_packets<L: Lanes>(rays: &[Ray], blocked: &mut [bool], mut trace: impl FnMut(&[Ray], u32) -> u32) {
     for (block, done) in rays.chunks(64).zip(blocked.chunks_mut(64)) {
-        let octant = |r: &Ray| r.inv_dir.cmplt(Vec3A::ZERO).bitmask() as usize;
-        // A counting sort of the live rays by octant.
-        let mut start = [0u8; 9];
-        for (r, _) in block.iter().zip(done.iter()).filter(|(_, b)| !**b) {
-            start[octant(r) + 1] += 1;
+        // A counting sort of the live rays' indices by octant (8 for rays already blocked).
+        let mut octants = [8u8; 64];
+        let mut start = [0u8; 10];
+        for ((o, r), &b) in octants.iter_mut().zip(block).zip(done.iter()) {
+            if !b {
+                *o = r.inv_dir.cmplt(Vec3A::ZERO).bitmask() as u8;
+            }
+            start[*o as usize + 1] += 1;
         }
-        for o in 1..9 {
+        for o in 1..10 {
             start[o] += start[o - 1];
         }
         let live = start[8] as usize;
-        let mut sorted = [block[0]; 64];
         let mut index = [0u8; 64];
-        for (k, (r, _)) in block.iter().zip(done.iter()).enumerate().filter(|(_, (_, b))| !**b) {
-            let at = &mut start[octant(r)];
-            sorted[*at as usize] = *r;
-            index[*at as usize] = k as u8;
-            *at += 1;
+        for (k, &o) in octants[..block.len()].iter().enumerate() {
+            index[start[o as usize] as usize] = k as u8;
+            start[o as usize] += 1;
         }
-        for (packet, index) in sorted[..live].chunks(L::WIDTH).zip(index[..live].chunks(L::WIDTH)) {
-            let mut hit = trace(packet, (1 << packet.len()) - 1);
+        let mut packet = [block[0]; 16];
+        for order in index[..live].chunks(L::WIDTH) {
+            for (p, &k) in packet.iter_mut().zip(order) {
+                *p = block[k as usize];
+            }
+            let mut hit = trace(&packet[..order.len()], (1 << order.len()) - 1);
             while hit != 0 {
-                done[index[hit.trailing_zeros() as usize] as usize] = true;
+                done[order[hit.trailing_zeros() as usize] as usize] = true;
                 hit &= hit - 1;
             }
         }
@@ -332,7 +336,7 @@ macro_rules! packet_kernels {
     ($lanes_type:ty, $feature:literal, $packets:ident, $lanes:ident, $scene:ident, $instance:ident) => {
         impl Blas {
             /// [`Blas::occluded_many`] by packets of consecutive rays (a pixel's shadow rays,
-            /// which leave one point), traversed together while at least three of them enter
+            /// which leave one point), traversed together while at least four of them enter
             /// a node. Every ray gets exactly the answer of its own traversal.
             #[target_feature(enable = $feature)]
             fn $packets(&self, tree: &Bvh8, rays: &[Ray], stack: &mut Vec<(u32, f32)>, blocked: &mut [bool]) {
