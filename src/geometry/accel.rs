@@ -20,12 +20,7 @@ use glam::{Affine3A, Mat3A, Vec3, Vec3A};
 use obvhs::{
     BvhBuildParams,
     aabb::Aabb,
-    bvh2::{
-        Bvh2,
-        builder::{build_bvh2, build_bvh2_from_tris},
-        node::Bvh2Node,
-    },
-    triangle::Triangle as ObvhsTriangle,
+    bvh2::{Bvh2, builder::build_bvh2, node::Bvh2Node},
 };
 use rayon::prelude::*;
 
@@ -470,10 +465,8 @@ pub struct Blas {
     tree: Tree,
     /// Each leaf's triangles in packets of four, when every primitive is a triangle.
     packets: Vec<Tri4>,
-    /// The primitives in leaf order: a pre-split triangle once per leaf it sits in.
+    /// The primitives in leaf order.
     prims: Vec<Prim>,
-    /// Primitives given to the build (each counted once).
-    unique_prims: usize,
     /// Triangles stored.
     pub triangle_count: usize,
     /// Zero-area triangles dropped at build time (they can never be hit).
@@ -483,35 +476,18 @@ pub struct Blas {
 }
 
 impl Blas {
-    /// Builds a BVH over `prims` (in any order). An all-triangle set gets obvhs's spatial
-    /// pre-splits: large triangles are referenced from several leaves under tighter boxes.
+    /// Builds a BVH over `prims` (in any order), each primitive in one leaf (so a deformable
+    /// BLAS can be refit). obvhs's spatial pre-splits are not used: on the peer scenes with
+    /// packet traversal they traced no faster (sphere_plane and Sponza 4-8 % slower, cornell
+    /// within 2 %) and cost the dragon 60-90 ms of build.
     pub fn build(prims: Vec<Prim>) -> Self {
-        Blas::build_with(prims, true)
-    }
-
-    /// Builds a BVH over `prims`, with spatial pre-splits of large triangles if `split` (a tree
-    /// that will be refit must have none: each primitive in exactly one leaf).
-    fn build_with(prims: Vec<Prim>, split: bool) -> Self {
         let triangle_count = prims.iter().filter(|p| matches!(p.shape, Shape::Triangle(_))).count();
-        let params = build_params(prims.len());
-        // obvhs splits only triangles, given as its own type: all or nothing.
-        let split_tris = || -> Option<Vec<ObvhsTriangle>> {
-            let all_triangles = triangle_count == prims.len();
-            let as_obvhs = |p: &Prim| match p.shape {
-                Shape::Triangle(t) => ObvhsTriangle { v0: t.p[0], v1: t.p[1], v2: t.p[2] },
-                Shape::Sphere(_) => unreachable!("all triangles"),
-            };
-            all_triangles.then(|| prims.par_iter().with_min_len(PAR_CHUNK).map(as_obvhs).collect())
-        };
         let bvh = if prims.is_empty() {
             Bvh2::default()
-        } else if let Some(tris) = split.then(split_tris).flatten() {
-            build_bvh2_from_tris(&tris, BvhBuildParams { pre_split: true, ..params }, &mut Duration::default())
         } else {
             let aabbs: Vec<Aabb> = prims.par_iter().with_min_len(PAR_CHUNK).map(Prim::bounds).collect();
-            build_bvh2(&aabbs, params, &mut Duration::default())
+            build_bvh2(&aabbs, build_params(prims.len()), &mut Duration::default())
         };
-        let unique_prims = prims.len();
         let prims = bvh.primitive_indices.par_iter().with_min_len(PAR_CHUNK).map(|&i| prims[i as usize]).collect();
         let depth = subtree_depth(&bvh.nodes);
         let mut blas = Blas {
@@ -519,7 +495,6 @@ impl Blas {
             tree: Tree::default(),
             packets: Vec::new(),
             prims,
-            unique_prims,
             triangle_count,
             degenerate_triangles: 0,
             depth,
@@ -534,7 +509,7 @@ impl Blas {
         self.tree = Tree::from_bvh2(&self.bvh.nodes);
         self.packets.clear();
         let prims = &self.prims;
-        if prims.is_empty() || self.triangle_count != self.unique_prims {
+        if prims.is_empty() || self.triangle_count != prims.len() {
             return;
         }
         let triangle = |k: u32| match prims[k as usize].shape {
@@ -578,7 +553,7 @@ impl Blas {
             let p = tri.map(|i| Vec3A::from(mesh.positions[i as usize]));
             Prim { shape: Shape::Triangle(Triangle { p }), object: 0 }
         });
-        Blas::build_with(prims.collect(), false)
+        Blas::build(prims.collect())
     }
 
     /// Moves the triangles of a [`Blas::deformable`] BLAS to `positions` (same triangles as at
@@ -611,20 +586,9 @@ impl Blas {
         self.bvh.nodes.len()
     }
 
-    /// Leaf references beyond one per primitive, made by spatial pre-splits.
-    pub fn split_references(&self) -> usize {
-        self.prims.len() - self.unique_prims
-    }
-
-    /// Each primitive once (a pre-split triangle sits in several leaves), in leaf order.
+    /// The primitives, in leaf order.
     pub fn prims(&self) -> impl Iterator<Item = &Prim> {
-        let mut seen = vec![false; self.unique_prims];
-        let original = &self.bvh.primitive_indices;
-        self.prims
-            .iter()
-            .zip(original)
-            .filter(move |&(_, &i)| !std::mem::replace(&mut seen[i as usize], true))
-            .map(|(p, _)| p)
+        self.prims.iter()
     }
 
     /// Bytes held by nodes and primitives.
@@ -1093,7 +1057,7 @@ impl SceneGeometry {
 
     /// Number of bounded primitives stored (shared meshes once).
     pub fn prim_count(&self) -> usize {
-        self.blases.iter().map(|b| b.unique_prims).sum()
+        self.blases.iter().map(|b| b.prims.len()).sum()
     }
 
     /// The bottom-level BVHs.
