@@ -38,6 +38,8 @@ pub struct FrameStats {
     pub bvh_nodes: usize,
     /// Children per node of the trees traversal uses (8 with AVX, else 4).
     pub bvh_width: usize,
+    /// Rays per packet in occlusion runs (16 with AVX-512, 8 with AVX, 0: rays traced alone).
+    pub packet_lanes: usize,
     /// Primitives in the BVH (triangles + spheres).
     pub bvh_prims: usize,
     /// Bytes of BVH nodes and primitives.
@@ -99,6 +101,7 @@ impl FrameStats {
                 "tlas_built": self.bvh_work.tlas_built,
                 "nodes": self.bvh_nodes,
                 "width": self.bvh_width,
+                "packet_lanes": self.packet_lanes,
                 "prims": self.bvh_prims,
                 "bytes": self.bvh_bytes,
             },
@@ -125,12 +128,13 @@ impl FrameStats {
         let r = &self.rays;
         let _ = writeln!(
             s,
-            "  rays: {} primary, {} ao, {} shadow; bvh: {} nodes ({}-wide), {} prims, {:.1} MiB{}; buffers {:.1} MiB",
+            "  rays: {} primary, {} ao, {} shadow; bvh: {} nodes ({}-wide{}), {} prims, {:.1} MiB{}; buffers {:.1} MiB",
             r.primary,
             r.ao,
             r.shadow,
             self.bvh_nodes,
             self.bvh_width,
+            if self.packet_lanes > 0 { format!(", {}-ray packets", self.packet_lanes) } else { String::new() },
             self.bvh_prims,
             self.bvh_bytes as f64 / (1 << 20) as f64,
             if self.bvh_built { " (built)" } else { "" },

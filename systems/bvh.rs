@@ -191,6 +191,7 @@ pub fn update_bvh(
     };
     stats.bvh_nodes = geometry.node_count();
     stats.bvh_width = geometry.node_width();
+    stats.packet_lanes = geometry.packet_lanes();
     stats.bvh_prims = geometry.prim_count();
     stats.bvh_bytes = geometry.memory_bytes();
     stats.record("bvh", start.elapsed(), note);

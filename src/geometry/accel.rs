@@ -1050,6 +1050,19 @@ impl SceneGeometry {
         self.blases.iter().map(|b| b.node_width()).max().unwrap_or(self.top.width())
     }
 
+    /// Rays per packet in occlusion runs: 16 with AVX-512, 8 with AVX, 0 where trees are
+    /// four-wide and every ray is traced alone.
+    pub fn packet_lanes(&self) -> usize {
+        #[cfg(target_arch = "x86_64")]
+        if self.node_width() == 8 {
+            return match packet_width() {
+                PacketWidth::Eight => 8,
+                PacketWidth::Sixteen => 16,
+            };
+        }
+        0
+    }
+
     /// Number of BVH nodes (top level plus every BLAS once).
     pub fn node_count(&self) -> usize {
         self.tlas.len() + self.blases.iter().map(|b| b.node_count()).sum::<usize>()
