@@ -246,17 +246,18 @@ fn bvh_width() -> usize {
     *WIDTH.get_or_init(|| if std::env::var("HEMI_BVH_WIDTH").is_ok_and(|w| w.trim() == "4") { 4 } else { 8 })
 }
 
-/// obvhs's medium preset, except for small sets (under [`SMALL_SET`] primitives): leaves of
-/// at most one packet, collapsed less eagerly (traversal cost 1.5 instead of 3). Measured on
-/// the peer Cornell box (36 triangles, large walls under spatial splits): trace −44 %; from
-/// 3.9k triangles up (Suzanne, Duck, bunny, teapot, FlightHelmet, dragon) the same setting is
-/// 0–8 % slower, so larger sets keep the preset.
+/// The BVH2 build settings for `prims` primitives. Small sets (under [`SMALL_SET`]): obvhs's
+/// medium preset with leaves of at most one packet, collapsed less eagerly (traversal cost 1.5
+/// instead of 3): the peer Cornell box traced 44 % faster with them, while from 3.9k triangles up
+/// (Suzanne, Duck, bunny, teapot, FlightHelmet, dragon) they were 0–8 % slower. Larger sets:
+/// obvhs's fast preset (a narrower PLOC search, less reinsertion), which with packet traversal
+/// traces as fast as the medium one (dragon, Sponza, sphere_plane, many_spheres: three rounds,
+/// within noise) and builds the dragon in 420–550 ms instead of 550–590.
 fn build_params(prims: usize) -> BvhBuildParams {
-    let medium = BvhBuildParams::medium_build();
     if prims < SMALL_SET {
-        BvhBuildParams { max_prims_per_leaf: 4, collapse_traversal_cost: 1.5, ..medium }
+        BvhBuildParams { max_prims_per_leaf: 4, collapse_traversal_cost: 1.5, ..BvhBuildParams::medium_build() }
     } else {
-        medium
+        BvhBuildParams::fast_build()
     }
 }
 
