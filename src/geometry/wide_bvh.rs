@@ -465,9 +465,10 @@ impl<L: Lanes> RayPacket<L> {
 }
 
 /// Entries of the packet traversal's stack, which lives on the call stack; a subtree that
-/// would overflow it is traversed ray by ray instead.
+/// would overflow it is traversed ray by ray instead. The unit tests use four, so that the
+/// overflow path is taken all the time there and checked like the others.
 #[cfg(target_arch = "x86_64")]
-const PACKET_STACK: usize = 128;
+const PACKET_STACK: usize = if cfg!(test) { 4 } else { 128 };
 
 /// Fewest live rays for which a node is tested with the packet; fewer go on ray by ray. A
 /// packet test costs about as much per child as a single ray's test of all eight children, so
@@ -527,12 +528,15 @@ impl WideBvh<8> {
             return 0;
         }
         let mut open = live;
-        let mut todo = [(0u32, 0u32); PACKET_STACK];
+        // (node, lanes that entered it). Left uninitialised: zeroing it cost a 1 KiB memset per
+        // packet, and only entries below `len` are ever read.
+        let mut todo = [std::mem::MaybeUninit::<(u32, u32)>::uninit(); PACKET_STACK];
         let mut len = 1;
-        todo[0] = (0, live);
+        todo[0].write((0, live));
         while len > 0 {
             len -= 1;
-            let (node, lanes) = todo[len];
+            // SAFETY: every entry below `len` was written before `len` passed it.
+            let (node, lanes) = unsafe { todo[len].assume_init() };
             let mut lanes = lanes & open;
             if lanes.count_ones() < PACKET_MIN_LANES {
                 while lanes != 0 {
@@ -565,7 +569,7 @@ impl WideBvh<8> {
                         return live;
                     }
                 } else if len < PACKET_STACK {
-                    todo[len] = (n.child[c], entered);
+                    todo[len].write((n.child[c], entered));
                     len += 1;
                 } else {
                     let mut rest = entered;
