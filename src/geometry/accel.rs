@@ -659,7 +659,7 @@ impl Blas {
     }
 
     /// [`Blas::occluded`] for each of `rays` not yet `blocked` (same length), in one call: in
-    /// packets of eight rays where the tree is eight-wide and holds triangle packets.
+    /// ray packets where the tree is eight-wide and holds triangle packets.
     fn occluded_many(&self, rays: &[Ray], stack: &mut Vec<(u32, f32)>, blocked: &mut [bool]) {
         #[cfg(target_arch = "x86_64")]
         if let Tree::Eight(tree) = &self.tree

@@ -8,6 +8,23 @@
 
 use std::arch::x86_64::*;
 
+use super::ray::Ray;
+
+/// `N` scalars of each of `rays` (one to `L::WIDTH`; `fields` picks them) laid out for
+/// [`Lanes::load`]: `columns[c][k]` is field `c` of ray `k`, lanes past the last ray repeating
+/// it. `fields` reads scalars only, so it needs no instruction set of its own.
+#[inline(always)]
+pub(crate) fn columns<L: Lanes, const N: usize>(rays: &[Ray], fields: impl Fn(&Ray) -> [f32; N]) -> [[f32; 16]; N] {
+    let mut columns = [[0.0f32; 16]; N];
+    for k in 0..L::WIDTH {
+        let values = fields(&rays[k.min(rays.len() - 1)]);
+        for c in 0..N {
+            columns[c][k] = values[c];
+        }
+    }
+    columns
+}
+
 /// A vector of f32 lanes, one per ray of a packet, with a mask of one bit per lane.
 pub(crate) trait Lanes: Copy {
     /// Lanes per vector.

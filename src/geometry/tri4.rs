@@ -8,7 +8,7 @@
 use glam::{Vec3A, Vec4};
 
 #[cfg(target_arch = "x86_64")]
-use super::lanes::Lanes;
+use super::lanes::{Lanes, columns};
 use super::{
     ray::{Ray, Shear},
     shapes::Triangle,
@@ -127,17 +127,12 @@ impl<L: Lanes> RayTriPacket<L> {
     /// The CPU must have `L`'s instruction set.
     #[inline(always)]
     pub(crate) unsafe fn new(rays: &[Ray]) -> Self {
-        let mut columns = [[0.0f32; 16]; 6];
-        for k in 0..L::WIDTH {
-            let r = &rays[k.min(rays.len() - 1)];
+        let columns = columns::<L, 6>(rays, |r| {
             let (o, d) = (r.origin.to_array(), r.dir.to_array());
-            for a in 0..3 {
-                columns[a][k] = o[a];
-                columns[3 + a][k] = d[a];
-            }
-        }
-        // SAFETY: the caller's CPU has `L`'s instruction set. (No closures in this packet code:
-        // a closure is compiled on its own, without the instruction set of its caller.)
+            [o[0], o[1], o[2], d[0], d[1], d[2]]
+        });
+        // SAFETY: the caller's CPU has `L`'s instruction set. (No SIMD call sits in a closure: a
+        // closure is compiled on its own, without the instruction set of its caller.)
         unsafe {
             let d = [L::load(&columns[3]), L::load(&columns[4]), L::load(&columns[5])];
             let abs = [d[0].abs(), d[1].abs(), d[2].abs()];

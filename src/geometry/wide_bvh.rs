@@ -15,7 +15,7 @@ use glam::Vec4;
 use obvhs::{aabb::Aabb, bvh2::node::Bvh2Node};
 
 #[cfg(target_arch = "x86_64")]
-use super::lanes::Lanes;
+use super::lanes::{Lanes, columns};
 use super::ray::Ray;
 use crate::math::gamma;
 
@@ -439,18 +439,12 @@ impl<L: Lanes> RayPacket<L> {
     /// The CPU must have `L`'s instruction set.
     #[inline(always)]
     pub(crate) unsafe fn new(rays: &[Ray]) -> Self {
-        let mut columns = [[0.0f32; 16]; 7];
-        for k in 0..L::WIDTH {
-            let r = &rays[k.min(rays.len() - 1)];
+        let columns = columns::<L, 7>(rays, |r| {
             let (o, inv) = (r.origin.to_array(), r.inv_dir.to_array());
-            for a in 0..3 {
-                columns[a][k] = o[a];
-                columns[3 + a][k] = inv[a];
-            }
-            columns[6][k] = r.tmax;
-        }
-        // SAFETY: the caller's CPU has `L`'s instruction set. (No closures here: a closure is
-        // compiled on its own, without the instruction set of the function it ends up in.)
+            [o[0], o[1], o[2], inv[0], inv[1], inv[2], r.tmax]
+        });
+        // SAFETY: the caller's CPU has `L`'s instruction set. (No SIMD call sits in a closure: a
+        // closure is compiled on its own, without the instruction set of its caller.)
         unsafe {
             let inv_dir = [L::load(&columns[3]), L::load(&columns[4]), L::load(&columns[5])];
             let zero = L::splat(0.0);
