@@ -18,7 +18,7 @@
 use std::any::TypeId;
 
 use bevy_ecs::prelude::*;
-use glam::{Vec2, Vec3, Vec3A};
+use glam::{Vec2, Vec3, Vec3A, Vec4};
 
 use crate::{
     components::{Matte, Transform},
@@ -128,6 +128,78 @@ pub struct LightSample {
     pub shadow: Option<Shadow>,
 }
 
+/// What a *direction light* brings at a point: each sample is a direction `ω` with a weight
+/// `w`, tested up to `max_distance`, and brings `radiance·(floor + (1 − floor)·w)` when its ray
+/// is clear and `radiance·floor` when it is blocked (or when `w ≤ 0`, with no ray). The ambient
+/// occluder is one. See [`PlacedLight::sample_directions`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DirectionTerms {
+    /// Radiance of a clear sample of weight 1 with no floor.
+    pub radiance: Vec3,
+    /// Fraction that still arrives from blocked directions, in [0, 1].
+    pub floor: f32,
+    /// Blockers farther than this do not count (`f32::INFINITY` for none).
+    pub max_distance: f32,
+}
+
+/// A run of direction samples at one point as structure-of-arrays: sample `j` is the world-space
+/// unit direction (`x[j]`, `y[j]`, `z[j]`) with weight `weight[j]`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DirectionRun {
+    /// x of each direction.
+    pub x: Vec<f32>,
+    /// y of each direction.
+    pub y: Vec<f32>,
+    /// z of each direction.
+    pub z: Vec<f32>,
+    /// Each sample's weight.
+    pub weight: Vec<f32>,
+}
+
+impl DirectionRun {
+    /// Makes room for `n` samples, in whole groups of four lanes: each column gets `n` rounded
+    /// up to a multiple of four entries (lanes past `n` may hold anything; they are not used).
+    pub fn resize(&mut self, n: usize) {
+        for column in [&mut self.x, &mut self.y, &mut self.z, &mut self.weight] {
+            column.resize(n.next_multiple_of(4), 0.0);
+        }
+    }
+
+    /// Group `k` (samples `4k..4k + 4`): its x, y, z and weight lanes.
+    #[inline(always)]
+    pub fn group(&self, k: usize) -> [Vec4; 4] {
+        [&self.x, &self.y, &self.z, &self.weight].map(|c| Vec4::from_slice(&c[4 * k..4 * k + 4]))
+    }
+
+    /// Writes group `k` (samples `4k..4k + 4`): x, y, z and weight lanes.
+    #[inline(always)]
+    pub fn set_group(&mut self, k: usize, lanes: [Vec4; 4]) {
+        for (column, v) in [&mut self.x, &mut self.y, &mut self.z, &mut self.weight].into_iter().zip(lanes) {
+            v.write_to_slice(&mut column[4 * k..4 * k + 4]);
+        }
+    }
+
+    /// Sample `j`'s direction.
+    #[inline]
+    pub fn dir(&self, j: usize) -> Vec3A {
+        Vec3A::new(self.x[j], self.y[j], self.z[j])
+    }
+
+    /// The [`LightSample`] that sample `j` stands for under `terms` (for tests and checks).
+    pub fn light_sample(&self, j: usize, terms: &DirectionTerms) -> LightSample {
+        let floor = terms.radiance * terms.floor;
+        let w = self.weight[j];
+        if w <= 0.0 {
+            return LightSample { unoccluded: floor, occluded: floor, shadow: None };
+        }
+        LightSample {
+            unoccluded: terms.radiance * (terms.floor + (1.0 - terms.floor) * w),
+            occluded: floor,
+            shadow: Some(Shadow::Along { dir: self.dir(j), max_distance: terms.max_distance }),
+        }
+    }
+}
+
 /// The 2-D sample values of one light at one shading point.
 #[derive(Clone, Copy, Debug)]
 pub struct LightSamples<'a> {
@@ -196,6 +268,23 @@ pub trait PlacedLight: Send + Sync + 'static {
     /// [`PlacedLight::sample`] for each sample of a run at one shading point: `out[j]` for the
     /// sample values whose dimension `k` is `values[k * out.len() + j]`. An implementation may
     /// compute several samples at once, but must give the same values as `sample`.
+    /// For a direction light (see [`DirectionTerms`]): the samples of a run at one shading point
+    /// as structure-of-arrays into `run` (resized with [`DirectionRun::resize`] to
+    /// `n = values.len() / DIMS` samples; sample `j` for the
+    /// values whose dimension `k` is `values[k * n + j]`), and the terms they share. The core
+    /// then sets up, traces and adds the run's shadow rays in bulk. Each sample must stand for
+    /// exactly what [`PlacedLight::sample`] returns ([`DirectionRun::light_sample`]). `None`
+    /// (the default): the light goes through [`PlacedLight::sample_run`].
+    #[inline]
+    fn sample_directions(
+        &self,
+        _at: &ShadingPoint,
+        _values: &[Vec2],
+        _run: &mut DirectionRun,
+    ) -> Option<DirectionTerms> {
+        None
+    }
+
     #[inline]
     fn sample_run(&self, at: &ShadingPoint, values: &[Vec2], out: &mut [Option<LightSample>]) {
         let n = out.len();
@@ -244,7 +333,7 @@ pub trait LightGroup: Send + Sync {
         pixel: u32,
         first: u32,
         first_dim: u32,
-        arriving: &mut [Vec3],
+        arriving: &mut [Vec3A],
     );
     /// Adds the group's light arriving at each of a run's shading points (one camera sample
     /// each, its samples computed ahead) into `arriving`, one element per point.
@@ -258,7 +347,7 @@ pub trait LightGroup: Send + Sync {
         first: u32,
         first_dim: u32,
         skip_black: bool,
-        arriving: &mut [Vec3],
+        arriving: &mut [Vec3A],
     );
 }
 
@@ -287,7 +376,7 @@ impl<P: PlacedLight> LightGroup for Group<P> {
         pixel: u32,
         first: u32,
         first_dim: u32,
-        arriving: &mut [Vec3],
+        arriving: &mut [Vec3A],
     ) {
         tracer.shade_lights(scene, spawn, at, &self.0, pixel, first, first_dim, arriving)
     }
@@ -301,7 +390,7 @@ impl<P: PlacedLight> LightGroup for Group<P> {
         first: u32,
         first_dim: u32,
         skip_black: bool,
-        arriving: &mut [Vec3],
+        arriving: &mut [Vec3A],
     ) {
         tracer.shade_points_lights(scene, points, &self.0, pixel, first, first_dim, skip_black, arriving)
     }

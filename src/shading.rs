@@ -2,12 +2,14 @@
 //! (see [`crate::light`]). The core knows no light kinds; it applies the reflectance a light
 //! names, traces the shadow rays lights ask for, and counts them.
 
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec3A, Vec4};
 
 use crate::{
     components::Matte,
     geometry::{Ray, SceneGeometry, SpawnOrigins, SurfaceHit},
-    light::{LightGroup, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term},
+    light::{
+        DirectionRun, DirectionTerms, LightGroup, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term,
+    },
     resources::AovValues,
     sampling::{SampleSets, dims},
 };
@@ -110,6 +112,59 @@ impl SampleResult {
     }
 }
 
+/// What [`Tracer::shade`] keeps of each of a run of samples at one hit: everything
+/// ([`SampleResult`], for AOVs) or the radiance alone (`Vec3A`, for the beauty image).
+pub trait SampleOut {
+    /// Samples in the run.
+    fn len(&self) -> usize;
+    /// Whether the run is empty.
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// Sets every sample to a camera hit on `material`, before any light.
+    fn start(&mut self, primary: &PrimaryHit, material: &Matte);
+    /// Adds light `arriving[j]` from a light of `term`, reflected by `reflectance`, to sample `j`.
+    fn add_light(&mut self, term: Term, reflectance: Vec3, arriving: &[Vec3A]);
+}
+
+impl SampleOut for [SampleResult] {
+    fn len(&self) -> usize {
+        self.len()
+    }
+
+    #[inline]
+    fn start(&mut self, primary: &PrimaryHit, material: &Matte) {
+        self.fill(SampleResult::at_hit(primary, material));
+    }
+
+    #[inline]
+    fn add_light(&mut self, term: Term, reflectance: Vec3, arriving: &[Vec3A]) {
+        for (o, &a) in self.iter_mut().zip(arriving) {
+            o.add_light(term, reflectance, a.into());
+        }
+    }
+}
+
+impl SampleOut for [Vec3A] {
+    fn len(&self) -> usize {
+        self.len()
+    }
+
+    #[inline]
+    fn start(&mut self, _: &PrimaryHit, _: &Matte) {
+        self.fill(Vec3A::ZERO);
+    }
+
+    /// [`SampleResult::add_light`]'s radiance, in one SIMD operation per step (same bits).
+    #[inline]
+    fn add_light(&mut self, _: Term, reflectance: Vec3, arriving: &[Vec3A]) {
+        let reflectance = Vec3A::from(reflectance);
+        for (o, &a) in self.iter_mut().zip(arriving) {
+            *o += reflectance * a;
+        }
+    }
+}
+
 /// Which lights [`Tracer::shade`] evaluates.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Lights {
@@ -136,9 +191,11 @@ pub struct Tracer {
     /// One light's sample values for a run of samples, dimension by dimension.
     samples: Vec<Vec2>,
     /// One light group's arriving light for a run of samples.
-    arriving: Vec<Vec3>,
+    arriving: Vec<Vec3A>,
     /// One light's samples for a run of samples.
     drawn: Vec<Option<LightSample>>,
+    /// One direction light's samples for a run at one point.
+    directions: DirectionRun,
     /// The shadow rays of a run, and which of them are blocked.
     shadow_rays: Vec<Ray>,
     shadow_blocked: Vec<bool>,
@@ -215,11 +272,11 @@ impl Tracer {
         let mut arriving = std::mem::take(&mut self.arriving);
         for &(first_dim, group) in scene.lights {
             arriving.clear();
-            arriving.resize(points.len(), Vec3::ZERO);
+            arriving.resize(points.len(), Vec3A::ZERO);
             group.shade_points(self, scene, &points, pixel, first, first_dim, skip_black, &mut arriving);
             let term = group.term();
             for (p, &a) in points.iter().zip(&arriving) {
-                out[p.j as usize].add_light(term, term.reflectance(&p.at.material), a);
+                out[p.j as usize].add_light(term, term.reflectance(&p.at.material), a.into());
             }
         }
         self.arriving = arriving;
@@ -240,7 +297,7 @@ impl Tracer {
     /// done once for all of them.
     #[inline]
     #[allow(clippy::too_many_arguments)]
-    pub fn shade(
+    pub fn shade<O: SampleOut + ?Sized>(
         &mut self,
         scene: &Scene,
         primary: &PrimaryHit,
@@ -248,13 +305,13 @@ impl Tracer {
         first: u32,
         skip_black: bool,
         which: Lights,
-        out: &mut [SampleResult],
+        out: &mut O,
     ) {
         let hit = &primary.hit;
         let material = scene.geometry.objects[hit.object as usize].material;
         let at = ShadingPoint::new(hit.p, hit.normal, material);
         let spawn = hit.spawn_origins();
-        out.fill(SampleResult::at_hit(primary, &material));
+        out.start(primary, &material);
         let mut arriving = std::mem::take(&mut self.arriving);
         for &(first_dim, group) in scene.lights {
             let fixed = group.dims() == 0;
@@ -267,11 +324,9 @@ impl Tracer {
                 continue;
             }
             arriving.clear();
-            arriving.resize(out.len(), Vec3::ZERO);
+            arriving.resize(out.len(), Vec3A::ZERO);
             group.shade(self, scene, &spawn, &at, pixel, first, first_dim, &mut arriving);
-            for (o, &a) in out.iter_mut().zip(&arriving) {
-                o.add_light(term, reflectance, a);
-            }
+            out.add_light(term, reflectance, &arriving);
         }
         self.arriving = arriving;
     }
@@ -290,7 +345,7 @@ impl Tracer {
         pixel: u32,
         first: u32,
         first_dim: u32,
-        arriving: &mut [Vec3],
+        arriving: &mut [Vec3A],
     ) {
         let n = arriving.len();
         // Each light's sample values for the whole run, dimension after dimension.
@@ -303,6 +358,15 @@ impl Tracer {
             if P::DIMS > 0 {
                 for (k, column) in (0..P::DIMS).zip(values.chunks_exact_mut(n.max(1))) {
                     scene.sets.fill(pixel, first, dim + k, column);
+                }
+                let mut directions = std::mem::take(&mut self.directions);
+                let terms = light.sample_directions(at, &values, &mut directions);
+                if let Some(terms) = terms {
+                    self.add_directions(scene, spawn, &directions, &terms, P::TERM, arriving);
+                }
+                self.directions = directions;
+                if terms.is_some() {
+                    continue;
                 }
                 light.sample_run(at, &values, &mut drawn);
             } else {
@@ -331,7 +395,7 @@ impl Tracer {
         first: u32,
         first_dim: u32,
         skip_black: bool,
-        arriving: &mut [Vec3],
+        arriving: &mut [Vec3A],
     ) {
         let run = std::mem::take(&mut self.run);
         let mut drawn = std::mem::take(&mut self.drawn);
@@ -357,6 +421,86 @@ impl Tracer {
         self.run = run;
     }
 
+    /// Adds a run of direction samples from one point (`run`, under `terms`) to `arriving`,
+    /// tracing the shadow rays whose answer matters in one call: exactly what
+    /// [`Tracer::add_run`] does with the samples' [`DirectionRun::light_sample`]s, four samples
+    /// at a time and without making them.
+    fn add_directions(
+        &mut self,
+        scene: &Scene,
+        spawn: &SpawnOrigins,
+        run: &DirectionRun,
+        terms: &DirectionTerms,
+        term: Term,
+        arriving: &mut [Vec3A],
+    ) {
+        let n = arriving.len();
+        let (radiance, f) = (terms.radiance, terms.floor);
+        let floor = Vec3A::from(radiance * f);
+        // Each group's clear value per channel, and which of its lanes need a ray: a positive
+        // weight whose clear value differs from the floor.
+        let clear = |w: Vec4| {
+            let s = Vec4::splat(f) + Vec4::splat(1.0 - f) * w;
+            [Vec4::splat(radiance.x) * s, Vec4::splat(radiance.y) * s, Vec4::splat(radiance.z) * s]
+        };
+        let needs_ray = |k: usize, w: Vec4, c: &[Vec4; 3]| {
+            let differs =
+                c[0].cmpne(Vec4::splat(floor.x)) | c[1].cmpne(Vec4::splat(floor.y)) | c[2].cmpne(Vec4::splat(floor.z));
+            let valid = (1u32 << (n - 4 * k).min(4)) - 1;
+            (w.cmpgt(Vec4::ZERO) & differs).bitmask() & valid
+        };
+        let (front, back) = spawn.sides();
+        let rays = &mut self.shadow_rays;
+        rays.clear();
+        rays.reserve(n);
+        for k in 0..n.div_ceil(4) {
+            let [x, y, z, w] = run.group(k);
+            let mut todo = needs_ray(k, w, &clear(w));
+            if todo == 0 {
+                continue;
+            }
+            let behind = spawn.behind4(x, y, z).bitmask();
+            let (x, y, z) = (x.to_array(), y.to_array(), z.to_array());
+            let (ix, iy, iz) = (
+                (Vec4::ONE / Vec4::from(x)).to_array(),
+                (Vec4::ONE / Vec4::from(y)).to_array(),
+                (Vec4::ONE / Vec4::from(z)).to_array(),
+            );
+            while todo != 0 {
+                let i = todo.trailing_zeros() as usize;
+                todo &= todo - 1;
+                rays.push(Ray {
+                    origin: if behind & (1 << i) != 0 { back } else { front },
+                    dir: Vec3A::new(x[i], y[i], z[i]),
+                    inv_dir: Vec3A::new(ix[i], iy[i], iz[i]),
+                    tmax: terms.max_distance,
+                });
+            }
+        }
+        self.shadow_blocked.resize(rays.len(), false);
+        scene.geometry.occluded_many(rays, &mut self.stack, &mut self.shadow_blocked);
+        self.rays.count(term, rays.len() as u64);
+        let mut blocked = self.shadow_blocked.iter();
+        for (k, sums) in arriving.chunks_mut(4).enumerate() {
+            let w = run.group(k)[3];
+            let c = clear(w);
+            let mut todo = needs_ray(k, w, &c);
+            // Lanes that get the floor: blocked ones, and those of weight ≤ 0 (no ray).
+            let mut dark = w.cmple(Vec4::ZERO).bitmask();
+            while todo != 0 {
+                let i = todo.trailing_zeros();
+                todo &= todo - 1;
+                if blocked.next().copied().unwrap_or(false) {
+                    dark |= 1 << i;
+                }
+            }
+            let (r, g, b) = (c[0].to_array(), c[1].to_array(), c[2].to_array());
+            for (i, sum) in sums.iter_mut().enumerate() {
+                *sum += if dark & (1 << i) != 0 { floor } else { Vec3A::new(r[i], g[i], b[i]) };
+            }
+        }
+    }
+
     /// Adds a run of drawn samples to `arriving`, tracing the shadow rays whose answer matters in
     /// one call; sample `j`'s rays start at `spawn(j)`.
     fn add_run<'a>(
@@ -365,7 +509,7 @@ impl Tracer {
         spawn: impl Fn(usize) -> &'a SpawnOrigins,
         drawn: &[Option<LightSample>],
         term: Term,
-        arriving: &mut [Vec3],
+        arriving: &mut [Vec3A],
     ) {
         // A shadow ray only when its answer changes the result.
         let needs_ray = |s: &LightSample| s.shadow.filter(|_| s.unoccluded != s.occluded);
@@ -384,7 +528,7 @@ impl Tracer {
         for (sum, s) in arriving.iter_mut().zip(drawn) {
             let Some(s) = s else { continue };
             let occluded = needs_ray(s).is_some() && blocked.next().copied().unwrap_or(false);
-            *sum += if occluded { s.occluded } else { s.unoccluded };
+            *sum += Vec3A::from(if occluded { s.occluded } else { s.unoccluded });
         }
     }
 }

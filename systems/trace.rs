@@ -119,8 +119,8 @@ pub fn trace(
 /// Whether every component of `v` is finite, in one SIMD compare: x · 0 is ±0 exactly when x
 /// is finite (NaN for ±∞ and NaN).
 #[inline(always)]
-fn all_finite(v: Vec3) -> bool {
-    (Vec3A::from(v) * 0.0).cmpeq(Vec3A::ZERO).all()
+fn all_finite(v: Vec3A) -> bool {
+    (v * 0.0).cmpeq(Vec3A::ZERO).all()
 }
 
 /// Tiles covering the image in row-major order.
@@ -154,7 +154,7 @@ fn trace_tile<C: CameraRays>(
     let mut tracer = Tracer::default();
     // One pixel's samples of this frame.
     let mut samples = Vec::with_capacity(job.count as usize);
-    let (mut films, mut lenses, mut hits) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut films, mut lenses, mut hits, mut radiance) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let mut nonfinite = 0;
     let pixels = ((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize;
     let mut sums = Vec::with_capacity(pixels);
@@ -188,11 +188,34 @@ fn trace_tile<C: CameraRays>(
             // What the lights that draw no samples add to every sample (shared hits only).
             let mut fixed = SampleResult::default();
             match &shared {
+                Some(Some(hit)) if !job.aovs => {
+                    // The beauty image alone: each sample's radiance, no other AOV.
+                    let mut fixed = [Vec3A::ZERO];
+                    tracer.shade(scene, hit, pixel, first, true, Lights::Fixed, &mut fixed[..]);
+                    radiance.resize(count as usize, Vec3A::ZERO);
+                    tracer.shade(scene, hit, pixel, first, true, Lights::Sampled, &mut radiance[..]);
+                    let mut total = Vec3A::ZERO;
+                    for &r in &radiance {
+                        let r = r + fixed[0];
+                        if !all_finite(r) {
+                            nonfinite += 1;
+                            continue;
+                        }
+                        total += r;
+                        if job.adaptive {
+                            sq_sum += luminance(r.into()).powi(2);
+                        }
+                    }
+                    sums.push(total.into());
+                    counts.push(count);
+                    sq_sums.push(sq_sum);
+                    continue;
+                }
                 Some(Some(hit)) => {
                     tracer.shade(scene, hit, pixel, first, !job.aovs, Lights::Fixed, std::slice::from_mut(&mut fixed));
                     // `shade` sets every field of every sample: no need to clear them first.
                     samples.resize(count as usize, SampleResult::default());
-                    tracer.shade(scene, hit, pixel, first, !job.aovs, Lights::Sampled, &mut samples);
+                    tracer.shade(scene, hit, pixel, first, !job.aovs, Lights::Sampled, &mut samples[..]);
                 }
                 Some(None) => {
                     samples.clear();
@@ -224,7 +247,7 @@ fn trace_tile<C: CameraRays>(
             for s in &samples {
                 let s = &SampleResult { radiance: s.radiance + fixed.radiance, direct: s.direct + fixed.direct, ..*s };
                 let values = job.aovs.then(|| s.aov_values());
-                if !all_finite(s.radiance) || values.is_some_and(|v| v.iter().any(|x| !x.is_finite())) {
+                if !all_finite(s.radiance.into()) || values.is_some_and(|v| v.iter().any(|x| !x.is_finite())) {
                     nonfinite += 1;
                     continue;
                 }
@@ -258,7 +281,7 @@ mod tests {
         for &x in &values {
             for &y in &values {
                 for &z in &values {
-                    let v = Vec3::new(x, y, z);
+                    let v = Vec3A::new(x, y, z);
                     assert_eq!(all_finite(v), v.is_finite(), "{v}");
                 }
             }

@@ -431,3 +431,75 @@ fn new_lights_are_bit_identical_with_one_or_two_threads() {
     };
     assert_eq!(scene(1), scene(2));
 }
+
+/// The ambient occluder behind a light type that only has the per-sample `sample`: it takes the
+/// core's general path, where the occluder itself takes the bulk direction path.
+#[derive(Component, Clone, Copy)]
+struct PerSampleOccluder(AmbientOccluder);
+
+/// [`PerSampleOccluder`] placed.
+struct PlacedPerSample(<AmbientOccluder as Light>::Placed);
+
+impl Light for PerSampleOccluder {
+    type Placed = PlacedPerSample;
+    const NAME: &'static str = "per-sample occluder";
+
+    fn validate(&self, t: &Transform) -> Result<(), String> {
+        Light::validate(&self.0, t)
+    }
+
+    fn place(&self, t: &Transform) -> Option<PlacedPerSample> {
+        self.0.place(t).map(PlacedPerSample)
+    }
+}
+
+impl PlacedLight for PlacedPerSample {
+    const TERM: Term = Term::Ambient;
+
+    fn sample(&self, at: &ShadingPoint, u: &LightSamples) -> Option<LightSample> {
+        self.0.sample(at, u)
+    }
+}
+
+#[test]
+fn the_occluder_s_bulk_path_gives_the_bits_of_the_per_sample_path() {
+    let occluders = [
+        AmbientOccluder { min_amount: 0.3, max_distance: 0.7, color: Vec3::new(1.0, 0.5, 0.25), ..Default::default() },
+        AmbientOccluder { exponent: 0.0, ls: 3.0, ..Default::default() },
+        AmbientOccluder { exponent: 3.0, min_amount: 1.0, ..Default::default() },
+    ];
+    for (k, occluder) in occluders.into_iter().enumerate() {
+        // 7 samples: one full group of four and a partial one. Shared and jittered hits,
+        // with and without AOVs (the beauty image alone takes its own path).
+        let mut shared = Vec::new();
+        for (jitter, aovs) in [(false, false), (false, true), (true, false)] {
+            let render = |per_sample: bool| {
+                let settings = RenderSettings { jitter, aovs, ..settings(12, 10, 7, SamplerKind::MultiJittered) };
+                let mut r = Renderer::new(settings);
+                r.add_light::<PerSampleOccluder>();
+                let w = r.world_mut();
+                w.spawn((Plane::default(), white()));
+                w.spawn((Sphere { radius: 0.5 }, Transform::from_xyz(0.0, 0.5, 0.0), white()));
+                w.spawn((PointLight::default(), Transform::from_xyz(1.0, 2.0, 1.0)));
+                if per_sample {
+                    w.spawn(PerSampleOccluder(occluder));
+                } else {
+                    w.spawn(occluder);
+                }
+                w.spawn(Camera::look_at(Vec3::new(0.0, 1.5, 2.5), Vec3::new(0.0, 0.3, 0.0), 60.0));
+                let rays = r.run_frame().unwrap().rays;
+                (r.image().linear.clone(), rays)
+            };
+            let (bulk, per_sample) = (render(false), render(true));
+            assert_eq!(bulk.1, per_sample.1, "occluder {k}, jitter {jitter}, aovs {aovs}: ray counts");
+            assert!(bulk.0 == per_sample.0, "occluder {k}, jitter {jitter}, aovs {aovs}: images differ");
+            if k == 0 {
+                assert!(bulk.1.ao > 0, "AO rays traced");
+            }
+            if !jitter {
+                shared.push(bulk.0);
+            }
+        }
+        assert!(shared[0] == shared[1], "occluder {k}: the beauty image depends on whether AOVs are kept");
+    }
+}

@@ -1,6 +1,6 @@
 //! Surface hits with a floating-point error bound, and scale-invariant ray spawning from them.
 
-use glam::Vec3A;
+use glam::{BVec4A, Vec3A, Vec4};
 
 use crate::math::{next_float_down, next_float_up};
 
@@ -57,6 +57,20 @@ impl SpawnOrigins {
     #[inline]
     pub fn towards(&self, w: Vec3A) -> Vec3A {
         if w.dot(self.normal) < 0.0 { self.back } else { self.front }
+    }
+
+    /// For four directions (x, y, z lanes): the lanes [`SpawnOrigins::towards`] starts behind
+    /// the surface, by the same dot product in the same order of operations.
+    #[inline(always)]
+    pub fn behind4(&self, x: Vec4, y: Vec4, z: Vec4) -> BVec4A {
+        let n = self.normal;
+        (x * n.x + y * n.y + z * n.z).cmplt(Vec4::ZERO)
+    }
+
+    /// The origin in front of the surface and the one behind it.
+    #[inline(always)]
+    pub fn sides(&self) -> (Vec3A, Vec3A) {
+        (self.front, self.back)
     }
 }
 

@@ -5,7 +5,10 @@ use glam::{Vec2, Vec3, Vec3A, Vec4};
 
 use crate::{
     components::Transform,
-    light::{Light, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term, check_emission},
+    light::{
+        DirectionRun, DirectionTerms, Light, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term,
+        check_emission,
+    },
     sampling::warp::{cosine_power_hemisphere, cosine_power_hemisphere4},
 };
 
@@ -89,32 +92,23 @@ impl PlacedLight for PlacedOccluder {
         Some(self.light_sample(s.weight, || Vec3A::from(at.frame.to_world(s.dir))))
     }
 
-    /// Four directions at a time.
+    /// Four directions at a time, as structure-of-arrays.
     #[inline]
-    fn sample_run(&self, at: &ShadingPoint, values: &[Vec2], out: &mut [Option<LightSample>]) {
-        let n = out.len();
-        for (chunk, u) in out.chunks_mut(4).zip(values[..n].chunks(4)) {
+    fn sample_directions(&self, at: &ShadingPoint, values: &[Vec2], run: &mut DirectionRun) -> Option<DirectionTerms> {
+        run.resize(values.len());
+        let f = &at.frame;
+        for (k, u) in values.chunks(4).enumerate() {
             let lane = |f: fn(&Vec2) -> f32| Vec4::from_array(std::array::from_fn(|i| u.get(i).map_or(0.5, f)));
-            self.sample_lanes(at, lane(|v| v.x), lane(|v| v.y), chunk);
+            let s = cosine_power_hemisphere4(lane(|v| v.x), lane(|v| v.y), self.exponent);
+            // The frame's to_world lane by lane, in its order of operations: u·x + v·y + w·z.
+            let world = |a: usize| Vec4::splat(f.u[a]) * s.x + Vec4::splat(f.v[a]) * s.y + Vec4::splat(f.w[a]) * s.z;
+            run.set_group(k, [world(0), world(1), world(2), s.weight]);
         }
+        Some(DirectionTerms { radiance: self.radiance, floor: self.min_amount, max_distance: self.max_distance })
     }
 }
 
 impl PlacedOccluder {
-    /// The samples for the sample points (`u0[i]`, `u1[i]`) into `out[i]` (up to four).
-    #[inline(always)]
-    fn sample_lanes(&self, at: &ShadingPoint, u0: Vec4, u1: Vec4, out: &mut [Option<LightSample>]) {
-        let s = cosine_power_hemisphere4(u0, u1, self.exponent);
-        // The frame's to_world lane by lane, in its order of operations: u·x + v·y + w·z.
-        let f = &at.frame;
-        let world = |a: usize| Vec4::splat(f.u[a]) * s.x + Vec4::splat(f.v[a]) * s.y + Vec4::splat(f.w[a]) * s.z;
-        let (x, y, z) = (world(0).to_array(), world(1).to_array(), world(2).to_array());
-        let weight = s.weight.to_array();
-        for (i, o) in out.iter_mut().enumerate() {
-            *o = Some(self.light_sample(weight[i], || Vec3A::new(x[i], y[i], z[i])));
-        }
-    }
-
     /// The sample of a direction (`dir()`, world space) of weight `weight`.
     #[inline(always)]
     fn light_sample(&self, weight: f32, dir: impl FnOnce() -> Vec3A) -> LightSample {
@@ -145,10 +139,12 @@ mod tests {
             let at = ShadingPoint::new(Vec3A::ONE, normal, Matte::default());
             // 11 samples: two full groups of four and a partial one.
             let values: Vec<Vec2> = (0..11).map(|_| Vec2::new(rng.next_f32(), rng.next_f32())).collect();
-            let mut run = vec![None; values.len()];
-            placed.sample_run(&at, &values, &mut run);
+            let mut run = DirectionRun::default();
+            let terms = placed.sample_directions(&at, &values, &mut run).expect("a direction light");
+            assert_eq!(run.weight.len(), values.len().next_multiple_of(4));
             for (j, &u) in values.iter().enumerate() {
-                assert_eq!(run[j], placed.sample(&at, &LightSamples::fixed(u)), "sample {j}, e = {exponent}");
+                let expected = placed.sample(&at, &LightSamples::fixed(u));
+                assert_eq!(Some(run.light_sample(j, &terms)), expected, "sample {j}, e = {exponent}");
             }
         }
     }
