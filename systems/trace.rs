@@ -194,16 +194,21 @@ fn trace_tile<C: CameraRays>(
                     tracer.shade(scene, hit, pixel, first, true, Lights::Fixed, &mut fixed[..]);
                     radiance.resize(count as usize, Vec3A::ZERO);
                     tracer.shade(scene, hit, pixel, first, true, Lights::Sampled, &mut radiance[..]);
-                    let mut total = Vec3A::ZERO;
-                    for &r in &radiance {
-                        let r = r + fixed[0];
-                        if !all_finite(r) {
-                            nonfinite += 1;
-                            continue;
-                        }
-                        total += r;
-                        if job.adaptive {
-                            sq_sum += luminance(r.into()).powi(2);
+                    // A finite total means every sample was finite (∞ and NaN survive a sum),
+                    // so only other totals need the loop that drops samples one by one.
+                    let mut total = radiance.iter().fold(Vec3A::ZERO, |t, &r| t + (r + fixed[0]));
+                    if job.adaptive || !all_finite(total) {
+                        total = Vec3A::ZERO;
+                        for &r in &radiance {
+                            let r = r + fixed[0];
+                            if !all_finite(r) {
+                                nonfinite += 1;
+                                continue;
+                            }
+                            total += r;
+                            if job.adaptive {
+                                sq_sum += luminance(r.into()).powi(2);
+                            }
                         }
                     }
                     sums.push(total.into());

@@ -503,3 +503,61 @@ fn the_occluder_s_bulk_path_gives_the_bits_of_the_per_sample_path() {
         assert!(shared[0] == shared[1], "occluder {k}: the beauty image depends on whether AOVs are kept");
     }
 }
+
+/// A light that brings NaN or +∞ for some sample values and 1 for the others, with no shadow ray.
+#[derive(Component, Clone, Copy)]
+struct Flaky;
+
+impl Light for Flaky {
+    type Placed = Flaky;
+    const NAME: &'static str = "flaky";
+
+    fn validate(&self, _: &Transform) -> Result<(), String> {
+        Ok(())
+    }
+
+    fn place(&self, _: &Transform) -> Option<Flaky> {
+        Some(*self)
+    }
+}
+
+impl PlacedLight for Flaky {
+    const TERM: Term = Term::Ambient;
+
+    fn sample(&self, _: &ShadingPoint, u: &LightSamples) -> Option<LightSample> {
+        let x = u.get(0).x;
+        let value = if x < 0.2 {
+            f32::NAN
+        } else if x < 0.3 {
+            f32::INFINITY
+        } else {
+            1.0
+        };
+        Some(LightSample { unoccluded: Vec3::splat(value), occluded: Vec3::ZERO, shadow: None })
+    }
+}
+
+#[test]
+fn non_finite_samples_are_dropped_and_counted_alike_on_every_path() {
+    let render = |jitter, aovs| {
+        let mut r = Renderer::new(RenderSettings { jitter, aovs, ..settings(6, 4, 16, SamplerKind::MultiJittered) });
+        r.add_light::<Flaky>();
+        let w = r.world_mut();
+        w.spawn((Plane::default(), white()));
+        w.spawn(Flaky);
+        w.spawn(looking_down(Vec3::Y, 40.0));
+        let dropped = r.run_frame().unwrap().nonfinite_samples;
+        // About 30 % of 6 × 4 × 16 samples. A dropped sample adds nothing (it still counts
+        // towards the pixel's samples), so every pixel is (finite samples) / 16.
+        assert!((50..=200).contains(&dropped), "jitter {jitter}, aovs {aovs}: {dropped} dropped");
+        let image = r.image().linear.clone();
+        for p in &image {
+            let finite = p.x * 16.0;
+            assert!(*p == Vec3::splat(p.x) && finite == finite.round() && (4.0..16.0).contains(&finite), "{p}");
+        }
+        (dropped, image)
+    };
+    for jitter in [false, true] {
+        assert_eq!(render(jitter, false), render(jitter, true), "jitter {jitter}: with and without AOVs");
+    }
+}
