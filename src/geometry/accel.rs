@@ -29,7 +29,7 @@ use super::{
     ray::{Ray, Shear},
     shapes::{PlanePrim, SpherePrim, Triangle},
     tri4::{RayTri4, Tri4},
-    wide_bvh::{Bvh4, Node, NodeTest, WideBvh},
+    wide_bvh::{Bvh4, Node, NodeTest, WideBvh, prefetch},
 };
 #[cfg(target_arch = "x86_64")]
 use super::{
@@ -364,7 +364,8 @@ macro_rules! packet_kernels {
                 };
                 let single = |node, lane: usize, stack: &mut Vec<(u32, f32)>| {
                     let ray = &rays[lane];
-                    tree.occluded_from(node, ray, stack, |first, count, _| self.packets_block::<8>(first, count, ray))
+                    let leaf = |first, count, _: &mut Vec<(u32, f32)>| self.packets_block::<8>(first, count, ray);
+                    tree.occluded_from_touch(node, ray, stack, leaf, |first, count| self.prefetch_packets(first, count))
                 };
                 unsafe { tree.occluded_packet(&packet, live, stack, leaf, single) }
             }
@@ -725,6 +726,15 @@ impl Blas {
             }
         }
         lanes & !open
+    }
+
+    /// Starts loading triangle packets `first..first + count` into the cache (a leaf a ray will
+    /// test): their misses then overlap instead of stalling one after another.
+    #[inline(always)]
+    fn prefetch_packets(&self, first: u32, count: u32) {
+        for packet in &self.packets[first as usize..(first + count) as usize] {
+            prefetch(packet);
+        }
     }
 
     /// Whether a triangle in packets `first..first + count` blocks `ray`, by the copy of the

@@ -19,6 +19,21 @@ use super::lanes::{Lanes, columns};
 use super::ray::Ray;
 use crate::math::gamma;
 
+/// Asks the CPU to start loading `x`'s cache lines (a hint; no effect on results).
+#[inline(always)]
+pub(crate) fn prefetch<T>(x: &T) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        let p = (x as *const T).cast::<i8>();
+        for line in (0..std::mem::size_of::<T>()).step_by(64) {
+            // SAFETY: a prefetch never faults, and `line` stays inside `x`.
+            unsafe { std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p.add(line)) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = x;
+}
+
 /// Leaf references on the closest-hit stack: `LEAF | (node << 3) | slot`.
 const LEAF: u32 = 1 << 31;
 
@@ -312,7 +327,21 @@ where
         start: u32,
         ray: &Ray,
         stack: &mut Vec<(u32, f32)>,
+        leaf: impl FnMut(u32, u32, &mut Vec<(u32, f32)>) -> bool,
+    ) -> bool {
+        self.occluded_from_touch(start, ray, stack, leaf, |_, _| {})
+    }
+
+    /// [`WideBvh::occluded_from`], calling `touch(first, count)` for each leaf as soon as
+    /// the ray is known to enter it, before testing any of the node's children (to prefetch).
+    #[inline(always)]
+    pub fn occluded_from_touch(
+        &self,
+        start: u32,
+        ray: &Ray,
+        stack: &mut Vec<(u32, f32)>,
         mut leaf: impl FnMut(u32, u32, &mut Vec<(u32, f32)>) -> bool,
+        touch: impl Fn(u32, u32),
     ) -> bool {
         if self.nodes.is_empty() {
             return false;
@@ -323,6 +352,16 @@ where
         loop {
             let n = &self.nodes[node as usize];
             let (mut mask, _) = n.test(&r, ray.tmax);
+            let mut hits = mask;
+            while hits != 0 {
+                let i = hits.trailing_zeros() as usize;
+                hits &= hits - 1;
+                if n.count[i] > 0 {
+                    touch(n.child[i], n.count[i]);
+                } else {
+                    prefetch(&self.nodes[n.child[i] as usize]);
+                }
+            }
             let mut next = None;
             while mask != 0 {
                 let i = mask.trailing_zeros() as usize;
@@ -563,6 +602,8 @@ impl WideBvh<8> {
                         return live;
                     }
                 } else if len < PACKET_STACK {
+                    // Popped only after this node's other children: time for the load.
+                    prefetch(&self.nodes[n.child[c] as usize]);
                     todo[len].write((n.child[c], entered));
                     len += 1;
                 } else {
