@@ -63,6 +63,11 @@ impl Cmj {
     pub fn fill(&self, first: u32, p: u32, out: &mut [Vec2]) {
         debug_assert!(first as u64 + out.len() as u64 <= self.n.get() as u64);
         #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the CPU has AVX-512F, checked just above.
+            return unsafe { self.fill_avx512(first, p, out) };
+        }
+        #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2, checked just above.
             return unsafe { self.fill_avx2(first, p, out) };
@@ -75,6 +80,13 @@ impl Cmj {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn fill_avx2(&self, first: u32, p: u32, out: &mut [Vec2]) {
+        self.fill_portable(first, p, out);
+    }
+
+    /// [`Cmj::fill`] compiled for AVX-512F: sixteen lanes. Same operations, same values.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    fn fill_avx512(&self, first: u32, p: u32, out: &mut [Vec2]) {
         self.fill_portable(first, p, out);
     }
 
