@@ -9,6 +9,7 @@ use crate::{
         DirectionRun, DirectionTerms, Light, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term,
         check_emission,
     },
+    math::Onb,
     sampling::warp::{cosine_power_hemisphere, cosine_power_hemisphere4},
 };
 
@@ -92,11 +93,79 @@ impl PlacedLight for PlacedOccluder {
         Some(self.light_sample(s.weight, || Vec3A::from(at.frame.to_world(s.dir))))
     }
 
-    /// Four directions at a time, as structure-of-arrays.
+    /// Cosine-sampled runs (e = 1) sixteen or eight lanes at a time where the CPU has AVX-512
+    /// or AVX2; other exponents four at a time. Same values as `sample`.
     #[inline]
     fn sample_directions(&self, at: &ShadingPoint, values: &[Vec2], run: &mut DirectionRun) -> Option<DirectionTerms> {
         run.resize(values.len());
-        let f = &at.frame;
+        #[cfg(target_arch = "x86_64")]
+        if self.exponent == 1.0 {
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                // SAFETY: the CPU has AVX-512F, checked just above.
+                unsafe { cosine_directions_avx512(&at.frame, values, run) };
+            } else if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the CPU has AVX2, checked just above.
+                unsafe { cosine_directions_avx2(&at.frame, values, run) };
+            } else {
+                self.directions4(&at.frame, values, run);
+            }
+            return Some(self.terms());
+        }
+        self.directions4(&at.frame, values, run);
+        Some(self.terms())
+    }
+}
+
+/// [`cosine_directions`] compiled for AVX-512F, where it vectorises sixteen-wide.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn cosine_directions_avx512(frame: &Onb, values: &[Vec2], run: &mut DirectionRun) {
+    cosine_directions(frame, values, run);
+}
+
+/// [`cosine_directions`] compiled for AVX2, where it vectorises eight-wide.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn cosine_directions_avx2(frame: &Onb, values: &[Vec2], run: &mut DirectionRun) {
+    cosine_directions(frame, values, run);
+}
+
+/// Cosine-distributed directions (e = 1, weight 1) around `frame`'s w for the sample points
+/// `values`, into `run`: [`cosine_power_hemisphere`] and the frame's `to_world`, sample by
+/// sample, in fixed-size groups whose loops the compiler vectorises.
+#[inline(always)]
+fn cosine_directions(frame: &Onb, values: &[Vec2], run: &mut DirectionRun) {
+    const GROUP: usize = 16;
+    let (u, v, w) = (frame.u, frame.v, frame.w);
+    for (k, group) in values.chunks(GROUP).enumerate() {
+        let mut d = [Vec3::ZERO; GROUP];
+        for (i, d) in d.iter_mut().enumerate() {
+            *d = cosine_power_hemisphere(group.get(i).copied().unwrap_or(Vec2::splat(0.5)), 1.0).dir;
+        }
+        let (mut x, mut y, mut z) = ([0.0f32; GROUP], [0.0f32; GROUP], [0.0f32; GROUP]);
+        for i in 0..GROUP {
+            // to_world, component by component: u·x + v·y + w·z.
+            x[i] = u.x * d[i].x + v.x * d[i].y + w.x * d[i].z;
+            y[i] = u.y * d[i].x + v.y * d[i].y + w.y * d[i].z;
+            z[i] = u.z * d[i].x + v.z * d[i].y + w.z * d[i].z;
+        }
+        let range = k * GROUP..k * GROUP + group.len();
+        run.x[range.clone()].copy_from_slice(&x[..group.len()]);
+        run.y[range.clone()].copy_from_slice(&y[..group.len()]);
+        run.z[range.clone()].copy_from_slice(&z[..group.len()]);
+        run.weight[range].fill(1.0);
+    }
+}
+
+impl PlacedOccluder {
+    /// What every sample of a run shares.
+    fn terms(&self) -> DirectionTerms {
+        DirectionTerms { radiance: self.radiance, floor: self.min_amount, max_distance: self.max_distance }
+    }
+
+    /// [`PlacedLight::sample_directions`] four samples at a time (any exponent).
+    #[inline]
+    fn directions4(&self, f: &Onb, values: &[Vec2], run: &mut DirectionRun) {
         for (k, u) in values.chunks(4).enumerate() {
             let lane = |f: fn(&Vec2) -> f32| Vec4::from_array(std::array::from_fn(|i| u.get(i).map_or(0.5, f)));
             let s = cosine_power_hemisphere4(lane(|v| v.x), lane(|v| v.y), self.exponent);
@@ -104,11 +173,8 @@ impl PlacedLight for PlacedOccluder {
             let world = |a: usize| Vec4::splat(f.u[a]) * s.x + Vec4::splat(f.v[a]) * s.y + Vec4::splat(f.w[a]) * s.z;
             run.set_group(k, [world(0), world(1), world(2), s.weight]);
         }
-        Some(DirectionTerms { radiance: self.radiance, floor: self.min_amount, max_distance: self.max_distance })
     }
-}
 
-impl PlacedOccluder {
     /// The sample of a direction (`dir()`, world space) of weight `weight`.
     #[inline(always)]
     fn light_sample(&self, weight: f32, dir: impl FnOnce() -> Vec3A) -> LightSample {
@@ -137,8 +203,8 @@ mod tests {
             let placed = light.place(&Transform::default()).unwrap();
             let normal = Vec3A::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, rng.next_f32() - 0.5).normalize();
             let at = ShadingPoint::new(Vec3A::ONE, normal, Matte::default());
-            // 11 samples: two full groups of four and a partial one.
-            let values: Vec<Vec2> = (0..11).map(|_| Vec2::new(rng.next_f32(), rng.next_f32())).collect();
+            // 37 samples: full groups of four and of sixteen, and a partial one of each.
+            let values: Vec<Vec2> = (0..37).map(|_| Vec2::new(rng.next_f32(), rng.next_f32())).collect();
             let mut run = DirectionRun::default();
             let terms = placed.sample_directions(&at, &values, &mut run).expect("a direction light");
             assert_eq!(run.weight.len(), values.len().next_multiple_of(4));
