@@ -2,7 +2,7 @@
 //! (see [`crate::light`]). The core knows no light kinds; it applies the reflectance a light
 //! names, traces the shadow rays lights ask for, and counts them.
 
-use glam::{Vec2, Vec3, Vec3A, Vec4};
+use glam::{BVec4A, Vec2, Vec3, Vec3A, Vec4};
 
 use crate::{
     components::Matte,
@@ -490,13 +490,15 @@ impl Tracer {
             while todo != 0 {
                 let i = todo.trailing_zeros();
                 todo &= todo - 1;
-                if blocked.next().copied().unwrap_or(false) {
-                    dark |= 1 << i;
-                }
+                // Without a branch: whether a ray is blocked is as good as random.
+                dark |= u32::from(blocked.next().copied().unwrap_or(false)) << i;
             }
-            let (r, g, b) = (c[0].to_array(), c[1].to_array(), c[2].to_array());
+            // The arriving light, lane by lane: the floor where dark, else the clear value.
+            let dark = BVec4A::new(dark & 1 != 0, dark & 2 != 0, dark & 4 != 0, dark & 8 != 0);
+            let pick = |a: usize| Vec4::select(dark, Vec4::splat(floor[a]), c[a]).to_array();
+            let (r, g, b) = (pick(0), pick(1), pick(2));
             for (i, sum) in sums.iter_mut().enumerate() {
-                *sum += if dark & (1 << i) != 0 { floor } else { Vec3A::new(r[i], g[i], b[i]) };
+                *sum += Vec3A::new(r[i], g[i], b[i]);
             }
         }
     }
