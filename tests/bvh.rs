@@ -4,7 +4,7 @@ use bevy_ecs::entity::Entity;
 use glam::{Vec3, Vec3A};
 use hemi::{
     components::{Matte, Mesh, Plane, Transform},
-    geometry::{Object, Prim, Ray, SceneGeometry, Shape, shapes::SpherePrim, world_space},
+    geometry::{Object, Prim, Ray, RayOrder, SceneGeometry, Shape, shapes::SpherePrim, world_space},
     sampling::hash::SplitMix64,
     scene::mesh_gen::{torus_knot, uv_sphere},
 };
@@ -184,7 +184,7 @@ fn a_batch_of_occlusion_queries_answers_as_single_queries_do() {
         let single: Vec<bool> = rays.iter().map(|r| geometry.occluded(r, &mut stack)).collect();
         let truth: Vec<bool> = rays.iter().map(|r| geometry.intersect_brute_force(r).is_some()).collect();
         let mut batch = vec![false; rays.len()];
-        geometry.occluded_many(&rays, &mut stack, &mut batch);
+        geometry.occluded_many(&rays, RayOrder::Mixed, &mut stack, &mut batch);
         assert_eq!(batch, truth);
         assert_eq!(single, truth);
         let blocked = single.iter().filter(|&&b| b).count();
@@ -279,9 +279,12 @@ fn runs_match_brute_force(geometry: &SceneGeometry, rng: &mut SplitMix64) {
             })
             .collect();
         let truth: Vec<bool> = rays.iter().map(|r| geometry.intersect_brute_force(r).is_some()).collect();
-        let mut batch = vec![false; rays.len()];
-        geometry.occluded_many(&rays, &mut stack, &mut batch);
-        assert_eq!(batch, truth, "run {run}");
+        // Cut into packets either way (as given, or grouped by octant first).
+        for order in [RayOrder::Mixed, RayOrder::Grouped] {
+            let mut batch = vec![false; rays.len()];
+            geometry.occluded_many(&rays, order, &mut stack, &mut batch);
+            assert_eq!(batch, truth, "run {run}, {order:?}");
+        }
         let single: Vec<bool> = rays.iter().map(|r| geometry.occluded(r, &mut stack)).collect();
         assert_eq!(single, truth, "run {run}");
         blocked += truth.iter().filter(|&&b| b).count();

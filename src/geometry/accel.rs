@@ -261,6 +261,44 @@ fn build_params(prims: usize) -> BvhBuildParams {
     }
 }
 
+/// How a run of rays given to [`SceneGeometry::occluded_many`] is ordered, which decides how
+/// it is cut into packets. Either way every ray gets the answer of its own query.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RayOrder {
+    /// Any order: within each block of 64, the rays are grouped by direction octant first.
+    Mixed,
+    /// Already grouped (rays that should travel together are consecutive, e.g. one point's
+    /// rays octant by octant): packets are consecutive rays.
+    Grouped,
+}
+
+/// Calls `trace(packet, live)` for packets of up to `L::WIDTH` of the `rays` not yet
+/// `blocked`, and marks blocked the rays of the lanes it returns: by [`by_packets`] for
+/// [`RayOrder::Mixed`], consecutive rays for [`RayOrder::Grouped`].
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn in_packets<L: Lanes>(
+    rays: &[Ray],
+    order: RayOrder,
+    blocked: &mut [bool],
+    mut trace: impl FnMut(&[Ray], u32) -> u32,
+) {
+    if order == RayOrder::Mixed {
+        return by_packets::<L>(rays, blocked, trace);
+    }
+    for (packet, done) in rays.chunks(L::WIDTH).zip(blocked.chunks_mut(L::WIDTH)) {
+        let live = done.iter().enumerate().fold(0, |live, (k, &b)| live | u32::from(!b) << k);
+        if live == 0 {
+            continue;
+        }
+        let mut hit = trace(packet, live);
+        while hit != 0 {
+            done[hit.trailing_zeros() as usize] = true;
+            hit &= hit - 1;
+        }
+    }
+}
+
 /// Calls `trace(packet, live)` for packets of up to `L::WIDTH` of the `rays` not yet `blocked`, and
 /// marks blocked the rays of the lanes it returns. Within each block of 64 consecutive rays, the
 /// rays still to answer are grouped by the octant of their direction: a pixel's run leaves one
@@ -335,8 +373,15 @@ macro_rules! packet_kernels {
             /// which leave one point), traversed together while at least four of them enter
             /// a node. Every ray gets exactly the answer of its own traversal.
             #[target_feature(enable = $feature)]
-            fn $packets(&self, tree: &Bvh8, rays: &[Ray], stack: &mut Vec<(u32, f32)>, blocked: &mut [bool]) {
-                by_packets::<$lanes_type>(rays, blocked, |packet, live| self.$lanes(tree, packet, live, stack));
+            fn $packets(
+                &self,
+                tree: &Bvh8,
+                rays: &[Ray],
+                order: RayOrder,
+                stack: &mut Vec<(u32, f32)>,
+                blocked: &mut [bool],
+            ) {
+                in_packets::<$lanes_type>(rays, order, blocked, |packet, live| self.$lanes(tree, packet, live, stack));
             }
 
             /// The lanes of `live` whose ray in `rays` (one packet) anything in this BLAS
@@ -376,8 +421,15 @@ macro_rules! packet_kernels {
             /// rays, as within one BLAS; an instance reached by two or more of a packet's rays
             /// gets them as one packet in its own frame.
             #[target_feature(enable = $feature)]
-            fn $scene(&self, top: &Bvh8, rays: &[Ray], stack: &mut Vec<(u32, f32)>, blocked: &mut [bool]) {
-                by_packets::<$lanes_type>(rays, blocked, |chunk, live| {
+            fn $scene(
+                &self,
+                top: &Bvh8,
+                rays: &[Ray],
+                order: RayOrder,
+                stack: &mut Vec<(u32, f32)>,
+                blocked: &mut [bool],
+            ) {
+                in_packets::<$lanes_type>(rays, order, blocked, |chunk, live| {
                     let leaf = |first: u32, count: u32, lanes: u32, stack: &mut Vec<(u32, f32)>| {
                         let mut open = lanes;
                         for inst in &self.instances[first as usize..(first + count) as usize] {
@@ -661,7 +713,7 @@ impl Blas {
 
     /// [`Blas::occluded`] for each of `rays` not yet `blocked` (same length), in one call: in
     /// ray packets where the tree is eight-wide and holds triangle packets.
-    fn occluded_many(&self, rays: &[Ray], stack: &mut Vec<(u32, f32)>, blocked: &mut [bool]) {
+    fn occluded_many(&self, rays: &[Ray], order: RayOrder, stack: &mut Vec<(u32, f32)>, blocked: &mut [bool]) {
         #[cfg(target_arch = "x86_64")]
         if let Tree::Eight(tree) = &self.tree
             && !self.packets.is_empty()
@@ -671,11 +723,13 @@ impl Blas {
             // packets are chosen only where AVX-512 was.
             return unsafe {
                 match packet_width() {
-                    PacketWidth::Sixteen => self.occluded_packets_avx512(tree, rays, stack, blocked),
-                    PacketWidth::Eight => self.occluded_packets_avx(tree, rays, stack, blocked),
+                    PacketWidth::Sixteen => self.occluded_packets_avx512(tree, rays, order, stack, blocked),
+                    PacketWidth::Eight => self.occluded_packets_avx(tree, rays, order, stack, blocked),
                 }
             };
         }
+        // Without packets the order does not matter.
+        let _ = order;
         self.tree.query(OccludedEach { target: self, rays, stack, blocked });
     }
 
@@ -1216,13 +1270,14 @@ impl SceneGeometry {
     #[inline]
     pub fn occluded(&self, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool {
         let mut blocked = [false];
-        self.occluded_many(std::slice::from_ref(ray), stack, &mut blocked);
+        self.occluded_many(std::slice::from_ref(ray), RayOrder::Mixed, stack, &mut blocked);
         blocked[0]
     }
 
     /// [`SceneGeometry::occluded`] for each of `rays` into `blocked` (same length), in one call:
-    /// the dispatch to the tree's width and the traversal's set-up outside the loop over rays.
-    pub fn occluded_many(&self, rays: &[Ray], stack: &mut Vec<(u32, f32)>, blocked: &mut [bool]) {
+    /// the dispatch to the tree's width and the traversal's set-up outside the loop over rays;
+    /// `order` says how the rays are cut into packets.
+    pub fn occluded_many(&self, rays: &[Ray], order: RayOrder, stack: &mut Vec<(u32, f32)>, blocked: &mut [bool]) {
         for (ray, b) in rays.iter().zip(blocked.iter_mut()) {
             *b = self.planes.iter().any(|p| p.intersect(ray).is_some());
         }
@@ -1231,7 +1286,7 @@ impl SceneGeometry {
             && inst.identity
         {
             // One world-space BLAS (a static scene): no top level to traverse.
-            self.blases[inst.blas as usize].occluded_many(rays, stack, blocked);
+            self.blases[inst.blas as usize].occluded_many(rays, order, stack, blocked);
         } else {
             #[cfg(target_arch = "x86_64")]
             if let Tree::Eight(top) = &self.top
@@ -1241,11 +1296,12 @@ impl SceneGeometry {
                 // sixteen-lane packets are chosen only where AVX-512 was.
                 return unsafe {
                     match packet_width() {
-                        PacketWidth::Sixteen => self.occluded_packets_avx512(top, rays, stack, blocked),
-                        PacketWidth::Eight => self.occluded_packets_avx(top, rays, stack, blocked),
+                        PacketWidth::Sixteen => self.occluded_packets_avx512(top, rays, order, stack, blocked),
+                        PacketWidth::Eight => self.occluded_packets_avx(top, rays, order, stack, blocked),
                     }
                 };
             }
+            let _ = order;
             self.top.query(OccludedEach { target: self, rays, stack, blocked });
         }
     }

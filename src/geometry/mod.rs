@@ -10,6 +10,6 @@ pub mod tri4;
 pub mod wide_bvh;
 pub mod world_space;
 
-pub use accel::{Object, Prim, SceneGeometry, Shape};
+pub use accel::{Object, Prim, RayOrder, SceneGeometry, Shape};
 pub use hit::{SpawnOrigins, SurfaceHit};
 pub use ray::{Ray, Shear};
