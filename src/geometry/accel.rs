@@ -756,21 +756,21 @@ impl Blas {
                 }
                 // SAFETY: the caller's CPU has `L`'s instruction set.
                 let edges = unsafe { packet.edges_packet(lane, r) };
-                let mut todo = (edges.pass | edges.exact) & open;
-                if todo == 0 {
+                let (pass, mut exact) = (edges.pass & open, edges.exact & open);
+                if pass | exact == 0 {
                     continue;
                 }
                 let tri = packet.triangle(lane);
-                while todo != 0 {
-                    let k = todo.trailing_zeros() as usize;
-                    todo &= todo - 1;
+                if pass != 0 {
+                    // SAFETY: the caller's CPU has `L`'s instruction set.
+                    open &= !(unsafe { r.plane_hits(&tri) } & pass);
+                }
+                // Lanes with a zero or NaN edge function: the scalar test with its f64 edges.
+                while exact != 0 {
+                    let k = exact.trailing_zeros() as usize;
+                    exact &= exact - 1;
                     let ray = &rays[k];
-                    let found = if edges.exact & (1 << k) != 0 {
-                        tri.intersect(ray, &Shear::new(ray.dir))
-                    } else {
-                        tri.finish(ray, edges.e[0][k], edges.e[1][k], edges.e[2][k])
-                    };
-                    if found.is_some() {
+                    if tri.intersect(ray, &Shear::new(ray.dir)).is_some() {
                         open &= !(1 << k);
                     }
                 }

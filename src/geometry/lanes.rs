@@ -8,6 +8,8 @@
 
 use std::arch::x86_64::*;
 
+use glam::DVec3;
+
 use super::ray::Ray;
 
 /// `N` scalars of each of `rays` (one to `L::WIDTH`; `fields` picks them) laid out for
@@ -36,8 +38,6 @@ pub(crate) trait Lanes: Copy {
     unsafe fn splat(x: f32) -> Self;
     /// Lanes `0..WIDTH` of `x`.
     unsafe fn load(x: &[f32; 16]) -> Self;
-    /// Writes the lanes to `out[0..WIDTH]`.
-    unsafe fn store(self, out: &mut [f32; 16]);
     /// `self + b`.
     unsafe fn add(self, b: Self) -> Self;
     /// `self − b`.
@@ -72,6 +72,12 @@ pub(crate) trait Lanes: Copy {
     unsafe fn andnot(a: Self::Mask, b: Self::Mask) -> Self::Mask;
     /// Bit `i` set for lane `i` in the mask.
     unsafe fn bits(m: Self::Mask) -> u32;
+    /// The lanes whose ray (origin `o`, direction `d`) meets the plane through `a` with normal
+    /// `n` at a `t` in (0, `tmax`): `t = (n·(a − o)) / (n·d)` in f64, rounded to f32, no hit
+    /// where `n·d = 0`, each lane with exactly the operations of [`Triangle::finish`].
+    ///
+    /// [`Triangle::finish`]: super::shapes::Triangle::finish
+    unsafe fn plane_hits(n: DVec3, a: DVec3, o: &[Self; 3], d: &[Self; 3], tmax: Self) -> u32;
 }
 
 /// Eight lanes in an AVX register.
@@ -95,11 +101,6 @@ impl Lanes for Avx {
     #[inline]
     unsafe fn load(x: &[f32; 16]) -> Self {
         unsafe { Avx(_mm256_loadu_ps(x.as_ptr())) }
-    }
-    #[target_feature(enable = "avx")]
-    #[inline]
-    unsafe fn store(self, out: &mut [f32; 16]) {
-        unsafe { _mm256_storeu_ps(out.as_mut_ptr(), self.0) }
     }
     #[target_feature(enable = "avx")]
     #[inline]
@@ -186,6 +187,33 @@ impl Lanes for Avx {
     unsafe fn bits(m: __m256) -> u32 {
         _mm256_movemask_ps(m) as u32
     }
+    /// In two halves of four f64 lanes.
+    #[target_feature(enable = "avx")]
+    #[inline]
+    unsafe fn plane_hits(n: DVec3, a: DVec3, o: &[Self; 3], d: &[Self; 3], tmax: Self) -> u32 {
+        let half = |v: &Avx, h: usize| {
+            let q = if h == 0 { _mm256_castps256_ps128(v.0) } else { _mm256_extractf128_ps::<1>(v.0) };
+            _mm256_cvtps_pd(q)
+        };
+        let dot = |x: __m256d, y: __m256d, z: __m256d| {
+            let xy = _mm256_add_pd(_mm256_mul_pd(_mm256_set1_pd(n.x), x), _mm256_mul_pd(_mm256_set1_pd(n.y), y));
+            _mm256_add_pd(xy, _mm256_mul_pd(_mm256_set1_pd(n.z), z))
+        };
+        let mut t = [_mm_setzero_ps(); 2];
+        let mut meets = 0;
+        for (h, t) in t.iter_mut().enumerate() {
+            let denom = dot(half(&d[0], h), half(&d[1], h), half(&d[2], h));
+            let to = |k: usize, c: f64| _mm256_sub_pd(_mm256_set1_pd(c), half(&o[k], h));
+            let num = dot(to(0, a.x), to(1, a.y), to(2, a.z));
+            *t = _mm256_cvtpd_ps(_mm256_div_pd(num, denom));
+            let nonzero = _mm256_cmp_pd::<_CMP_NEQ_UQ>(denom, _mm256_setzero_pd());
+            meets |= (_mm256_movemask_pd(nonzero) as u32) << (4 * h);
+        }
+        let t = _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(t[0]), t[1]);
+        let ahead = _mm256_cmp_ps::<_CMP_GT_OQ>(t, _mm256_setzero_ps());
+        let short = _mm256_cmp_ps::<_CMP_LT_OQ>(t, tmax.0);
+        meets & _mm256_movemask_ps(_mm256_and_ps(ahead, short)) as u32
+    }
 }
 
 impl Lanes for Avx512 {
@@ -201,11 +229,6 @@ impl Lanes for Avx512 {
     #[inline]
     unsafe fn load(x: &[f32; 16]) -> Self {
         unsafe { Avx512(_mm512_loadu_ps(x.as_ptr())) }
-    }
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn store(self, out: &mut [f32; 16]) {
-        unsafe { _mm512_storeu_ps(out.as_mut_ptr(), self.0) }
     }
     #[target_feature(enable = "avx512f")]
     #[inline]
@@ -291,5 +314,39 @@ impl Lanes for Avx512 {
     #[inline]
     unsafe fn bits(m: __mmask16) -> u32 {
         m as u32
+    }
+    /// In two halves of eight f64 lanes.
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn plane_hits(n: DVec3, a: DVec3, o: &[Self; 3], d: &[Self; 3], tmax: Self) -> u32 {
+        let half = |v: &Avx512, h: usize| {
+            let q = if h == 0 {
+                _mm512_castps512_ps256(v.0)
+            } else {
+                _mm256_castpd_ps(_mm512_extractf64x4_pd::<1>(_mm512_castps_pd(v.0)))
+            };
+            _mm512_cvtps_pd(q)
+        };
+        let dot = |x: __m512d, y: __m512d, z: __m512d| {
+            let xy = _mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(n.x), x), _mm512_mul_pd(_mm512_set1_pd(n.y), y));
+            _mm512_add_pd(xy, _mm512_mul_pd(_mm512_set1_pd(n.z), z))
+        };
+        let mut t = [_mm256_setzero_ps(); 2];
+        let mut meets = 0;
+        for (h, t) in t.iter_mut().enumerate() {
+            let denom = dot(half(&d[0], h), half(&d[1], h), half(&d[2], h));
+            let to = |k: usize, c: f64| _mm512_sub_pd(_mm512_set1_pd(c), half(&o[k], h));
+            let num = dot(to(0, a.x), to(1, a.y), to(2, a.z));
+            *t = _mm512_cvtpd_ps(_mm512_div_pd(num, denom));
+            let nonzero = _mm512_cmp_pd_mask::<_CMP_NEQ_UQ>(denom, _mm512_setzero_pd());
+            meets |= (nonzero as u32) << (8 * h);
+        }
+        let t = _mm512_castpd_ps(_mm512_insertf64x4::<1>(
+            _mm512_castps_pd(_mm512_castps256_ps512(t[0])),
+            _mm256_castps_pd(t[1]),
+        ));
+        let ahead = _mm512_cmp_ps_mask::<_CMP_GT_OQ>(t, _mm512_setzero_ps());
+        let short = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(t, tmax.0);
+        meets & (ahead & short) as u32
     }
 }

@@ -113,6 +113,8 @@ impl Tri4 {
 #[cfg(target_arch = "x86_64")]
 pub(crate) struct RayTriPacket<L: Lanes> {
     origin: [L; 3],
+    dir: [L; 3],
+    tmax: L,
     sx: L,
     sy: L,
     axes: Axes<L>,
@@ -127,9 +129,9 @@ impl<L: Lanes> RayTriPacket<L> {
     /// The CPU must have `L`'s instruction set.
     #[inline(always)]
     pub(crate) unsafe fn new(rays: &[Ray]) -> Self {
-        let columns = columns::<L, 6>(rays, |r| {
+        let columns = columns::<L, 7>(rays, |r| {
             let (o, d) = (r.origin.to_array(), r.dir.to_array());
-            [o[0], o[1], o[2], d[0], d[1], d[2]]
+            [o[0], o[1], o[2], d[0], d[1], d[2], r.tmax]
         });
         // SAFETY: the caller's CPU has `L`'s instruction set. (No SIMD call sits in a closure: a
         // closure is compiled on its own, without the instruction set of its caller.)
@@ -143,11 +145,29 @@ impl<L: Lanes> RayTriPacket<L> {
             let [dx, dy, dz] = axes.permute(d);
             RayTriPacket {
                 origin: [L::load(&columns[0]), L::load(&columns[1]), L::load(&columns[2])],
+                dir: d,
+                tmax: L::load(&columns[6]),
                 sx: dx.neg().div(dz),
                 sy: dy.neg().div(dz),
                 axes,
             }
         }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl<L: Lanes> RayTriPacket<L> {
+    /// The lanes whose ray meets `tri`'s plane in (0, tmax): for lanes whose edge functions
+    /// passed, exactly the lanes where [`Triangle::finish`] finds a hit (their determinant, a
+    /// sum of three non-zero values of one sign, is never zero).
+    ///
+    /// # Safety
+    /// The CPU must have `L`'s instruction set.
+    #[inline(always)]
+    pub(crate) unsafe fn plane_hits(&self, tri: &Triangle) -> u32 {
+        let [a, b, c] = tri.p.map(|p| p.as_dvec3());
+        // SAFETY: the caller's CPU has `L`'s instruction set.
+        unsafe { L::plane_hits((b - a).cross(c - a), a, &self.origin, &self.dir, self.tmax) }
     }
 }
 
@@ -188,18 +208,18 @@ impl<L: Lanes> Axes<L> {
 /// A triangle's edge tests against a packet of rays.
 #[cfg(target_arch = "x86_64")]
 pub(crate) struct PacketEdges {
-    /// Rays whose edge functions are all non-zero and of one sign: call [`Triangle::finish`].
+    /// Rays whose edge functions are all non-zero and of one sign: then the plane decides
+    /// ([`RayTriPacket::plane_hits`]).
     pub pass: u32,
     /// Rays with a zero or NaN edge function: call the scalar [`Triangle::intersect`].
     pub exact: u32,
-    /// The edge functions (e0, e1, e2) of each ray.
-    pub e: [[f32; 16]; 3],
 }
 
 #[cfg(target_arch = "x86_64")]
 impl Tri4 {
     /// The edge tests of triangle `lane` against every ray of `r`: per ray, the operations of
-    /// [`Tri4::edges`] in the same order, so each ray's edge functions are bit-identical to it.
+    /// [`Tri4::edges`] in the same order, so each ray's edge functions, and so its class, are
+    /// bit-identical to it.
     ///
     /// # Safety
     /// The CPU must have `L`'s instruction set.
@@ -216,11 +236,7 @@ impl Tri4 {
             let pos = L::and(L::and(e[0].gt(zero), e[1].gt(zero)), e[2].gt(zero));
             let neg = L::and(L::and(e[0].lt(zero), e[1].lt(zero)), e[2].lt(zero));
             let exact = L::bits(exact);
-            let mut out = [[0.0; 16]; 3];
-            for k in 0..3 {
-                e[k].store(&mut out[k]);
-            }
-            PacketEdges { pass: L::bits(L::or(pos, neg)) & !exact, exact, e: out }
+            PacketEdges { pass: L::bits(L::or(pos, neg)) & !exact, exact }
         }
     }
 
@@ -261,9 +277,9 @@ mod tests {
     use super::*;
     use crate::sampling::hash::SplitMix64;
 
-    /// The packet edge test gives each ray exactly the single-ray test's edge functions and
-    /// lane classes, for rays along every axis order, rays through vertices and edges, and
-    /// rays parallel to an axis.
+    /// The packet edge test gives each ray exactly the single-ray test's lane classes, and the
+    /// packet plane test exactly `finish`'s answer, for rays along every axis order, rays
+    /// through vertices and edges, rays parallel to an axis, and segments of every length.
     #[test]
     fn packet_edges_are_the_single_ray_edges_bit_for_bit() {
         use crate::geometry::lanes::{Avx, Avx512};
@@ -292,7 +308,7 @@ mod tests {
             .chain([(4, Triangle { p: [Vec3A::ZERO, Vec3A::X, Vec3A::Z] })])
             .collect();
         let packets = [Tri4::pack(tris[..4].iter().copied()), Tri4::pack(tris[4..].iter().copied())];
-        let (mut passed, mut exact) = (0, 0);
+        let (mut passed, mut exact, mut hits) = (0, 0, 0);
         for p in 0..400 {
             let origin = if p % 4 == 0 { Vec3A::new(0.0, 1.0, 0.0) } else { v(6.0) };
             let rays: Vec<Ray> = (0..L::WIDTH)
@@ -307,7 +323,9 @@ mod tests {
                     if i == L::WIDTH - 1 {
                         dir[p % 3] = 0.0;
                     }
-                    Ray::new(origin, dir.normalize_or(Vec3A::Y), f32::INFINITY)
+                    // Segments of every length: the plane test's t < tmax decides some lanes.
+                    let tmax = if (p + i) % 3 == 0 { f32::INFINITY } else { v(8.0).x + 4.0 };
+                    Ray::new(origin, dir.normalize_or(Vec3A::Y), tmax)
                 })
                 .collect();
             // SAFETY: the caller's CPU has `L`'s instruction set.
@@ -316,6 +334,8 @@ mod tests {
                 for lane in 0..4 {
                     // SAFETY: the caller's CPU has `L`'s instruction set.
                     let lanes = unsafe { packet.edges_packet(lane, &r) };
+                    // SAFETY: the caller's CPU has `L`'s instruction set.
+                    let planes = unsafe { r.plane_hits(&packet.triangle(lane)) };
                     for (k, ray) in rays.iter().enumerate() {
                         let one = packet.edges(&RayTri4::new(ray));
                         let bit = |mask: u32, i: usize| (mask >> i) & 1;
@@ -323,9 +343,13 @@ mod tests {
                         assert_eq!(bit(lanes.exact, k), bit(one.exact, lane), "{at}");
                         if one.exact & (1 << lane) == 0 {
                             assert_eq!(bit(lanes.pass, k), bit(one.pass, lane), "{at}");
-                            for e in 0..3 {
-                                assert_eq!(lanes.e[e][k].to_bits(), one.e[e][lane].to_bits(), "{at}");
-                            }
+                        }
+                        // Where the edges pass, the plane test decides exactly as `finish` does.
+                        if lanes.pass & (1 << k) != 0 {
+                            let tri = packet.triangle(lane);
+                            let found = tri.finish(ray, one.e[0][lane], one.e[1][lane], one.e[2][lane]).is_some();
+                            assert_eq!(bit(planes, k), u32::from(found), "{at}: plane");
+                            hits += u32::from(found);
                         }
                         passed += bit(lanes.pass, k);
                         exact += bit(lanes.exact, k) * u32::from(packet.slot[lane] != u32::MAX);
@@ -333,6 +357,9 @@ mod tests {
                 }
             }
         }
-        assert!(passed > 500 && exact > 100, "{passed} passed, {exact} exact");
+        assert!(
+            passed > 500 && exact > 100 && hits > 100 && hits < passed,
+            "{passed} passed, {exact} exact, {hits} hit"
+        );
     }
 }
