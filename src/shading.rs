@@ -459,19 +459,17 @@ impl Tracer {
         let groups = n.div_ceil(4);
         let octants = &mut self.octants;
         octants.clear();
+        octants.resize(4 * groups, NO_RAY);
         let mut start = [0u32; 9];
-        for k in 0..groups {
+        for (k, group) in octants.chunks_exact_mut(4).enumerate() {
             let [x, y, z, w] = run.group(k);
             let needs = needs_ray(k, w, &clear(w));
             let [nx, ny, nz] = [x, y, z].map(|d| (Vec4::ONE / d).cmplt(Vec4::ZERO).bitmask());
-            for i in 0..4 {
-                let octant = if needs & (1 << i) != 0 {
-                    (nx >> i & 1 | (ny >> i & 1) << 1 | (nz >> i & 1) << 2) as u8
-                } else {
-                    NO_RAY
-                };
-                octants.push(octant);
-                start[octant as usize] += 1;
+            for (i, octant) in group.iter_mut().enumerate() {
+                if needs & (1 << i) != 0 {
+                    *octant = (nx >> i & 1 | (ny >> i & 1) << 1 | (nz >> i & 1) << 2) as u8;
+                }
+                start[*octant as usize] += 1;
             }
         }
         let traced = octants.len() - start[NO_RAY as usize] as usize;
