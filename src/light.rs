@@ -142,6 +142,22 @@ pub struct DirectionTerms {
     pub max_distance: f32,
 }
 
+impl DirectionTerms {
+    /// The [`LightSample`] of one direction `dir` (world space, unit) of weight `weight`.
+    #[inline(always)]
+    pub fn light_sample(&self, weight: f32, dir: Vec3A) -> LightSample {
+        let floor = self.radiance * self.floor;
+        if weight <= 0.0 {
+            return LightSample { unoccluded: floor, occluded: floor, shadow: None };
+        }
+        LightSample {
+            unoccluded: self.radiance * (self.floor + (1.0 - self.floor) * weight),
+            occluded: floor,
+            shadow: Some(Shadow::Along { dir, max_distance: self.max_distance }),
+        }
+    }
+}
+
 /// A run of direction samples at one point as structure-of-arrays: sample `j` is the world-space
 /// unit direction (`x[j]`, `y[j]`, `z[j]`) with weight `weight[j]`.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -185,18 +201,9 @@ impl DirectionRun {
         Vec3A::new(self.x[j], self.y[j], self.z[j])
     }
 
-    /// The [`LightSample`] that sample `j` stands for under `terms` (for tests and checks).
+    /// The [`LightSample`] that sample `j` stands for under `terms`.
     pub fn light_sample(&self, j: usize, terms: &DirectionTerms) -> LightSample {
-        let floor = terms.radiance * terms.floor;
-        let w = self.weight[j];
-        if w <= 0.0 {
-            return LightSample { unoccluded: floor, occluded: floor, shadow: None };
-        }
-        LightSample {
-            unoccluded: terms.radiance * (terms.floor + (1.0 - terms.floor) * w),
-            occluded: floor,
-            shadow: Some(Shadow::Along { dir: self.dir(j), max_distance: terms.max_distance }),
-        }
+        terms.light_sample(self.weight[j], self.dir(j))
     }
 }
 
@@ -265,16 +272,13 @@ pub trait PlacedLight: Send + Sync + 'static {
     /// contributes nothing (behind the surface, outside a cone, …): then no shadow ray is traced.
     fn sample(&self, at: &ShadingPoint, u: &LightSamples) -> Option<LightSample>;
 
-    /// [`PlacedLight::sample`] for each sample of a run at one shading point: `out[j]` for the
-    /// sample values whose dimension `k` is `values[k * out.len() + j]`. An implementation may
-    /// compute several samples at once, but must give the same values as `sample`.
     /// For a direction light (see [`DirectionTerms`]): the samples of a run at one shading point
     /// as structure-of-arrays into `run` (resized with [`DirectionRun::resize`] to
-    /// `n = values.len() / DIMS` samples; sample `j` for the
-    /// values whose dimension `k` is `values[k * n + j]`), and the terms they share. The core
-    /// then sets up, traces and adds the run's shadow rays in bulk. Each sample must stand for
-    /// exactly what [`PlacedLight::sample`] returns ([`DirectionRun::light_sample`]). `None`
-    /// (the default): the light goes through [`PlacedLight::sample_run`].
+    /// `n = values.len() / DIMS` samples; sample `j` for the values whose dimension `k` is
+    /// `values[k * n + j]`), and the terms they share. The core then sets up, traces and adds the
+    /// run's shadow rays in bulk. Each sample must stand for exactly what [`PlacedLight::sample`]
+    /// returns ([`DirectionRun::light_sample`]). `None` (the default): the light goes through
+    /// [`PlacedLight::sample_run`].
     #[inline]
     fn sample_directions(
         &self,
@@ -285,6 +289,9 @@ pub trait PlacedLight: Send + Sync + 'static {
         None
     }
 
+    /// [`PlacedLight::sample`] for each sample of a run at one shading point: `out[j]` for the
+    /// sample values whose dimension `k` is `values[k * out.len() + j]`. An implementation may
+    /// compute several samples at once, but must give the same values as `sample`.
     #[inline]
     fn sample_run(&self, at: &ShadingPoint, values: &[Vec2], out: &mut [Option<LightSample>]) {
         let n = out.len();

@@ -1,13 +1,12 @@
 //! The ambient occluder, written on the light extension point like any other light.
 
 use bevy_ecs::prelude::Component;
-use glam::{Vec2, Vec3, Vec3A, Vec4};
+use glam::{Vec2, Vec3, Vec4};
 
 use crate::{
     components::Transform,
     light::{
-        DirectionRun, DirectionTerms, Light, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term,
-        check_emission,
+        DirectionRun, DirectionTerms, Light, LightSample, LightSamples, PlacedLight, ShadingPoint, Term, check_emission,
     },
     math::Onb,
     sampling::warp::{cosine_power_hemisphere, cosine_power_hemisphere4},
@@ -90,7 +89,7 @@ impl PlacedLight for PlacedOccluder {
     #[inline]
     fn sample(&self, at: &ShadingPoint, u: &LightSamples) -> Option<LightSample> {
         let s = cosine_power_hemisphere(u.get(0), self.exponent);
-        Some(self.light_sample(s.weight, || Vec3A::from(at.frame.to_world(s.dir))))
+        Some(self.terms().light_sample(s.weight, at.frame.to_world(s.dir).into()))
     }
 
     /// Cosine-sampled runs (e = 1) sixteen or eight lanes at a time where the CPU has AVX-512
@@ -174,24 +173,12 @@ impl PlacedOccluder {
             run.set_group(k, [world(0), world(1), world(2), s.weight]);
         }
     }
-
-    /// The sample of a direction (`dir()`, world space) of weight `weight`.
-    #[inline(always)]
-    fn light_sample(&self, weight: f32, dir: impl FnOnce() -> Vec3A) -> LightSample {
-        let floor = self.radiance * self.min_amount;
-        if weight <= 0.0 {
-            return LightSample { unoccluded: floor, occluded: floor, shadow: None };
-        }
-        LightSample {
-            unoccluded: self.radiance * (self.min_amount + (1.0 - self.min_amount) * weight),
-            occluded: floor,
-            shadow: Some(Shadow::Along { dir: dir(), max_distance: self.max_distance }),
-        }
-    }
 }
 
 #[cfg(test)]
 mod tests {
+    use glam::Vec3A;
+
     use super::*;
     use crate::{components::Matte, sampling::hash::SplitMix64};
 
