@@ -195,10 +195,13 @@ fn trace_tile<C: CameraRays>(
                     radiance.resize(count as usize, Vec3A::ZERO);
                     tracer.shade(scene, hit, pixel, first, true, Lights::Sampled, &mut radiance[..]);
                     // A finite total means every sample was finite (∞ and NaN survive a sum),
-                    // so only other totals need the loop that drops samples one by one.
-                    let mut total = radiance.iter().fold(Vec3A::ZERO, |t, &r| t + (r + fixed[0]));
-                    if job.adaptive || !all_finite(total) {
-                        total = Vec3A::ZERO;
+                    // so only other totals (and adaptive sampling, which needs each sample's
+                    // luminance) need the loop that drops samples one by one.
+                    let quick = (!job.adaptive)
+                        .then(|| radiance.iter().fold(Vec3A::ZERO, |t, &r| t + (r + fixed[0])))
+                        .filter(|&t| all_finite(t));
+                    let total = quick.unwrap_or_else(|| {
+                        let mut total = Vec3A::ZERO;
                         for &r in &radiance {
                             let r = r + fixed[0];
                             if !all_finite(r) {
@@ -210,7 +213,8 @@ fn trace_tile<C: CameraRays>(
                                 sq_sum += luminance(r.into()).powi(2);
                             }
                         }
-                    }
+                        total
+                    });
                     sums.push(total.into());
                     counts.push(count);
                     sq_sums.push(sq_sum);

@@ -251,8 +251,9 @@ fn bvh_width() -> usize {
 /// instead of 3): the peer Cornell box traced 44 % faster with them, while from 3.9k triangles up
 /// (Suzanne, Duck, bunny, teapot, FlightHelmet, dragon) they were 0–8 % slower. Larger sets:
 /// obvhs's fast preset (a narrower PLOC search, less reinsertion), which with packet traversal
-/// traces as fast as the medium one (dragon, Sponza, sphere_plane, many_spheres: three rounds,
-/// within noise) and builds the dragon in 420–550 ms instead of 550–590.
+/// traces as fast as the medium one (three rounds at 64 spp: cornell, sphere_plane, Sponza,
+/// dragon and many_spheres within −5 to 0 %) and builds the dragon in 500–535 ms instead of
+/// 545–690.
 fn build_params(prims: usize) -> BvhBuildParams {
     if prims < SMALL_SET {
         BvhBuildParams { max_prims_per_leaf: 4, collapse_traversal_cost: 1.5, ..BvhBuildParams::medium_build() }
@@ -443,8 +444,7 @@ macro_rules! packet_kernels {
                     let single = |node, lane: usize, stack: &mut Vec<(u32, f32)>| {
                         let ray = &chunk[lane];
                         top.occluded_from(node, ray, stack, |first, count, stack| {
-                            let instances = &self.instances[first as usize..(first + count) as usize];
-                            instances.iter().any(|inst| self.instance_blocks(inst, ray, stack))
+                            self.instances_block(first, count, ray, stack)
                         })
                     };
                     // SAFETY: this function is compiled for the lane type's instruction set and
@@ -1306,6 +1306,13 @@ impl SceneGeometry {
         }
     }
 
+    /// Whether anything in instances `first..first + count` (a top-level leaf) blocks `ray`.
+    #[inline(always)]
+    fn instances_block(&self, first: u32, count: u32, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool {
+        let instances = &self.instances[first as usize..(first + count) as usize];
+        instances.iter().any(|inst| self.instance_blocks(inst, ray, stack))
+    }
+
     /// Whether anything in instance `inst` blocks `ray` (world space).
     #[inline(always)]
     fn instance_blocks(&self, inst: &Instance, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool {
@@ -1364,10 +1371,7 @@ impl Occluder for SceneGeometry {
     where
         Node<W>: NodeTest<W>,
     {
-        top.occluded(ray, stack, |first, count, stack| {
-            let instances = &self.instances[first as usize..(first + count) as usize];
-            instances.iter().any(|inst| self.instance_blocks(inst, ray, stack))
-        })
+        top.occluded(ray, stack, |first, count, stack| self.instances_block(first, count, ray, stack))
     }
 }
 

@@ -153,10 +153,7 @@ impl<L: Lanes> RayTriPacket<L> {
             }
         }
     }
-}
 
-#[cfg(target_arch = "x86_64")]
-impl<L: Lanes> RayTriPacket<L> {
     /// The lanes whose ray meets `tri`'s plane in (0, tmax): for lanes whose edge functions
     /// passed, exactly the lanes where [`Triangle::finish`] finds a hit (their determinant, a
     /// sum of three non-zero values of one sign, is never zero).

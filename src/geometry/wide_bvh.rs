@@ -333,7 +333,8 @@ where
     }
 
     /// [`WideBvh::occluded_from`], calling `touch(first, count)` for each leaf as soon as
-    /// the ray is known to enter it, before testing any of the node's children (to prefetch).
+    /// the ray is known to enter it, before visiting any of the node's children (to prefetch
+    /// its primitives); the child nodes it enters are prefetched at the same point.
     #[inline(always)]
     pub fn occluded_from_touch(
         &self,
@@ -566,19 +567,25 @@ impl WideBvh<8> {
         let mut todo = [std::mem::MaybeUninit::<(u32, u32)>::uninit(); PACKET_STACK];
         let mut len = 1;
         todo[0].write((0, live));
+        // The lanes of `lanes` that `single` finds blocked, each ray going on alone from `node`.
+        let mut alone = |node: u32, mut lanes: u32, stack: &mut Vec<(u32, f32)>| {
+            let mut blocked = 0;
+            while lanes != 0 {
+                let lane = lanes.trailing_zeros() as usize;
+                lanes &= lanes - 1;
+                if single(node, lane, stack) {
+                    blocked |= 1 << lane;
+                }
+            }
+            blocked
+        };
         while len > 0 {
             len -= 1;
             // SAFETY: every entry below `len` was written before `len` passed it.
             let (node, lanes) = unsafe { todo[len].assume_init() };
-            let mut lanes = lanes & open;
+            let lanes = lanes & open;
             if lanes.count_ones() < PACKET_MIN_LANES {
-                while lanes != 0 {
-                    let lane = lanes.trailing_zeros() as usize;
-                    lanes &= lanes - 1;
-                    if single(node, lane, stack) {
-                        open &= !(1 << lane);
-                    }
-                }
+                open &= !alone(node, lanes, stack);
                 if open == 0 {
                     break;
                 }
@@ -607,14 +614,7 @@ impl WideBvh<8> {
                     todo[len].write((n.child[c], entered));
                     len += 1;
                 } else {
-                    let mut rest = entered;
-                    while rest != 0 {
-                        let lane = rest.trailing_zeros() as usize;
-                        rest &= rest - 1;
-                        if single(n.child[c], lane, stack) {
-                            open &= !(1 << lane);
-                        }
-                    }
+                    open &= !alone(n.child[c], entered, stack);
                 }
             }
         }
