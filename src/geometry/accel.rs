@@ -394,7 +394,8 @@ macro_rules! packet_kernels {
                 }
                 // SAFETY (all blocks below): this function is compiled for the lane type's
                 // instruction set and AVX, which the caller's CPU has.
-                let packet = unsafe { RayPacket::<$lanes_type>::new(rays) };
+                let in_lanes = unsafe { <$lanes_type>::rays(rays) };
+                let packet = unsafe { RayPacket::new(&in_lanes) };
                 // The edge tests' constants, made when the packet first reaches a leaf.
                 let mut edges = None;
                 let leaf = |first, count, lanes: u32, _: &mut Vec<(u32, f32)>| {
@@ -403,7 +404,7 @@ macro_rules! packet_kernels {
                         return if self.packets_block::<8>(first, count, &rays[lane]) { lanes } else { 0 };
                     }
                     if edges.is_none() {
-                        edges = Some(unsafe { RayTriPacket::<$lanes_type>::new(rays) });
+                        edges = Some(unsafe { RayTriPacket::new(&in_lanes) });
                     }
                     let r = edges.as_ref().expect("made above");
                     unsafe { self.packets_block_lanes(first, count, rays, r, lanes) }
@@ -449,7 +450,9 @@ macro_rules! packet_kernels {
                     };
                     // SAFETY: this function is compiled for the lane type's instruction set and
                     // AVX, which the caller's CPU has.
-                    unsafe { top.occluded_packet(&RayPacket::<$lanes_type>::new(chunk), live, stack, leaf, single) }
+                    unsafe {
+                        top.occluded_packet(&RayPacket::new(&<$lanes_type>::rays(chunk)), live, stack, leaf, single)
+                    }
                 });
             }
 

@@ -12,20 +12,23 @@ use glam::DVec3;
 
 use super::ray::Ray;
 
-/// `N` scalars of each of `rays` (one to `L::WIDTH`; `fields` picks them) laid out for
-/// [`Lanes::load`]: `columns[c][k]` is field `c` of ray `k`, lanes past the last ray repeating
-/// it. `fields` reads scalars only, so it needs no instruction set of its own.
-#[inline(always)]
-pub(crate) fn columns<L: Lanes, const N: usize>(rays: &[Ray], fields: impl Fn(&Ray) -> [f32; N]) -> [[f32; 16]; N] {
-    let mut columns = [[0.0f32; 16]; N];
-    for k in 0..L::WIDTH {
-        let values = fields(&rays[k.min(rays.len() - 1)]);
-        for c in 0..N {
-            columns[c][k] = values[c];
-        }
-    }
-    columns
+/// A packet's rays in lanes, one ray per lane: origin, direction and reciprocal direction per
+/// axis, and the far end of the segment.
+#[derive(Clone, Copy)]
+pub(crate) struct RayLanes<L> {
+    /// Origin x, y, z.
+    pub origin: [L; 3],
+    /// Direction x, y, z.
+    pub dir: [L; 3],
+    /// Reciprocal direction x, y, z.
+    pub inv_dir: [L; 3],
+    /// `tmax`.
+    pub tmax: L,
 }
+
+/// Floats of a [`Ray`] read into lanes: origin, direction and reciprocal direction (four each,
+/// the fourth unused) and `tmax`. The rest of a `Ray` is padding, which is never read.
+const RAY_FLOATS: usize = 13;
 
 /// A vector of f32 lanes, one per ray of a packet, with a mask of one bit per lane.
 pub(crate) trait Lanes: Copy {
@@ -36,8 +39,9 @@ pub(crate) trait Lanes: Copy {
 
     /// `x` in every lane.
     unsafe fn splat(x: f32) -> Self;
-    /// Lanes `0..WIDTH` of `x`.
-    unsafe fn load(x: &[f32; 16]) -> Self;
+    /// `rays` (one to `WIDTH`) in lanes 0, 1, …, lanes past the last repeating it: each field
+    /// gathered by register shuffles, with no round trip through memory.
+    unsafe fn rays(rays: &[Ray]) -> RayLanes<Self>;
     /// `self + b`.
     unsafe fn add(self, b: Self) -> Self;
     /// `self − b`.
@@ -84,6 +88,35 @@ pub(crate) trait Lanes: Copy {
 #[derive(Clone, Copy)]
 pub(crate) struct Avx(__m256);
 
+/// Columns 0, 1, 2 (of the first 128-bit block) and 4, 5, 6 (of the second) of eight rows
+/// of eight floats, one row per lane: a ray's first field and second field.
+#[target_feature(enable = "avx")]
+#[inline]
+fn transpose_avx(row: &[__m256; 8]) -> ([Avx; 3], [Avx; 3]) {
+    // Pairs of rows interleaved: elements 0, 1 (lo) and 2, 3 (hi) of rows 2i and 2i + 1.
+    let mut lo = [_mm256_setzero_pd(); 4];
+    let mut hi = [_mm256_setzero_pd(); 4];
+    for i in 0..4 {
+        lo[i] = _mm256_castps_pd(_mm256_unpacklo_ps(row[2 * i], row[2 * i + 1]));
+        hi[i] = _mm256_castps_pd(_mm256_unpackhi_ps(row[2 * i], row[2 * i + 1]));
+    }
+    // Element e of rows 4q..4q + 4 in each 128-bit block, for q = 0, 1.
+    let mut quads = [[_mm256_setzero_ps(); 2]; 3];
+    for q in 0..2 {
+        quads[0][q] = _mm256_castpd_ps(_mm256_unpacklo_pd(lo[2 * q], lo[2 * q + 1]));
+        quads[1][q] = _mm256_castpd_ps(_mm256_unpackhi_pd(lo[2 * q], lo[2 * q + 1]));
+        quads[2][q] = _mm256_castpd_ps(_mm256_unpacklo_pd(hi[2 * q], hi[2 * q + 1]));
+    }
+    let mut first = [Avx(_mm256_setzero_ps()); 3];
+    let mut second = [Avx(_mm256_setzero_ps()); 3];
+    for e in 0..3 {
+        let [q0, q1] = quads[e];
+        first[e] = Avx(_mm256_permute2f128_ps::<0x20>(q0, q1));
+        second[e] = Avx(_mm256_permute2f128_ps::<0x31>(q0, q1));
+    }
+    (first, second)
+}
+
 /// Sixteen lanes in an AVX-512 register.
 #[derive(Clone, Copy)]
 pub(crate) struct Avx512(__m512);
@@ -97,10 +130,26 @@ impl Lanes for Avx {
     unsafe fn splat(x: f32) -> Self {
         Avx(_mm256_set1_ps(x))
     }
+    /// Each ray as two rows of eight (origin and direction; reciprocal direction and `tmax`),
+    /// transposed eight by eight.
     #[target_feature(enable = "avx")]
     #[inline]
-    unsafe fn load(x: &[f32; 16]) -> Self {
-        unsafe { Avx(_mm256_loadu_ps(x.as_ptr())) }
+    unsafe fn rays(rays: &[Ray]) -> RayLanes<Self> {
+        let last = rays.len() - 1;
+        let tail = _mm256_setr_epi32(-1, -1, -1, -1, -1, 0, 0, 0);
+        let (mut front, mut back) = ([_mm256_setzero_ps(); 8], [_mm256_setzero_ps(); 8]);
+        for k in 0..8 {
+            let p = (&rays[k.min(last)] as *const Ray).cast::<f32>();
+            // SAFETY: a `Ray` is `repr(C)` with these floats first; the masked load reads only
+            // the first RAY_FLOATS - 8 floats of the back row.
+            unsafe {
+                front[k] = _mm256_loadu_ps(p);
+                back[k] = _mm256_maskload_ps(p.add(8), tail);
+            }
+        }
+        let (origin, dir) = transpose_avx(&front);
+        let (inv_dir, [tmax, ..]) = transpose_avx(&back);
+        RayLanes { origin, dir, inv_dir, tmax }
     }
     #[target_feature(enable = "avx")]
     #[inline]
@@ -225,10 +274,55 @@ impl Lanes for Avx512 {
     unsafe fn splat(x: f32) -> Self {
         Avx512(_mm512_set1_ps(x))
     }
+    /// Each ray as one row of sixteen, transposed sixteen by sixteen (only the columns used).
     #[target_feature(enable = "avx512f")]
     #[inline]
-    unsafe fn load(x: &[f32; 16]) -> Self {
-        unsafe { Avx512(_mm512_loadu_ps(x.as_ptr())) }
+    unsafe fn rays(rays: &[Ray]) -> RayLanes<Self> {
+        let last = rays.len() - 1;
+        let mut row = [_mm512_setzero_ps(); 16];
+        for (k, row) in row.iter_mut().enumerate() {
+            let p = (&rays[k.min(last)] as *const Ray).cast::<f32>();
+            // SAFETY: a `Ray` is `repr(C)` with these floats first; the masked load reads only
+            // the first RAY_FLOATS.
+            *row = unsafe { _mm512_maskz_loadu_ps((1 << RAY_FLOATS) - 1, p) };
+        }
+        // Pairs of rows interleaved, then pairs of pairs: quad[q][e] holds, in each 128-bit
+        // block (origin, direction, reciprocal, tmax), element e of rows 4q..4q + 4.
+        let mut pairs = [[_mm512_setzero_ps(); 2]; 8];
+        for (i, pair) in pairs.iter_mut().enumerate() {
+            *pair = [_mm512_unpacklo_ps(row[2 * i], row[2 * i + 1]), _mm512_unpackhi_ps(row[2 * i], row[2 * i + 1])];
+        }
+        let mut quad = [[_mm512_setzero_ps(); 3]; 4];
+        for (q, quad) in quad.iter_mut().enumerate() {
+            let (lo0, hi0) = (_mm512_castps_pd(pairs[2 * q][0]), _mm512_castps_pd(pairs[2 * q][1]));
+            let (lo1, hi1) = (_mm512_castps_pd(pairs[2 * q + 1][0]), _mm512_castps_pd(pairs[2 * q + 1][1]));
+            *quad = [
+                _mm512_castpd_ps(_mm512_unpacklo_pd(lo0, lo1)),
+                _mm512_castpd_ps(_mm512_unpackhi_pd(lo0, lo1)),
+                _mm512_castpd_ps(_mm512_unpacklo_pd(hi0, hi1)),
+            ];
+        }
+        // Block b of the four quads side by side: field b's element e for all sixteen rows.
+        let mut fields = [[_mm512_setzero_ps(); 3]; 3];
+        let mut tmax = _mm512_setzero_ps();
+        for e in 0..3 {
+            let front = [
+                _mm512_shuffle_f32x4::<0x44>(quad[0][e], quad[1][e]),
+                _mm512_shuffle_f32x4::<0x44>(quad[2][e], quad[3][e]),
+            ];
+            let back = [
+                _mm512_shuffle_f32x4::<0xEE>(quad[0][e], quad[1][e]),
+                _mm512_shuffle_f32x4::<0xEE>(quad[2][e], quad[3][e]),
+            ];
+            fields[0][e] = _mm512_shuffle_f32x4::<0x88>(front[0], front[1]);
+            fields[1][e] = _mm512_shuffle_f32x4::<0xDD>(front[0], front[1]);
+            fields[2][e] = _mm512_shuffle_f32x4::<0x88>(back[0], back[1]);
+            if e == 0 {
+                tmax = _mm512_shuffle_f32x4::<0xDD>(back[0], back[1]);
+            }
+        }
+        let [o, d, inv] = fields.map(|f| f.map(Avx512));
+        RayLanes { origin: o, dir: d, inv_dir: inv, tmax: Avx512(tmax) }
     }
     #[target_feature(enable = "avx512f")]
     #[inline]
@@ -348,5 +442,80 @@ impl Lanes for Avx512 {
         let ahead = _mm512_cmp_ps_mask::<_CMP_GT_OQ>(t, _mm512_setzero_ps());
         let short = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(t, tmax.0);
         meets & (ahead & short) as u32
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3A;
+
+    use super::*;
+    use crate::sampling::hash::SplitMix64;
+
+    /// A vector's lanes, for checking them one by one.
+    trait Spill: Lanes {
+        fn spill(self) -> Vec<f32>;
+    }
+
+    impl Spill for Avx {
+        fn spill(self) -> Vec<f32> {
+            // SAFETY: __m256 holds eight f32.
+            unsafe { std::mem::transmute::<__m256, [f32; 8]>(self.0) }.to_vec()
+        }
+    }
+
+    impl Spill for Avx512 {
+        fn spill(self) -> Vec<f32> {
+            // SAFETY: __m512 holds sixteen f32.
+            unsafe { std::mem::transmute::<__m512, [f32; 16]>(self.0) }.to_vec()
+        }
+    }
+
+    /// Every field of every ray lands in its own lane, bit for bit, for packets of one ray up to
+    /// a full one, lanes past the last ray repeating it.
+    #[test]
+    fn rays_are_transposed_into_their_lanes() {
+        if !std::arch::is_x86_feature_detected!("avx") {
+            eprintln!("no AVX on this CPU: packets are not used and not tested");
+            return;
+        }
+        // SAFETY: AVX was detected; AVX-512 is checked.
+        unsafe { rays_into_lanes::<Avx>() };
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            unsafe { rays_into_lanes::<Avx512>() };
+        } else {
+            eprintln!("no AVX-512 on this CPU: sixteen-lane packets are not used and not tested");
+        }
+    }
+
+    /// [`rays_are_transposed_into_their_lanes`] for `L`.
+    ///
+    /// # Safety
+    /// The CPU must have `L`'s instruction set.
+    unsafe fn rays_into_lanes<L: Spill>() {
+        let mut rng = SplitMix64::new(7);
+        let mut v = || Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 8.0 - 4.0;
+        for n in 1..=L::WIDTH {
+            let rays: Vec<Ray> = (0..n).map(|k| Ray::new(v(), v(), k as f32 + 0.5)).collect();
+            // SAFETY: the caller's CPU has `L`'s instruction set.
+            let lanes = unsafe { L::rays(&rays) };
+            for a in 0..3 {
+                let fields = [(lanes.origin[a], "origin"), (lanes.dir[a], "dir"), (lanes.inv_dir[a], "inv_dir")];
+                for (got, name) in fields {
+                    for (k, x) in got.spill().into_iter().enumerate() {
+                        let ray = &rays[k.min(n - 1)];
+                        let want = match name {
+                            "origin" => ray.origin[a],
+                            "dir" => ray.dir[a],
+                            _ => ray.inv_dir[a],
+                        };
+                        assert_eq!(x.to_bits(), want.to_bits(), "{n} rays: {name}[{a}] of lane {k}");
+                    }
+                }
+            }
+            for (k, t) in lanes.tmax.spill().into_iter().enumerate() {
+                assert_eq!(t, rays[k.min(n - 1)].tmax, "{n} rays: tmax of lane {k}");
+            }
+        }
     }
 }

@@ -4,7 +4,9 @@
 use glam::{Vec3A, Vec3Swizzles};
 
 /// A ray segment `origin + t·dir` for t in (0, tmax). `dir` need not be unit length.
+/// `repr(C)`: packets read its fields in this order (`Lanes::rays`).
 #[derive(Clone, Copy, Debug)]
+#[repr(C)]
 pub struct Ray {
     /// Start point.
     pub origin: Vec3A,

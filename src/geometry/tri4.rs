@@ -8,7 +8,7 @@
 use glam::{Vec3A, Vec4};
 
 #[cfg(target_arch = "x86_64")]
-use super::lanes::{Lanes, columns};
+use super::lanes::{Lanes, RayLanes};
 use super::{
     ray::{Ray, Shear},
     shapes::Triangle,
@@ -122,21 +122,16 @@ pub(crate) struct RayTriPacket<L: Lanes> {
 
 #[cfg(target_arch = "x86_64")]
 impl<L: Lanes> RayTriPacket<L> {
-    /// The constants of `rays` (one to `L::WIDTH`) in lanes 0, 1, …; lanes past the last
-    /// repeat it. Each lane's axes and shear are [`Shear::new`]'s for its ray, bit for bit.
+    /// The edge-test constants of a packet's rays. Each lane's axes and shear are
+    /// [`Shear::new`]'s for its ray, bit for bit.
     ///
     /// # Safety
     /// The CPU must have `L`'s instruction set.
     #[inline(always)]
-    pub(crate) unsafe fn new(rays: &[Ray]) -> Self {
-        let columns = columns::<L, 7>(rays, |r| {
-            let (o, d) = (r.origin.to_array(), r.dir.to_array());
-            [o[0], o[1], o[2], d[0], d[1], d[2], r.tmax]
-        });
-        // SAFETY: the caller's CPU has `L`'s instruction set. (No SIMD call sits in a closure: a
-        // closure is compiled on its own, without the instruction set of its caller.)
+    pub(crate) unsafe fn new(rays: &RayLanes<L>) -> Self {
+        // SAFETY: the caller's CPU has `L`'s instruction set.
         unsafe {
-            let d = [L::load(&columns[3]), L::load(&columns[4]), L::load(&columns[5])];
+            let d = rays.dir;
             let abs = [d[0].abs(), d[1].abs(), d[2].abs()];
             let x_over_y = abs[0].gt(abs[1]);
             let x_wins = L::and(x_over_y, abs[0].gt(abs[2]));
@@ -144,9 +139,9 @@ impl<L: Lanes> RayTriPacket<L> {
             let axes = Axes { x_wins, y_wins };
             let [dx, dy, dz] = axes.permute(d);
             RayTriPacket {
-                origin: [L::load(&columns[0]), L::load(&columns[1]), L::load(&columns[2])],
+                origin: rays.origin,
                 dir: d,
-                tmax: L::load(&columns[6]),
+                tmax: rays.tmax,
                 sx: dx.neg().div(dz),
                 sy: dy.neg().div(dz),
                 axes,
@@ -326,7 +321,7 @@ mod tests {
                 })
                 .collect();
             // SAFETY: the caller's CPU has `L`'s instruction set.
-            let r = unsafe { RayTriPacket::<L>::new(&rays) };
+            let r = unsafe { RayTriPacket::<L>::new(&L::rays(&rays)) };
             for packet in &packets {
                 for lane in 0..4 {
                     // SAFETY: the caller's CPU has `L`'s instruction set.

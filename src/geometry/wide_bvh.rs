@@ -15,7 +15,7 @@ use glam::Vec4;
 use obvhs::{aabb::Aabb, bvh2::node::Bvh2Node};
 
 #[cfg(target_arch = "x86_64")]
-use super::lanes::{Lanes, columns};
+use super::lanes::{Lanes, RayLanes};
 use super::ray::Ray;
 use crate::math::gamma;
 
@@ -473,26 +473,21 @@ pub(crate) struct RayPacket<L: Lanes> {
 
 #[cfg(target_arch = "x86_64")]
 impl<L: Lanes> RayPacket<L> {
-    /// `rays` (one to `L::WIDTH`) in lanes 0, 1, …; lanes past the last repeat it.
+    /// The node-test constants of a packet's rays.
     ///
     /// # Safety
     /// The CPU must have `L`'s instruction set.
     #[inline(always)]
-    pub(crate) unsafe fn new(rays: &[Ray]) -> Self {
-        let columns = columns::<L, 7>(rays, |r| {
-            let (o, inv) = (r.origin.to_array(), r.inv_dir.to_array());
-            [o[0], o[1], o[2], inv[0], inv[1], inv[2], r.tmax]
-        });
-        // SAFETY: the caller's CPU has `L`'s instruction set. (No SIMD call sits in a closure: a
-        // closure is compiled on its own, without the instruction set of its caller.)
+    pub(crate) unsafe fn new(rays: &RayLanes<L>) -> Self {
+        // SAFETY: the caller's CPU has `L`'s instruction set.
         unsafe {
-            let inv_dir = [L::load(&columns[3]), L::load(&columns[4]), L::load(&columns[5])];
             let zero = L::splat(0.0);
+            let inv = rays.inv_dir;
             RayPacket {
-                origin: [L::load(&columns[0]), L::load(&columns[1]), L::load(&columns[2])],
-                inv_dir,
-                negative: [inv_dir[0].lt(zero), inv_dir[1].lt(zero), inv_dir[2].lt(zero)],
-                tmax: L::load(&columns[6]),
+                origin: rays.origin,
+                inv_dir: inv,
+                negative: [inv[0].lt(zero), inv[1].lt(zero), inv[2].lt(zero)],
+                tmax: rays.tmax,
             }
         }
     }
@@ -764,7 +759,7 @@ mod tests {
             // SAFETY: the caller's CPU has `L`'s instruction set and AVX.
             let blocked = unsafe {
                 tree.occluded_packet(
-                    &RayPacket::<L>::new(&rays),
+                    &RayPacket::<L>::new(&L::rays(&rays)),
                     live,
                     &mut stack,
                     |first, count, lanes, _| {
