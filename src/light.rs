@@ -173,18 +173,13 @@ pub struct DirectionRun {
 }
 
 impl DirectionRun {
-    /// Makes room for `n` samples, in whole groups of four lanes: each column gets `n` rounded
-    /// up to a multiple of four entries (lanes past `n` may hold anything; they are not used).
+    /// Makes room for `n` samples, in whole groups of sixteen lanes: each column gets `n`
+    /// rounded up to a multiple of sixteen entries (lanes past `n` may hold anything; they are
+    /// not used).
     pub fn resize(&mut self, n: usize) {
         for column in [&mut self.x, &mut self.y, &mut self.z, &mut self.weight] {
-            column.resize(n.next_multiple_of(4), 0.0);
+            column.resize(n.next_multiple_of(16), 0.0);
         }
-    }
-
-    /// Group `k` (samples `4k..4k + 4`): its x, y, z and weight lanes.
-    #[inline(always)]
-    pub fn group(&self, k: usize) -> [Vec4; 4] {
-        [&self.x, &self.y, &self.z, &self.weight].map(|c| Vec4::from_slice(&c[4 * k..4 * k + 4]))
     }
 
     /// Writes group `k` (samples `4k..4k + 4`): x, y, z and weight lanes.

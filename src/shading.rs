@@ -2,10 +2,11 @@
 //! (see [`crate::light`]). The core knows no light kinds; it applies the reflectance a light
 //! names, traces the shadow rays lights ask for, and counts them.
 
-use glam::{BVec4A, Mat4, Vec2, Vec3, Vec3A, Vec4};
+use glam::{Vec2, Vec3, Vec3A};
 
 use crate::{
     components::Matte,
+    direction_rays::DirectionRays,
     geometry::{Ray, RayOrder, SceneGeometry, SpawnOrigins, SurfaceHit},
     light::{
         DirectionRun, DirectionTerms, LightGroup, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term,
@@ -199,9 +200,8 @@ pub struct Tracer {
     /// The shadow rays of a run, and which of them are blocked.
     shadow_rays: Vec<Ray>,
     shadow_blocked: Vec<bool>,
-    /// A direction run's octant per sample, and where its ray went in `shadow_rays`.
-    octants: Vec<u8>,
-    ray_slots: Vec<u32>,
+    /// A direction run's shadow rays and answers.
+    direction_rays: DirectionRays,
     /// Every light dimension's samples for a pixel's run of camera samples that do not share a
     /// hit (jittered or lens rays), computed ahead by [`Tracer::prepare_run`].
     run: RunSamples,
@@ -426,8 +426,8 @@ impl Tracer {
 
     /// Adds a run of direction samples from one point (`run`, under `terms`) to `arriving`,
     /// tracing the shadow rays whose answer matters in one call: exactly what
-    /// [`Tracer::add_run`] does with the samples' [`DirectionRun::light_sample`]s, four samples
-    /// at a time and without making them.
+    /// [`Tracer::add_run`] does with the samples' [`DirectionRun::light_sample`]s, without
+    /// making them (see [`DirectionRays`]).
     fn add_directions(
         &mut self,
         scene: &Scene,
@@ -437,100 +437,8 @@ impl Tracer {
         term: Term,
         arriving: &mut [Vec3A],
     ) {
-        let n = arriving.len();
-        let (radiance, f) = (terms.radiance, terms.floor);
-        let floor = Vec3A::from(radiance * f);
-        // Each group's clear value per channel, and which of its lanes need a ray: a positive
-        // weight whose clear value differs from the floor.
-        let clear = |w: Vec4| {
-            let s = Vec4::splat(f) + Vec4::splat(1.0 - f) * w;
-            [Vec4::splat(radiance.x) * s, Vec4::splat(radiance.y) * s, Vec4::splat(radiance.z) * s]
-        };
-        let needs_ray = |k: usize, w: Vec4, c: &[Vec4; 3]| {
-            let differs =
-                c[0].cmpne(Vec4::splat(floor.x)) | c[1].cmpne(Vec4::splat(floor.y)) | c[2].cmpne(Vec4::splat(floor.z));
-            let valid = (1u32 << (n - 4 * k).min(4)) - 1;
-            (w.cmpgt(Vec4::ZERO) & differs).bitmask() & valid
-        };
-        // Each sample's ray group: the octant of its direction (the signs of its reciprocal, as
-        // packet traversal groups rays), or NO_RAY. The rays are laid out octant by octant, so
-        // that consecutive rays make coherent packets.
-        const NO_RAY: u8 = 8;
-        let groups = n.div_ceil(4);
-        let octants = &mut self.octants;
-        octants.clear();
-        octants.resize(4 * groups, NO_RAY);
-        let mut start = [0u32; 9];
-        for (k, group) in octants.chunks_exact_mut(4).enumerate() {
-            let [x, y, z, w] = run.group(k);
-            let needs = needs_ray(k, w, &clear(w));
-            let [nx, ny, nz] = [x, y, z].map(|d| (Vec4::ONE / d).cmplt(Vec4::ZERO).bitmask());
-            for (i, octant) in group.iter_mut().enumerate() {
-                if needs & (1 << i) != 0 {
-                    *octant = (nx >> i & 1 | (ny >> i & 1) << 1 | (nz >> i & 1) << 2) as u8;
-                }
-                start[*octant as usize] += 1;
-            }
-        }
-        let traced = octants.len() - start[NO_RAY as usize] as usize;
-        let mut at = 0;
-        for s in &mut start[..NO_RAY as usize] {
-            (*s, at) = (at, at + *s);
-        }
-        let (front, back) = spawn.sides();
-        let rays = &mut self.shadow_rays;
-        rays.clear();
-        rays.resize(traced, Ray::new(front, Vec3A::X, 0.0));
-        let slots = &mut self.ray_slots;
-        slots.resize(octants.len(), 0);
-        for k in 0..groups {
-            let [x, y, z, _] = run.group(k);
-            let group = &octants[4 * k..4 * k + 4];
-            if group.iter().all(|&o| o == NO_RAY) {
-                continue;
-            }
-            let behind = spawn.behind4(x, y, z).bitmask();
-            // The four lanes as four (x, y, z) vectors, by register shuffles.
-            let lanes = |x: Vec4, y: Vec4, z: Vec4| Mat4::from_cols(x, y, z, Vec4::ZERO).transpose();
-            let (dirs, invs) = (lanes(x, y, z), lanes(Vec4::ONE / x, Vec4::ONE / y, Vec4::ONE / z));
-            for (i, &octant) in group.iter().enumerate() {
-                if octant == NO_RAY {
-                    continue;
-                }
-                let slot = &mut start[octant as usize];
-                rays[*slot as usize] = Ray {
-                    origin: if behind & (1 << i) != 0 { back } else { front },
-                    dir: Vec3A::from_vec4(dirs.col(i)),
-                    inv_dir: Vec3A::from_vec4(invs.col(i)),
-                    tmax: terms.max_distance,
-                };
-                slots[4 * k + i] = *slot;
-                *slot += 1;
-            }
-        }
-        self.shadow_blocked.clear();
-        self.shadow_blocked.resize(traced, false);
-        scene.geometry.occluded_many(rays, RayOrder::Grouped, &mut self.stack, &mut self.shadow_blocked);
-        self.rays.count(term, traced as u64);
-        for (k, sums) in arriving.chunks_mut(4).enumerate() {
-            let w = run.group(k)[3];
-            let c = clear(w);
-            // Lanes that get the floor: blocked ones (read without a branch: whether a ray is
-            // blocked is as good as random), and those of weight ≤ 0 (no ray).
-            let mut dark = w.cmple(Vec4::ZERO).bitmask();
-            for (i, (&octant, &slot)) in octants[4 * k..4 * k + 4].iter().zip(&slots[4 * k..]).enumerate() {
-                if octant != NO_RAY {
-                    dark |= u32::from(self.shadow_blocked[slot as usize]) << i;
-                }
-            }
-            // The arriving light, lane by lane: the floor where dark, else the clear value.
-            let dark = BVec4A::new(dark & 1 != 0, dark & 2 != 0, dark & 4 != 0, dark & 8 != 0);
-            let pick = |a: usize| Vec4::select(dark, Vec4::splat(floor[a]), c[a]).to_array();
-            let (r, g, b) = (pick(0), pick(1), pick(2));
-            for (i, sum) in sums.iter_mut().enumerate() {
-                *sum += Vec3A::new(r[i], g[i], b[i]);
-            }
-        }
+        let traced = self.direction_rays.add(scene.geometry, &mut self.stack, spawn, run, terms, arriving);
+        self.rays.count(term, traced);
     }
 
     /// Adds a run of drawn samples to `arriving`, tracing the shadow rays whose answer matters in

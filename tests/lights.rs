@@ -469,12 +469,13 @@ fn the_occluder_s_bulk_path_gives_the_bits_of_the_per_sample_path() {
         AmbientOccluder { exponent: 3.0, min_amount: 1.0, ..Default::default() },
     ];
     for (k, occluder) in occluders.into_iter().enumerate() {
-        // 7 samples: one full group of four and a partial one. Shared and jittered hits,
-        // with and without AOVs (the beauty image alone takes its own path).
+        // 37 samples: full groups of four, eight and sixteen lanes, and a partial one of each.
+        // Shared and jittered hits, with and without AOVs (the beauty image alone takes its
+        // own path).
         let mut shared = Vec::new();
         for (jitter, aovs) in [(false, false), (false, true), (true, false)] {
             let render = |per_sample: bool| {
-                let settings = RenderSettings { jitter, aovs, ..settings(12, 10, 7, SamplerKind::MultiJittered) };
+                let settings = RenderSettings { jitter, aovs, ..settings(12, 10, 37, SamplerKind::MultiJittered) };
                 let mut r = Renderer::new(settings);
                 r.add_light::<PerSampleOccluder>();
                 let w = r.world_mut();

@@ -1,6 +1,6 @@
 //! Surface hits with a floating-point error bound, and scale-invariant ray spawning from them.
 
-use glam::{BVec4A, Vec3A, Vec4};
+use glam::Vec3A;
 
 use crate::math::{next_float_down, next_float_up};
 
@@ -59,12 +59,11 @@ impl SpawnOrigins {
         if w.dot(self.normal) < 0.0 { self.back } else { self.front }
     }
 
-    /// For four directions (x, y, z lanes): the lanes [`SpawnOrigins::towards`] starts behind
-    /// the surface, by the same dot product in the same order of operations.
+    /// The normal whose side [`SpawnOrigins::towards`] tests: a direction `w` starts behind
+    /// the surface when `w.x·n.x + w.y·n.y + w.z·n.z < 0`, summed in that order.
     #[inline(always)]
-    pub fn behind4(&self, x: Vec4, y: Vec4, z: Vec4) -> BVec4A {
-        let n = self.normal;
-        (x * n.x + y * n.y + z * n.z).cmplt(Vec4::ZERO)
+    pub fn normal(&self) -> Vec3A {
+        self.normal
     }
 
     /// The origin in front of the surface and the one behind it.

@@ -8,7 +8,7 @@
 
 use std::arch::x86_64::*;
 
-use glam::DVec3;
+use glam::{DVec3, Vec3A};
 
 use super::ray::Ray;
 
@@ -30,6 +30,9 @@ pub(crate) struct RayLanes<L> {
 /// the fourth unused) and `tmax`. The rest of a `Ray` is padding, which is never read.
 const RAY_FLOATS: usize = 13;
 
+// `Lanes::write_rays` writes sixteen floats per ray.
+const _: () = assert!(size_of::<Ray>() == 64);
+
 /// A vector of f32 lanes, one per ray of a packet, with a mask of one bit per lane.
 pub(crate) trait Lanes: Copy {
     /// Lanes per vector.
@@ -42,6 +45,15 @@ pub(crate) trait Lanes: Copy {
     /// `rays` (one to `WIDTH`) in lanes 0, 1, …, lanes past the last repeating it: each field
     /// gathered by register shuffles, with no round trip through memory.
     unsafe fn rays(rays: &[Ray]) -> RayLanes<Self>;
+    /// The inverse of [`Lanes::rays`]: lane k's ray written to `out[at[k]]`, for every lane
+    /// (`at` holds at least `WIDTH` indices; lanes may share one); the fourth lane of each
+    /// vector is 0.
+    unsafe fn write_rays(lanes: &RayLanes<Self>, out: &mut [Ray], at: &[u32]);
+    /// `x[0..WIDTH]`.
+    unsafe fn load(x: &[f32]) -> Self;
+    /// Adds lane k of `x`, `y` and `z` to `out[k]`, for a full vector of `out` (`WIDTH`
+    /// elements); the fourth lane of each element gets z's lane, as [`Vec3A::new`] gives it.
+    unsafe fn add_to(x: Self, y: Self, z: Self, out: &mut [Vec3A]);
     /// `self + b`.
     unsafe fn add(self, b: Self) -> Self;
     /// `self − b`.
@@ -64,6 +76,8 @@ pub(crate) trait Lanes: Copy {
     unsafe fn gt(self, b: Self) -> Self::Mask;
     /// `self ≤ b` (false for NaN).
     unsafe fn le(self, b: Self) -> Self::Mask;
+    /// `self != b`, or either is NaN.
+    unsafe fn ne(self, b: Self) -> Self::Mask;
     /// `self == b`, or either is NaN.
     unsafe fn eq_or_nan(self, b: Self) -> Self::Mask;
     /// `if_set` in the lanes of `m`, `self` elsewhere.
@@ -76,6 +90,8 @@ pub(crate) trait Lanes: Copy {
     unsafe fn andnot(a: Self::Mask, b: Self::Mask) -> Self::Mask;
     /// Bit `i` set for lane `i` in the mask.
     unsafe fn bits(m: Self::Mask) -> u32;
+    /// The mask with lane `i` set for bit `i` of `bits`.
+    unsafe fn mask(bits: u32) -> Self::Mask;
     /// The lanes whose ray (origin `o`, direction `d`) meets the plane through `a` with normal
     /// `n` at a `t` in (0, `tmax`): `t = (n·(a − o)) / (n·d)` in f64, rounded to f32, no hit
     /// where `n·d = 0`, each lane with exactly the operations of [`Triangle::finish`].
@@ -88,33 +104,63 @@ pub(crate) trait Lanes: Copy {
 #[derive(Clone, Copy)]
 pub(crate) struct Avx(__m256);
 
-/// Columns 0, 1, 2 (of the first 128-bit block) and 4, 5, 6 (of the second) of eight rows
-/// of eight floats, one row per lane: a ray's first field and second field.
+/// The transpose of eight rows of eight floats: lane k of row c becomes lane c of row k.
 #[target_feature(enable = "avx")]
 #[inline]
-fn transpose_avx(row: &[__m256; 8]) -> ([Avx; 3], [Avx; 3]) {
-    // Pairs of rows interleaved: elements 0, 1 (lo) and 2, 3 (hi) of rows 2i and 2i + 1.
-    let mut lo = [_mm256_setzero_pd(); 4];
-    let mut hi = [_mm256_setzero_pd(); 4];
+fn transpose8(row: &[__m256; 8]) -> [__m256; 8] {
+    // Rows 2i and 2i + 1 interleaved: pairs[2i] holds elements 0 and 1 of each 128-bit block,
+    // pairs[2i + 1] elements 2 and 3.
+    let mut pairs = [_mm256_setzero_pd(); 8];
     for i in 0..4 {
-        lo[i] = _mm256_castps_pd(_mm256_unpacklo_ps(row[2 * i], row[2 * i + 1]));
-        hi[i] = _mm256_castps_pd(_mm256_unpackhi_ps(row[2 * i], row[2 * i + 1]));
+        pairs[2 * i] = _mm256_castps_pd(_mm256_unpacklo_ps(row[2 * i], row[2 * i + 1]));
+        pairs[2 * i + 1] = _mm256_castps_pd(_mm256_unpackhi_ps(row[2 * i], row[2 * i + 1]));
     }
-    // Element e of rows 4q..4q + 4 in each 128-bit block, for q = 0, 1.
-    let mut quads = [[_mm256_setzero_ps(); 2]; 3];
-    for q in 0..2 {
-        quads[0][q] = _mm256_castpd_ps(_mm256_unpacklo_pd(lo[2 * q], lo[2 * q + 1]));
-        quads[1][q] = _mm256_castpd_ps(_mm256_unpackhi_pd(lo[2 * q], lo[2 * q + 1]));
-        quads[2][q] = _mm256_castpd_ps(_mm256_unpacklo_pd(hi[2 * q], hi[2 * q + 1]));
+    let mut out = [_mm256_setzero_ps(); 8];
+    for e in 0..4 {
+        // Element e of each block of rows 0..4 (q0) and 4..8 (q1).
+        let h = e / 2;
+        let (q0, q1) = if e % 2 == 0 {
+            (_mm256_unpacklo_pd(pairs[h], pairs[2 + h]), _mm256_unpacklo_pd(pairs[4 + h], pairs[6 + h]))
+        } else {
+            (_mm256_unpackhi_pd(pairs[h], pairs[2 + h]), _mm256_unpackhi_pd(pairs[4 + h], pairs[6 + h]))
+        };
+        let (q0, q1) = (_mm256_castpd_ps(q0), _mm256_castpd_ps(q1));
+        out[e] = _mm256_permute2f128_ps::<0x20>(q0, q1);
+        out[e + 4] = _mm256_permute2f128_ps::<0x31>(q0, q1);
     }
-    let mut first = [Avx(_mm256_setzero_ps()); 3];
-    let mut second = [Avx(_mm256_setzero_ps()); 3];
-    for e in 0..3 {
-        let [q0, q1] = quads[e];
-        first[e] = Avx(_mm256_permute2f128_ps::<0x20>(q0, q1));
-        second[e] = Avx(_mm256_permute2f128_ps::<0x31>(q0, q1));
+    out
+}
+
+/// The transpose of sixteen rows of sixteen floats: lane k of row c becomes lane c of row k.
+#[target_feature(enable = "avx512f")]
+#[inline]
+fn transpose16(row: &[__m512; 16]) -> [__m512; 16] {
+    // Rows 2i and 2i + 1 interleaved: pairs[2i] holds elements 0 and 1 of each 128-bit block,
+    // pairs[2i + 1] elements 2 and 3.
+    let mut pairs = [_mm512_setzero_pd(); 16];
+    for i in 0..8 {
+        pairs[2 * i] = _mm512_castps_pd(_mm512_unpacklo_ps(row[2 * i], row[2 * i + 1]));
+        pairs[2 * i + 1] = _mm512_castps_pd(_mm512_unpackhi_ps(row[2 * i], row[2 * i + 1]));
     }
-    (first, second)
+    let mut out = [_mm512_setzero_ps(); 16];
+    for e in 0..4 {
+        // Element e of each block of rows 4q..4q + 4.
+        let h = e / 2;
+        let mut quad = [_mm512_setzero_ps(); 4];
+        for (q, quad) in quad.iter_mut().enumerate() {
+            let (x, y) = (pairs[4 * q + h], pairs[4 * q + 2 + h]);
+            let v = if e % 2 == 0 { _mm512_unpacklo_pd(x, y) } else { _mm512_unpackhi_pd(x, y) };
+            *quad = _mm512_castpd_ps(v);
+        }
+        // Blocks 0, 1 (front) and 2, 3 (back) of the four quads, then each block's four.
+        let front = [_mm512_shuffle_f32x4::<0x44>(quad[0], quad[1]), _mm512_shuffle_f32x4::<0x44>(quad[2], quad[3])];
+        let back = [_mm512_shuffle_f32x4::<0xEE>(quad[0], quad[1]), _mm512_shuffle_f32x4::<0xEE>(quad[2], quad[3])];
+        out[e] = _mm512_shuffle_f32x4::<0x88>(front[0], front[1]);
+        out[4 + e] = _mm512_shuffle_f32x4::<0xDD>(front[0], front[1]);
+        out[8 + e] = _mm512_shuffle_f32x4::<0x88>(back[0], back[1]);
+        out[12 + e] = _mm512_shuffle_f32x4::<0xDD>(back[0], back[1]);
+    }
+    out
 }
 
 /// Sixteen lanes in an AVX-512 register.
@@ -147,9 +193,64 @@ impl Lanes for Avx {
                 back[k] = _mm256_maskload_ps(p.add(8), tail);
             }
         }
-        let (origin, dir) = transpose_avx(&front);
-        let (inv_dir, [tmax, ..]) = transpose_avx(&back);
+        let [ox, oy, oz, _, dx, dy, dz, _] = transpose8(&front).map(Avx);
+        let [ix, iy, iz, _, tmax, ..] = transpose8(&back).map(Avx);
+        let (origin, dir, inv_dir) = ([ox, oy, oz], [dx, dy, dz], [ix, iy, iz]);
         RayLanes { origin, dir, inv_dir, tmax }
+    }
+    #[target_feature(enable = "avx")]
+    #[inline]
+    unsafe fn write_rays(lanes: &RayLanes<Self>, out: &mut [Ray], at: &[u32]) {
+        let zero = _mm256_setzero_ps();
+        let ([ox, oy, oz], [dx, dy, dz], [ix, iy, iz]) = (lanes.origin, lanes.dir, lanes.inv_dir);
+        let front = transpose8(&[ox.0, oy.0, oz.0, zero, dx.0, dy.0, dz.0, zero]);
+        let back = transpose8(&[ix.0, iy.0, iz.0, zero, lanes.tmax.0, zero, zero, zero]);
+        for (k, &at) in at[..8].iter().enumerate() {
+            let p = (&mut out[at as usize] as *mut Ray).cast::<f32>();
+            // SAFETY: a `Ray` is `repr(C)`, 64 bytes: sixteen floats' room.
+            unsafe {
+                _mm256_storeu_ps(p, front[k]);
+                _mm256_storeu_ps(p.add(8), back[k]);
+            }
+        }
+    }
+    #[target_feature(enable = "avx")]
+    #[inline]
+    unsafe fn load(x: &[f32]) -> Self {
+        let x = &x[..8];
+        // SAFETY: eight floats, checked above.
+        unsafe { Avx(_mm256_loadu_ps(x.as_ptr())) }
+    }
+    #[target_feature(enable = "avx")]
+    #[inline]
+    unsafe fn add_to(x: Self, y: Self, z: Self, out: &mut [Vec3A]) {
+        let out = &mut out[..8];
+        let xy_lo = _mm256_castps_pd(_mm256_unpacklo_ps(x.0, y.0));
+        let xy_hi = _mm256_castps_pd(_mm256_unpackhi_ps(x.0, y.0));
+        let zz_lo = _mm256_castps_pd(_mm256_unpacklo_ps(z.0, z.0));
+        let zz_hi = _mm256_castps_pd(_mm256_unpackhi_ps(z.0, z.0));
+        // Block i of rows[j]: element 4i + j as (x, y, z, z).
+        let rows = [
+            _mm256_castpd_ps(_mm256_unpacklo_pd(xy_lo, zz_lo)),
+            _mm256_castpd_ps(_mm256_unpackhi_pd(xy_lo, zz_lo)),
+            _mm256_castpd_ps(_mm256_unpacklo_pd(xy_hi, zz_hi)),
+            _mm256_castpd_ps(_mm256_unpackhi_pd(xy_hi, zz_hi)),
+        ];
+        // Elements 2j and 2j + 1, as they lie in memory.
+        let pairs = [
+            _mm256_permute2f128_ps::<0x20>(rows[0], rows[1]),
+            _mm256_permute2f128_ps::<0x20>(rows[2], rows[3]),
+            _mm256_permute2f128_ps::<0x31>(rows[0], rows[1]),
+            _mm256_permute2f128_ps::<0x31>(rows[2], rows[3]),
+        ];
+        let p = out.as_mut_ptr().cast::<f32>();
+        for (j, pair) in pairs.into_iter().enumerate() {
+            // SAFETY: `out` holds eight `Vec3A`s (16 bytes each), checked above.
+            unsafe {
+                let at = p.add(8 * j);
+                _mm256_storeu_ps(at, _mm256_add_ps(_mm256_loadu_ps(at), pair));
+            }
+        }
     }
     #[target_feature(enable = "avx")]
     #[inline]
@@ -208,6 +309,11 @@ impl Lanes for Avx {
     }
     #[target_feature(enable = "avx")]
     #[inline]
+    unsafe fn ne(self, b: Self) -> __m256 {
+        _mm256_cmp_ps::<_CMP_NEQ_UQ>(self.0, b.0)
+    }
+    #[target_feature(enable = "avx")]
+    #[inline]
     unsafe fn eq_or_nan(self, b: Self) -> __m256 {
         _mm256_cmp_ps::<_CMP_EQ_UQ>(self.0, b.0)
     }
@@ -235,6 +341,12 @@ impl Lanes for Avx {
     #[inline]
     unsafe fn bits(m: __m256) -> u32 {
         _mm256_movemask_ps(m) as u32
+    }
+    #[target_feature(enable = "avx")]
+    #[inline]
+    unsafe fn mask(bits: u32) -> __m256 {
+        let lane = |i: u32| -((bits >> i & 1) as i32);
+        _mm256_castsi256_ps(_mm256_setr_epi32(lane(0), lane(1), lane(2), lane(3), lane(4), lane(5), lane(6), lane(7)))
     }
     /// In two halves of four f64 lanes.
     #[target_feature(enable = "avx")]
@@ -274,7 +386,7 @@ impl Lanes for Avx512 {
     unsafe fn splat(x: f32) -> Self {
         Avx512(_mm512_set1_ps(x))
     }
-    /// Each ray as one row of sixteen, transposed sixteen by sixteen (only the columns used).
+    /// Each ray as one row of sixteen, transposed sixteen by sixteen.
     #[target_feature(enable = "avx512f")]
     #[inline]
     unsafe fn rays(rays: &[Ray]) -> RayLanes<Self> {
@@ -286,43 +398,76 @@ impl Lanes for Avx512 {
             // the first RAY_FLOATS.
             *row = unsafe { _mm512_maskz_loadu_ps((1 << RAY_FLOATS) - 1, p) };
         }
-        // Pairs of rows interleaved, then pairs of pairs: quad[q][e] holds, in each 128-bit
-        // block (origin, direction, reciprocal, tmax), element e of rows 4q..4q + 4.
-        let mut pairs = [[_mm512_setzero_ps(); 2]; 8];
-        for (i, pair) in pairs.iter_mut().enumerate() {
-            *pair = [_mm512_unpacklo_ps(row[2 * i], row[2 * i + 1]), _mm512_unpackhi_ps(row[2 * i], row[2 * i + 1])];
+        let [ox, oy, oz, _, dx, dy, dz, _, ix, iy, iz, _, tmax, ..] = transpose16(&row).map(Avx512);
+        RayLanes { origin: [ox, oy, oz], dir: [dx, dy, dz], inv_dir: [ix, iy, iz], tmax }
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn write_rays(lanes: &RayLanes<Self>, out: &mut [Ray], at: &[u32]) {
+        let zero = _mm512_setzero_ps();
+        let ([ox, oy, oz], [dx, dy, dz], [ix, iy, iz]) = (lanes.origin, lanes.dir, lanes.inv_dir);
+        let rows = transpose16(&[
+            ox.0,
+            oy.0,
+            oz.0,
+            zero,
+            dx.0,
+            dy.0,
+            dz.0,
+            zero,
+            ix.0,
+            iy.0,
+            iz.0,
+            zero,
+            lanes.tmax.0,
+            zero,
+            zero,
+            zero,
+        ]);
+        for (&at, row) in at[..16].iter().zip(rows) {
+            // SAFETY: a `Ray` is `repr(C)`, 64 bytes: sixteen floats' room.
+            unsafe { _mm512_storeu_ps((&mut out[at as usize] as *mut Ray).cast::<f32>(), row) };
         }
-        let mut quad = [[_mm512_setzero_ps(); 3]; 4];
-        for (q, quad) in quad.iter_mut().enumerate() {
-            let (lo0, hi0) = (_mm512_castps_pd(pairs[2 * q][0]), _mm512_castps_pd(pairs[2 * q][1]));
-            let (lo1, hi1) = (_mm512_castps_pd(pairs[2 * q + 1][0]), _mm512_castps_pd(pairs[2 * q + 1][1]));
-            *quad = [
-                _mm512_castpd_ps(_mm512_unpacklo_pd(lo0, lo1)),
-                _mm512_castpd_ps(_mm512_unpackhi_pd(lo0, lo1)),
-                _mm512_castpd_ps(_mm512_unpacklo_pd(hi0, hi1)),
-            ];
-        }
-        // Block b of the four quads side by side: field b's element e for all sixteen rows.
-        let mut fields = [[_mm512_setzero_ps(); 3]; 3];
-        let mut tmax = _mm512_setzero_ps();
-        for e in 0..3 {
-            let front = [
-                _mm512_shuffle_f32x4::<0x44>(quad[0][e], quad[1][e]),
-                _mm512_shuffle_f32x4::<0x44>(quad[2][e], quad[3][e]),
-            ];
-            let back = [
-                _mm512_shuffle_f32x4::<0xEE>(quad[0][e], quad[1][e]),
-                _mm512_shuffle_f32x4::<0xEE>(quad[2][e], quad[3][e]),
-            ];
-            fields[0][e] = _mm512_shuffle_f32x4::<0x88>(front[0], front[1]);
-            fields[1][e] = _mm512_shuffle_f32x4::<0xDD>(front[0], front[1]);
-            fields[2][e] = _mm512_shuffle_f32x4::<0x88>(back[0], back[1]);
-            if e == 0 {
-                tmax = _mm512_shuffle_f32x4::<0xDD>(back[0], back[1]);
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn load(x: &[f32]) -> Self {
+        let x = &x[..16];
+        // SAFETY: sixteen floats, checked above.
+        unsafe { Avx512(_mm512_loadu_ps(x.as_ptr())) }
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn add_to(x: Self, y: Self, z: Self, out: &mut [Vec3A]) {
+        let out = &mut out[..16];
+        let xy_lo = _mm512_castps_pd(_mm512_unpacklo_ps(x.0, y.0));
+        let xy_hi = _mm512_castps_pd(_mm512_unpackhi_ps(x.0, y.0));
+        let zz_lo = _mm512_castps_pd(_mm512_unpacklo_ps(z.0, z.0));
+        let zz_hi = _mm512_castps_pd(_mm512_unpackhi_ps(z.0, z.0));
+        // Block i of rows[j]: element 4i + j as (x, y, z, z).
+        let rows = [
+            _mm512_castpd_ps(_mm512_unpacklo_pd(xy_lo, zz_lo)),
+            _mm512_castpd_ps(_mm512_unpackhi_pd(xy_lo, zz_lo)),
+            _mm512_castpd_ps(_mm512_unpacklo_pd(xy_hi, zz_hi)),
+            _mm512_castpd_ps(_mm512_unpackhi_pd(xy_hi, zz_hi)),
+        ];
+        let front = [_mm512_shuffle_f32x4::<0x44>(rows[0], rows[1]), _mm512_shuffle_f32x4::<0x44>(rows[2], rows[3])];
+        let back = [_mm512_shuffle_f32x4::<0xEE>(rows[0], rows[1]), _mm512_shuffle_f32x4::<0xEE>(rows[2], rows[3])];
+        // Elements 4j..4j + 4, as they lie in memory.
+        let quads = [
+            _mm512_shuffle_f32x4::<0x88>(front[0], front[1]),
+            _mm512_shuffle_f32x4::<0xDD>(front[0], front[1]),
+            _mm512_shuffle_f32x4::<0x88>(back[0], back[1]),
+            _mm512_shuffle_f32x4::<0xDD>(back[0], back[1]),
+        ];
+        let p = out.as_mut_ptr().cast::<f32>();
+        for (j, quad) in quads.into_iter().enumerate() {
+            // SAFETY: `out` holds sixteen `Vec3A`s (16 bytes each), checked above.
+            unsafe {
+                let at = p.add(16 * j);
+                _mm512_storeu_ps(at, _mm512_add_ps(_mm512_loadu_ps(at), quad));
             }
         }
-        let [o, d, inv] = fields.map(|f| f.map(Avx512));
-        RayLanes { origin: o, dir: d, inv_dir: inv, tmax: Avx512(tmax) }
     }
     #[target_feature(enable = "avx512f")]
     #[inline]
@@ -386,6 +531,11 @@ impl Lanes for Avx512 {
     }
     #[target_feature(enable = "avx512f")]
     #[inline]
+    unsafe fn ne(self, b: Self) -> __mmask16 {
+        _mm512_cmp_ps_mask::<_CMP_NEQ_UQ>(self.0, b.0)
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
     unsafe fn select(self, m: __mmask16, if_set: Self) -> Self {
         Avx512(_mm512_mask_blend_ps(m, self.0, if_set.0))
     }
@@ -408,6 +558,11 @@ impl Lanes for Avx512 {
     #[inline]
     unsafe fn bits(m: __mmask16) -> u32 {
         m as u32
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn mask(bits: u32) -> __mmask16 {
+        bits as __mmask16
     }
     /// In two halves of eight f64 lanes.
     #[target_feature(enable = "avx512f")]
@@ -472,7 +627,8 @@ mod tests {
     }
 
     /// Every field of every ray lands in its own lane, bit for bit, for packets of one ray up to
-    /// a full one, lanes past the last ray repeating it.
+    /// a full one, lanes past the last ray repeating it; written back, each ray is itself again;
+    /// lanes added to elements give each element its own lane.
     #[test]
     fn rays_are_transposed_into_their_lanes() {
         if !std::arch::is_x86_feature_detected!("avx") {
@@ -516,6 +672,32 @@ mod tests {
             for (k, t) in lanes.tmax.spill().into_iter().enumerate() {
                 assert_eq!(t, rays[k.min(n - 1)].tmax, "{n} rays: tmax of lane {k}");
             }
+            // And back: lane k to out[at[k]], in reverse order, the lanes past n all to one.
+            let at: Vec<u32> = (0..L::WIDTH).map(|k| if k < n { (n - 1 - k) as u32 } else { n as u32 }).collect();
+            let mut out = vec![Ray::new(Vec3A::ZERO, Vec3A::X, 0.0); n + 1];
+            // SAFETY: the caller's CPU has `L`'s instruction set.
+            unsafe { L::write_rays(&lanes, &mut out, &at) };
+            for (k, ray) in rays.iter().enumerate() {
+                let back = &out[n - 1 - k];
+                let same = |a: Vec3A, b: Vec3A| a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits);
+                assert!(same(back.origin, ray.origin) && same(back.dir, ray.dir), "{n} rays: ray {k} written back");
+                assert!(same(back.inv_dir, ray.inv_dir) && back.tmax == ray.tmax, "{n} rays: ray {k} written back");
+            }
+        }
+        // Lanes added to whole vectors of elements: each gets its lane, the fourth its z.
+        let sums: Vec<Vec3A> = (0..L::WIDTH).map(|_| v()).collect();
+        let rays: Vec<Ray> = (0..L::WIDTH).map(|_| Ray::new(v(), v(), 1.0)).collect();
+        // SAFETY: the caller's CPU has `L`'s instruction set.
+        let [x, y, z] = unsafe { L::rays(&rays) }.origin;
+        let mut out = sums.clone();
+        // SAFETY: the caller's CPU has `L`'s instruction set.
+        unsafe { L::add_to(x, y, z, &mut out) };
+        for (k, (out, sum)) in out.iter().zip(&sums).enumerate() {
+            let o = rays[k].origin;
+            // All four lanes, the fourth included.
+            let lanes = |v: Vec3A| glam::Vec4::from(__m128::from(v));
+            let want = lanes(*sum) + glam::Vec4::new(o.x, o.y, o.z, o.z);
+            assert_eq!(lanes(*out).to_array().map(f32::to_bits), want.to_array().map(f32::to_bits), "lane {k}");
         }
     }
 }

@@ -194,7 +194,7 @@ mod tests {
             let values: Vec<Vec2> = (0..37).map(|_| Vec2::new(rng.next_f32(), rng.next_f32())).collect();
             let mut run = DirectionRun::default();
             let terms = placed.sample_directions(&at, &values, &mut run).expect("a direction light");
-            assert_eq!(run.weight.len(), values.len().next_multiple_of(4));
+            assert_eq!(run.weight.len(), values.len().next_multiple_of(16));
             for (j, &u) in values.iter().enumerate() {
                 let expected = placed.sample(&at, &LightSamples::fixed(u));
                 assert_eq!(Some(run.light_sample(j, &terms)), expected, "sample {j}, e = {exponent}");

@@ -1,0 +1,316 @@
+//! The shadow rays of a direction run ([`PlacedLight::sample_directions`]): set up a SIMD
+//! vector of samples at a time, laid out octant by octant so that consecutive rays make
+//! coherent packets, traced in one call, and their answers added back to each sample's
+//! arriving light. Every sample gets exactly what [`DirectionTerms::light_sample`] and its own
+//! shadow ray give it.
+//!
+//! [`PlacedLight::sample_directions`]: crate::light::PlacedLight::sample_directions
+
+use glam::{BVec3A, Vec3A};
+
+#[cfg(target_arch = "x86_64")]
+use crate::geometry::lanes::{Avx, Avx512, Lanes, RayLanes};
+use crate::{
+    geometry::{
+        accel::{RayOrder, SceneGeometry},
+        hit::SpawnOrigins,
+        ray::Ray,
+    },
+    light::{DirectionRun, DirectionTerms},
+};
+
+/// The lanes of a group that need a ray, by the octant of their direction (bit a of the
+/// octant's index set: negative on axis a), bit k for lane k.
+type OctantLanes = [u32; 8];
+
+/// [`OctantLanes`] from the lanes that need a ray and those negative on each axis.
+#[inline(always)]
+fn octant_lanes(needs: u32, negative: [u32; 3]) -> OctantLanes {
+    let [x, y, z] = negative;
+    let (xy, x_y, _xy, _x_y) = (x & y, x & !y, !x & y, !x & !y);
+    let (z, _z) = (needs & z, needs & !z);
+    [_x_y & _z, x_y & _z, _xy & _z, xy & _z, _x_y & z, x_y & z, _xy & z, xy & z]
+}
+
+/// Scratch buffers for [`DirectionRays::add`], kept between runs.
+#[derive(Debug, Default)]
+pub(crate) struct DirectionRays {
+    rays: Vec<Ray>,
+    /// Which rays are blocked, plus one entry past them that stays false.
+    blocked: Vec<bool>,
+    /// Per sample: its ray's index in `rays`, or the number of rays traced for none.
+    slots: Vec<u32>,
+    groups: Vec<OctantLanes>,
+}
+
+/// The light a clear sample of weight `w` brings (per channel) and the floor a blocked one
+/// brings: `radiance·(floor + (1 − floor)·w)` and `radiance·floor`.
+#[inline(always)]
+fn clear_and_floor(terms: &DirectionTerms, w: f32) -> (Vec3A, Vec3A) {
+    let (radiance, f) = (terms.radiance, terms.floor);
+    let s = f + (1.0 - f) * w;
+    (Vec3A::new(radiance.x * s, radiance.y * s, radiance.z * s), Vec3A::from(radiance * f))
+}
+
+impl DirectionRays {
+    /// Adds the light of `run` (samples at one point, rays leaving from `spawn`, under `terms`)
+    /// to `arriving` (one element per sample), tracing in `geometry` the shadow rays whose
+    /// answer matters. Returns how many rays it traced.
+    pub(crate) fn add(
+        &mut self,
+        geometry: &SceneGeometry,
+        stack: &mut Vec<(u32, f32)>,
+        spawn: &SpawnOrigins,
+        run: &DirectionRun,
+        terms: &DirectionTerms,
+        arriving: &mut [Vec3A],
+    ) -> u64 {
+        #[cfg(target_arch = "x86_64")]
+        match geometry.packet_lanes() {
+            // SAFETY: sixteen- and eight-lane packets are used only where AVX-512 and AVX were
+            // detected.
+            16 => return unsafe { self.add_avx512(geometry, stack, spawn, run, terms, arriving) },
+            8 => return unsafe { self.add_avx(geometry, stack, spawn, run, terms, arriving) },
+            _ => {}
+        }
+        self.add_each(geometry, stack, spawn, run, terms, arriving)
+    }
+
+    /// [`DirectionRays::add`] one sample at a time, in sample order: for trees traversed
+    /// without packets, where the order of the rays does not matter.
+    fn add_each(
+        &mut self,
+        geometry: &SceneGeometry,
+        stack: &mut Vec<(u32, f32)>,
+        spawn: &SpawnOrigins,
+        run: &DirectionRun,
+        terms: &DirectionTerms,
+        arriving: &mut [Vec3A],
+    ) -> u64 {
+        self.rays.clear();
+        self.slots.clear();
+        for j in 0..arriving.len() {
+            let (clear, floor) = clear_and_floor(terms, run.weight[j]);
+            let slot = if run.weight[j] > 0.0 && clear.cmpne(floor).any() {
+                let dir = run.dir(j);
+                self.rays.push(Ray::new(spawn.towards(dir), dir, terms.max_distance));
+                self.rays.len() - 1
+            } else {
+                usize::MAX
+            };
+            self.slots.push(slot as u32);
+        }
+        let traced = self.rays.len();
+        for slot in &mut self.slots {
+            *slot = (*slot).min(traced as u32);
+        }
+        self.trace(geometry, stack, traced, RayOrder::Mixed);
+        for (j, sum) in arriving.iter_mut().enumerate() {
+            let (clear, floor) = clear_and_floor(terms, run.weight[j]);
+            let dark = run.weight[j] <= 0.0 || self.blocked[self.slots[j] as usize];
+            *sum += Vec3A::select(BVec3A::splat(dark), floor, clear);
+        }
+        traced as u64
+    }
+
+    /// Traces the first `traced` of `rays` into `blocked`, which gets one more entry, false.
+    fn trace(&mut self, geometry: &SceneGeometry, stack: &mut Vec<(u32, f32)>, traced: usize, order: RayOrder) {
+        self.blocked.clear();
+        self.blocked.resize(traced + 1, false);
+        geometry.occluded_many(&self.rays[..traced], order, stack, &mut self.blocked[..traced]);
+    }
+
+    /// [`DirectionRays::add`] for sixteen-lane packets.
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512F.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn add_avx512(
+        &mut self,
+        geometry: &SceneGeometry,
+        stack: &mut Vec<(u32, f32)>,
+        spawn: &SpawnOrigins,
+        run: &DirectionRun,
+        terms: &DirectionTerms,
+        arriving: &mut [Vec3A],
+    ) -> u64 {
+        // SAFETY: this function is compiled for AVX-512F, which the caller's CPU has.
+        unsafe { self.add_lanes::<Avx512>(geometry, stack, spawn, run, terms, arriving) }
+    }
+
+    /// [`DirectionRays::add`] for eight-lane packets.
+    ///
+    /// # Safety
+    /// The CPU must have AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn add_avx(
+        &mut self,
+        geometry: &SceneGeometry,
+        stack: &mut Vec<(u32, f32)>,
+        spawn: &SpawnOrigins,
+        run: &DirectionRun,
+        terms: &DirectionTerms,
+        arriving: &mut [Vec3A],
+    ) -> u64 {
+        // SAFETY: this function is compiled for AVX, which the caller's CPU has.
+        unsafe { self.add_lanes::<Avx>(geometry, stack, spawn, run, terms, arriving) }
+    }
+
+    /// [`DirectionRays::add`] `L::WIDTH` samples at a time: which need a ray and their
+    /// octants by mask arithmetic, their rays made in lanes and transposed into place octant
+    /// by octant, the answers added back without a branch (whether a ray is blocked is as
+    /// good as random).
+    ///
+    /// # Safety
+    /// The CPU must have `L`'s instruction set.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn add_lanes<L: Lanes>(
+        &mut self,
+        geometry: &SceneGeometry,
+        stack: &mut Vec<(u32, f32)>,
+        spawn: &SpawnOrigins,
+        run: &DirectionRun,
+        terms: &DirectionTerms,
+        arriving: &mut [Vec3A],
+    ) -> u64 {
+        let n = arriving.len();
+        let width = L::WIDTH;
+        let groups = n.div_ceil(width);
+        let floor = Vec3A::from(terms.radiance * terms.floor);
+        // SAFETY (every block below): the caller's CPU has `L`'s instruction set.
+        let zero = unsafe { L::splat(0.0) };
+        // Which lanes need a ray (a positive weight whose clear value differs from the floor),
+        // their octants counted.
+        self.groups.clear();
+        let mut count = [0u32; 8];
+        for g in 0..groups {
+            let masks = unsafe {
+                let (w, c) = clear_lanes::<L>(run, terms, g);
+                let [x, y, z] = dir_lanes::<L>(run, g);
+                let differs = L::bits(c[0].ne(L::splat(floor.x)))
+                    | L::bits(c[1].ne(L::splat(floor.y)))
+                    | L::bits(c[2].ne(L::splat(floor.z)));
+                let valid = (1u32 << (n - g * width).min(width)) - 1;
+                let negative = [L::bits(x.lt(zero)), L::bits(y.lt(zero)), L::bits(z.lt(zero))];
+                octant_lanes(L::bits(w.gt(zero)) & differs & valid, negative)
+            };
+            for (count, lanes) in count.iter_mut().zip(masks) {
+                *count += lanes.count_ones();
+            }
+            self.groups.push(masks);
+        }
+        // Each octant's rays start where the previous octant's end.
+        let mut cursor = [0u32; 8];
+        let mut at = 0;
+        for (cursor, count) in cursor.iter_mut().zip(count) {
+            (*cursor, at) = (at, at + count);
+        }
+        let traced = at as usize;
+        let (front, back) = spawn.sides();
+        let normal = spawn.normal();
+        // Room for the rays and one more, where lanes without a ray write theirs. Every ray
+        // below is written before it is read, so the buffer is never cleared.
+        if self.rays.len() <= traced {
+            self.rays.resize(traced + 1, Ray::new(front, Vec3A::X, 0.0));
+        }
+        self.slots.resize(groups * width, 0);
+        for (g, masks) in self.groups.iter().enumerate() {
+            if masks.iter().all(|&m| m == 0) {
+                self.slots[g * width..(g + 1) * width].fill(traced as u32);
+                continue;
+            }
+            // Each lane's place: its octant's next, counting the lanes before it in that octant,
+            // or past the rays for none (no branch per lane).
+            let mut at = [traced as u32; 16];
+            for (k, at) in at[..width].iter_mut().enumerate() {
+                let below = (1u32 << k) - 1;
+                for (lanes, cursor) in masks.iter().zip(&cursor) {
+                    if lanes >> k & 1 != 0 {
+                        *at = cursor + (lanes & below).count_ones();
+                    }
+                }
+            }
+            for (cursor, lanes) in cursor.iter_mut().zip(masks) {
+                *cursor += lanes.count_ones();
+            }
+            unsafe {
+                let [x, y, z] = dir_lanes::<L>(run, g);
+                // Behind the surface: the same products and sums as `SpawnOrigins::towards`.
+                let along = x.mul(L::splat(normal.x)).add(y.mul(L::splat(normal.y))).add(z.mul(L::splat(normal.z)));
+                let behind = along.lt(zero);
+                let one = L::splat(1.0);
+                let lanes = RayLanes {
+                    origin: [
+                        L::splat(front.x).select(behind, L::splat(back.x)),
+                        L::splat(front.y).select(behind, L::splat(back.y)),
+                        L::splat(front.z).select(behind, L::splat(back.z)),
+                    ],
+                    dir: [x, y, z],
+                    inv_dir: [one.div(x), one.div(y), one.div(z)],
+                    tmax: L::splat(terms.max_distance),
+                };
+                L::write_rays(&lanes, &mut self.rays, &at);
+            }
+            self.slots[g * width..(g + 1) * width].copy_from_slice(&at[..width]);
+        }
+        self.trace(geometry, stack, traced, RayOrder::Grouped);
+        for (g, sums) in arriving.chunks_mut(width).enumerate() {
+            // Dark lanes get the floor: blocked ones (read without a branch: whether a ray is
+            // blocked is as good as random), and those of weight ≤ 0 (no ray).
+            let mut dark = 0;
+            for (k, &slot) in self.slots[g * width..g * width + sums.len()].iter().enumerate() {
+                dark |= u32::from(self.blocked[slot as usize]) << k;
+            }
+            unsafe {
+                let (w, c) = clear_lanes::<L>(run, terms, g);
+                let dark = L::mask(dark | L::bits(w.le(zero)));
+                let x = c[0].select(dark, L::splat(floor.x));
+                let y = c[1].select(dark, L::splat(floor.y));
+                let z = c[2].select(dark, L::splat(floor.z));
+                if sums.len() == width {
+                    L::add_to(x, y, z, sums);
+                } else {
+                    // −0 + v is v, bit for bit, for every v.
+                    let mut full = [Vec3A::splat(-0.0); 16];
+                    L::add_to(x, y, z, &mut full);
+                    for (sum, add) in sums.iter_mut().zip(full) {
+                        *sum += add;
+                    }
+                }
+            }
+        }
+        traced as u64
+    }
+}
+
+/// Group `g`'s weights, and the light each lane brings when clear, per channel: the lanes of
+/// [`clear_and_floor`].
+///
+/// # Safety
+/// The CPU must have `L`'s instruction set.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn clear_lanes<L: Lanes>(run: &DirectionRun, terms: &DirectionTerms, g: usize) -> (L, [L; 3]) {
+    let (radiance, f) = (terms.radiance, terms.floor);
+    // SAFETY: the caller's CPU has `L`'s instruction set.
+    unsafe {
+        let w = L::load(&run.weight[g * L::WIDTH..]);
+        let s = L::splat(f).add(L::splat(1.0 - f).mul(w));
+        (w, [L::splat(radiance.x).mul(s), L::splat(radiance.y).mul(s), L::splat(radiance.z).mul(s)])
+    }
+}
+
+/// Group `g`'s directions: x, y and z lanes.
+///
+/// # Safety
+/// The CPU must have `L`'s instruction set.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn dir_lanes<L: Lanes>(run: &DirectionRun, g: usize) -> [L; 3] {
+    let at = g * L::WIDTH;
+    // SAFETY: the caller's CPU has `L`'s instruction set.
+    unsafe { [L::load(&run.x[at..]), L::load(&run.y[at..]), L::load(&run.z[at..])] }
+}
