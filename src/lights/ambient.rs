@@ -148,10 +148,11 @@ fn cosine_directions(frame: &Onb, values: &[Vec2], run: &mut DirectionRun) {
             y[i] = u.y * d[i].x + v.y * d[i].y + w.y * d[i].z;
             z[i] = u.z * d[i].x + v.z * d[i].y + w.z * d[i].z;
         }
-        let range = k * GROUP..k * GROUP + group.len();
-        run.x[range.clone()].copy_from_slice(&x[..group.len()]);
-        run.y[range.clone()].copy_from_slice(&y[..group.len()]);
-        run.z[range.clone()].copy_from_slice(&z[..group.len()]);
+        // Whole groups (the run's columns hold a multiple of sixteen): fixed-size stores.
+        let range = k * GROUP..(k + 1) * GROUP;
+        run.x[range.clone()].copy_from_slice(&x);
+        run.y[range.clone()].copy_from_slice(&y);
+        run.z[range.clone()].copy_from_slice(&z);
         run.weight[range].fill(1.0);
     }
 }
