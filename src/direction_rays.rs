@@ -21,15 +21,17 @@ use crate::{
 
 /// The lanes of a group that need a ray, by the octant of their direction (bit a of the
 /// octant's index set: negative on axis a), bit k for lane k.
+#[cfg(target_arch = "x86_64")]
 type OctantLanes = [u32; 8];
 
 /// [`OctantLanes`] from the lanes that need a ray and those negative on each axis.
+#[cfg(target_arch = "x86_64")]
 #[inline(always)]
 fn octant_lanes(needs: u32, negative: [u32; 3]) -> OctantLanes {
-    let [x, y, z] = negative;
-    let (xy, x_y, _xy, _x_y) = (x & y, x & !y, !x & y, !x & !y);
-    let (z, _z) = (needs & z, needs & !z);
-    [_x_y & _z, x_y & _z, _xy & _z, xy & _z, _x_y & z, x_y & z, _xy & z, xy & z]
+    let [nx, ny, nz] = negative;
+    let (px, py) = (!nx, !ny);
+    let (pz, nz) = (needs & !nz, needs & nz);
+    [px & py & pz, nx & py & pz, px & ny & pz, nx & ny & pz, px & py & nz, nx & py & nz, px & ny & nz, nx & ny & nz]
 }
 
 /// Scratch buffers for [`DirectionRays::add`], kept between runs.
@@ -40,6 +42,7 @@ pub(crate) struct DirectionRays {
     blocked: Vec<bool>,
     /// Per sample: its ray's index in `rays`, or the number of rays traced for none.
     slots: Vec<u32>,
+    #[cfg(target_arch = "x86_64")]
     groups: Vec<OctantLanes>,
 }
 
@@ -101,6 +104,7 @@ impl DirectionRays {
             self.slots.push(slot as u32);
         }
         let traced = self.rays.len();
+        // No ray: the entry past the rays, which stays false.
         for slot in &mut self.slots {
             *slot = (*slot).min(traced as u32);
         }
