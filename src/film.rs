@@ -22,7 +22,7 @@ fn srgb_to_linear(s: f64) -> f64 {
     if s <= 0.040_45 { s / 12.92 } else { ((s + 0.055) / 1.055).powf(2.4) }
 }
 
-/// Linear value at which each 8-bit sRGB code starts: code k covers [T[k-1], T[k]).
+/// Linear value at which each 8-bit sRGB code starts: code k covers `[T[k-1], T[k])`.
 static SRGB8_THRESHOLDS: std::sync::LazyLock<[f32; 255]> =
     std::sync::LazyLock::new(|| std::array::from_fn(|k| srgb_to_linear((k as f64 + 0.5) / 255.0) as f32));
 

@@ -156,7 +156,7 @@ impl SampleOut for [Vec3A] {
         self.fill(Vec3A::ZERO);
     }
 
-    /// [`SampleResult::add_light`]'s radiance, in one SIMD operation per step (same bits).
+    /// `SampleResult::add_light`'s radiance, in one SIMD operation per step (same bits).
     #[inline]
     fn add_light(&mut self, _: Term, reflectance: Vec3, arriving: &[Vec3A]) {
         let reflectance = Vec3A::from(reflectance);
