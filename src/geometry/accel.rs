@@ -21,6 +21,7 @@ use obvhs::{
     BvhBuildParams,
     aabb::Aabb,
     bvh2::{Bvh2, builder::build_bvh2, node::Bvh2Node},
+    ploc::PlocSearchDistance,
 };
 use rayon::prelude::*;
 
@@ -250,15 +251,17 @@ fn bvh_width() -> usize {
 /// medium preset with leaves of at most one packet, collapsed less eagerly (traversal cost 1.5
 /// instead of 3): the peer Cornell box traced 44 % faster with them, while from 3.9k triangles up
 /// (Suzanne, Duck, bunny, teapot, FlightHelmet, dragon) they were 0–8 % slower. Larger sets:
-/// obvhs's fast preset (a narrower PLOC search, less reinsertion), which with packet traversal
-/// traces as fast as the medium one (three rounds at 64 spp: cornell, sphere_plane, Sponza,
-/// dragon and many_spheres within −5 to 0 %) and builds the dragon in 500–535 ms instead of
-/// 545–690.
+/// obvhs's fast preset with its widest PLOC search (each cluster looks for its nearest
+/// neighbour among more candidates, so the tree's boxes are tighter): trace system at 64 spp,
+/// fastest / median of seven against the fast preset's narrow search, sphere_plane −15 % /
+/// −18 %, the dragon −7 % / −6 %, Sponza −2.5 % / −1.5 %, many_spheres −4 % / 0 %, for 10–15 %
+/// more build time (the dragon 670 → 760 ms). The slow presets' reinsertion traced no faster
+/// than this and doubled the build time (the dragon 1.3 s, 4.8 s with every node reinserted).
 fn build_params(prims: usize) -> BvhBuildParams {
     if prims < SMALL_SET {
         BvhBuildParams { max_prims_per_leaf: 4, collapse_traversal_cost: 1.5, ..BvhBuildParams::medium_build() }
     } else {
-        BvhBuildParams::fast_build()
+        BvhBuildParams { ploc_search_distance: PlocSearchDistance::High, ..BvhBuildParams::fast_build() }
     }
 }
 
