@@ -8,9 +8,7 @@ use crate::{
     components::Matte,
     direction_rays::DirectionRays,
     geometry::{Ray, RayOrder, SceneGeometry, SpawnOrigins, SurfaceHit},
-    light::{
-        DirectionRun, DirectionTerms, LightGroup, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term,
-    },
+    light::{DirectionRun, LightGroup, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term},
     resources::AovValues,
     sampling::{SampleSets, dims},
 };
@@ -362,13 +360,12 @@ impl Tracer {
                 for (k, column) in (0..P::DIMS).zip(values.chunks_exact_mut(n.max(1))) {
                     scene.sets.fill(pixel, first, dim + k, column);
                 }
-                let mut directions = std::mem::take(&mut self.directions);
-                let terms = light.sample_directions(at, &values, &mut directions);
-                if let Some(terms) = terms {
-                    self.add_directions(scene, spawn, &directions, &terms, P::TERM, arriving);
-                }
-                self.directions = directions;
-                if terms.is_some() {
+                // A direction light's run goes in bulk: exactly what `add_run` would do with
+                // its samples' `DirectionRun::light_sample`s, without making them.
+                if let Some(terms) = light.sample_directions(at, &values, &mut self.directions) {
+                    let (geometry, run) = (scene.geometry, &self.directions);
+                    let traced = self.direction_rays.add(geometry, &mut self.stack, spawn, run, &terms, arriving);
+                    self.rays.count(P::TERM, traced);
                     continue;
                 }
                 light.sample_run(at, &values, &mut drawn);
@@ -422,23 +419,6 @@ impl Tracer {
         }
         self.drawn = drawn;
         self.run = run;
-    }
-
-    /// Adds a run of direction samples from one point (`run`, under `terms`) to `arriving`,
-    /// tracing the shadow rays whose answer matters in one call: exactly what
-    /// [`Tracer::add_run`] does with the samples' [`DirectionRun::light_sample`]s, without
-    /// making them (see [`DirectionRays`]).
-    fn add_directions(
-        &mut self,
-        scene: &Scene,
-        spawn: &SpawnOrigins,
-        run: &DirectionRun,
-        terms: &DirectionTerms,
-        term: Term,
-        arriving: &mut [Vec3A],
-    ) {
-        let traced = self.direction_rays.add(scene.geometry, &mut self.stack, spawn, run, terms, arriving);
-        self.rays.count(term, traced);
     }
 
     /// Adds a run of drawn samples to `arriving`, tracing the shadow rays whose answer matters in

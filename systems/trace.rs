@@ -189,21 +189,23 @@ fn trace_tile<C: CameraRays>(
             let mut fixed = SampleResult::default();
             match &shared {
                 Some(Some(hit)) if !job.aovs => {
-                    // The beauty image alone: each sample's radiance, no other AOV.
-                    let mut fixed = [Vec3A::ZERO];
-                    tracer.shade(scene, hit, pixel, first, true, Lights::Fixed, &mut fixed[..]);
+                    // The beauty image alone: each sample's radiance, no other AOV, summed here
+                    // (no `samples` for the loop below).
+                    let mut fixed_radiance = [Vec3A::ZERO];
+                    tracer.shade(scene, hit, pixel, first, true, Lights::Fixed, &mut fixed_radiance[..]);
+                    let fixed_radiance = fixed_radiance[0];
                     radiance.resize(count as usize, Vec3A::ZERO);
                     tracer.shade(scene, hit, pixel, first, true, Lights::Sampled, &mut radiance[..]);
                     // A finite total means every sample was finite (∞ and NaN survive a sum),
                     // so only other totals (and adaptive sampling, which needs each sample's
                     // luminance) need the loop that drops samples one by one.
                     let quick = (!job.adaptive)
-                        .then(|| radiance.iter().fold(Vec3A::ZERO, |t, &r| t + (r + fixed[0])))
+                        .then(|| radiance.iter().fold(Vec3A::ZERO, |t, &r| t + (r + fixed_radiance)))
                         .filter(|&t| all_finite(t));
                     let total = quick.unwrap_or_else(|| {
                         let mut total = Vec3A::ZERO;
                         for &r in &radiance {
-                            let r = r + fixed[0];
+                            let r = r + fixed_radiance;
                             if !all_finite(r) {
                                 nonfinite += 1;
                                 continue;
@@ -215,10 +217,8 @@ fn trace_tile<C: CameraRays>(
                         }
                         total
                     });
-                    sums.push(total.into());
-                    counts.push(count);
-                    sq_sums.push(sq_sum);
-                    continue;
+                    sum = total.into();
+                    samples.clear();
                 }
                 Some(Some(hit)) => {
                     tracer.shade(scene, hit, pixel, first, !job.aovs, Lights::Fixed, std::slice::from_mut(&mut fixed));

@@ -1,6 +1,7 @@
-//! Rays in SIMD lanes, for packet traversal: eight per AVX register ([`Avx`]) or sixteen per
-//! AVX-512 register ([`Avx512`]). Each operation is one IEEE operation of the single-ray code
-//! (no fused multiply-adds), so a lane computes bit for bit what that ray's own traversal does.
+//! Rays in SIMD lanes, for packet traversal and direction runs: eight per AVX register
+//! ([`Avx`]) or sixteen per AVX-512 register ([`Avx512`]). Each operation is one IEEE operation
+//! of the single-ray code (no fused multiply-adds), so a lane computes bit for bit what that
+//! ray's own traversal does.
 //!
 //! Every method is `unsafe` and compiled for its type's instruction set, which the CPU must
 //! have; callers are generic code inlined into functions compiled for it, where the methods

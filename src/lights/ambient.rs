@@ -97,22 +97,32 @@ impl PlacedLight for PlacedOccluder {
     #[inline]
     fn sample_directions(&self, at: &ShadingPoint, values: &[Vec2], run: &mut DirectionRun) -> Option<DirectionTerms> {
         run.resize(values.len());
-        #[cfg(target_arch = "x86_64")]
-        if self.exponent == 1.0 {
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                // SAFETY: the CPU has AVX-512F, checked just above.
-                unsafe { cosine_directions_avx512(&at.frame, values, run) };
-            } else if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: the CPU has AVX2, checked just above.
-                unsafe { cosine_directions_avx2(&at.frame, values, run) };
-            } else {
-                self.directions4(&at.frame, values, run);
-            }
-            return Some(self.terms());
+        if !(self.exponent == 1.0 && cosine_directions_wide(&at.frame, values, run)) {
+            self.directions4(&at.frame, values, run);
         }
-        self.directions4(&at.frame, values, run);
         Some(self.terms())
     }
+}
+
+/// [`cosine_directions`] sixteen or eight lanes at a time where the CPU has AVX-512 or AVX2;
+/// false (nothing written) elsewhere.
+#[inline]
+fn cosine_directions_wide(frame: &Onb, values: &[Vec2], run: &mut DirectionRun) -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the CPU has AVX-512F, checked just above.
+            unsafe { cosine_directions_avx512(frame, values, run) };
+            return true;
+        }
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2, checked just above.
+            unsafe { cosine_directions_avx2(frame, values, run) };
+            return true;
+        }
+    }
+    let _ = (frame, values, run);
+    false
 }
 
 /// [`cosine_directions`] compiled for AVX-512F, where it vectorises sixteen-wide.
