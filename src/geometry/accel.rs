@@ -21,11 +21,11 @@ use obvhs::{
     BvhBuildParams,
     aabb::Aabb,
     bvh2::{Bvh2, builder::build_bvh2, node::Bvh2Node},
-    ploc::PlocSearchDistance,
 };
 use rayon::prelude::*;
 
 use super::{
+    binned_sah,
     hit::SurfaceHit,
     ray::{Ray, Shear},
     shapes::{PlanePrim, SpherePrim, Triangle},
@@ -247,22 +247,13 @@ fn bvh_width() -> usize {
     *WIDTH.get_or_init(|| if std::env::var("HEMI_BVH_WIDTH").is_ok_and(|w| w.trim() == "4") { 4 } else { 8 })
 }
 
-/// The BVH2 build settings for `prims` primitives. Small sets (under [`SMALL_SET`]): obvhs's
-/// medium preset with leaves of at most one packet, collapsed less eagerly (traversal cost 1.5
-/// instead of 3): the peer Cornell box traced 44 % faster with them, while from 3.9k triangles up
-/// (Suzanne, Duck, bunny, teapot, FlightHelmet, dragon) they were 0–8 % slower. Larger sets:
-/// obvhs's fast preset with its widest PLOC search (each cluster looks for its nearest
-/// neighbour among more candidates, so the tree's boxes are tighter): trace system at 64 spp,
-/// fastest / median of seven against the fast preset's narrow search, sphere_plane −15 % /
-/// −18 %, the dragon −7 % / −6 %, Sponza −2.5 % / −1.5 %, many_spheres −4 % / 0 %, for 10–15 %
-/// more build time (the dragon 670 → 760 ms). The slow presets' reinsertion traced no faster
-/// than this and doubled the build time (the dragon 1.3 s, 4.8 s with every node reinserted).
-fn build_params(prims: usize) -> BvhBuildParams {
-    if prims < SMALL_SET {
-        BvhBuildParams { max_prims_per_leaf: 4, collapse_traversal_cost: 1.5, ..BvhBuildParams::medium_build() }
-    } else {
-        BvhBuildParams { ploc_search_distance: PlocSearchDistance::High, ..BvhBuildParams::fast_build() }
-    }
+/// The BVH2 build settings for small sets (under [`SMALL_SET`] primitives): obvhs's medium
+/// preset with leaves of at most one packet, collapsed less eagerly (traversal cost 1.5 instead
+/// of 3): the peer Cornell box traced 44 % faster with them, while from 3.9k triangles up
+/// (Suzanne, Duck, bunny, teapot, FlightHelmet, dragon) they were 0–8 % slower. Larger sets
+/// get [`binned_sah::build`].
+fn small_set_params() -> BvhBuildParams {
+    BvhBuildParams { max_prims_per_leaf: 4, collapse_traversal_cost: 1.5, ..BvhBuildParams::medium_build() }
 }
 
 /// How a run of rays given to [`SceneGeometry::occluded_many`] is ordered, which decides how
@@ -513,7 +504,7 @@ packet_kernels!(
 /// single shadow ray goes on its own).
 const PACKET_RUN: usize = 4;
 
-/// Primitive count under which a BLAS gets small leaves (see [`build_params`]).
+/// Primitive count under which a BLAS gets small leaves (see [`small_set_params`]).
 const SMALL_SET: usize = 1024;
 
 /// A bottom-level BVH: an obvhs BVH2 over primitives stored in leaf order.
@@ -537,16 +528,22 @@ pub struct Blas {
 
 impl Blas {
     /// Builds a BVH over `prims` (in any order), each primitive in one leaf (so a deformable
-    /// BLAS can be refit). obvhs's spatial pre-splits are not used: on the peer scenes with
-    /// packet traversal they traced no faster (sphere_plane and Sponza 4-8 % slower, cornell
-    /// within 2 %) and cost the dragon 60-90 ms of build.
+    /// BLAS can be refit): by [`binned_sah::build`] from [`SMALL_SET`] primitives up, else by
+    /// obvhs's PLOC with [`small_set_params`]. Spatial pre-splits are not used: with PLOC they
+    /// traced no faster on the peer scenes (sphere_plane and Sponza 4–8 % slower, cornell within
+    /// 2 %) and cost the dragon 60–90 ms of build; with the binned builder they left Sponza's
+    /// SAH cost where it was.
     pub fn build(prims: Vec<Prim>) -> Self {
         let triangle_count = prims.iter().filter(|p| matches!(p.shape, Shape::Triangle(_))).count();
         let bvh = if prims.is_empty() {
             Bvh2::default()
         } else {
             let aabbs: Vec<Aabb> = prims.par_iter().with_min_len(PAR_CHUNK).map(Prim::bounds).collect();
-            build_bvh2(&aabbs, build_params(prims.len()), &mut Duration::default())
+            if prims.len() < SMALL_SET {
+                build_bvh2(&aabbs, small_set_params(), &mut Duration::default())
+            } else {
+                binned_sah::build(&aabbs)
+            }
         };
         let prims = bvh.primitive_indices.par_iter().with_min_len(PAR_CHUNK).map(|&i| prims[i as usize]).collect();
         let depth = subtree_depth(&bvh.nodes);

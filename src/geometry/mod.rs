@@ -1,6 +1,7 @@
 //! Geometry: rays, primitive intersection with error bounds, and the acceleration structure.
 
 pub mod accel;
+pub mod binned_sah;
 pub mod hit;
 #[cfg(target_arch = "x86_64")]
 pub(crate) mod lanes;
