@@ -11,13 +11,21 @@
 //! depend on the thread count. Children come after their parents in the node array, the two
 //! children of an inner node side by side, as [`obvhs::bvh2::Bvh2`] expects.
 
+use glam::Vec3A;
 use obvhs::{
     aabb::Aabb,
     bvh2::{Bvh2, node::Bvh2Node},
 };
+use rayon::prelude::*;
 
 /// Centroid bins per axis.
 const BINS: usize = 32;
+
+/// Centroid bins per axis for nodes under [`SMALL_NODE`] primitives.
+const SMALL_BINS: usize = 8;
+
+/// Primitive count under which a node gets [`SMALL_BINS`] bins.
+const SMALL_NODE: usize = 64;
 
 /// Most primitives in a leaf: two packets of four.
 pub const MAX_LEAF: usize = 8;
@@ -81,62 +89,109 @@ fn packets(count: usize) -> f32 {
 /// What to do with a node's primitives.
 enum Split {
     Leaf,
-    /// Primitives whose centroid falls in a bin below `bin` on `axis` go left.
+    /// Primitives whose centroid falls in a bin below `bin` (of `bins`) on `axis` go left.
     Bins {
         axis: usize,
         bin: usize,
         min: f32,
         scale: f32,
+        bins: usize,
     },
     /// No boundary separates the centroids (all equal): halves by position.
     Halves,
 }
 
-/// The bin of a centroid `c` on an axis starting at `min` with `scale` bins per unit.
+/// The bin of a centroid `c` on an axis starting at `min` with `scale` bins per unit, of
+/// `bins` bins.
 #[inline(always)]
-fn bin_of(c: f32, min: f32, scale: f32) -> usize {
+fn bin_of(c: f32, min: f32, scale: f32, bins: usize) -> usize {
     // `as` saturates (NaN gives 0), and the last boundary belongs to the last bin.
-    (((c - min) * scale) as usize).min(BINS - 1)
+    (((c - min) * scale) as usize).min(bins - 1)
 }
 
-/// The bounds of `refs` and the split of lowest cost.
-fn choose(refs: &[Ref]) -> (Aabb, Split) {
-    let mut bounds = Aabb::empty();
-    let mut centroids = Aabb::empty();
-    for r in refs {
-        bounds = bounds.union(&r.aabb);
-        centroids.extend(r.aabb.center());
+/// Each axis's bins: the union of the boxes whose centroid falls in each, and how many.
+#[derive(Clone, Copy)]
+struct Bins<const N: usize>([[(Aabb, u32); N]; 3]);
+
+impl<const N: usize> Bins<N> {
+    const EMPTY: Self = Bins([[(Aabb::INVALID, 0); N]; 3]);
+
+    /// The bins of `refs`, whose centroids start at `min` with `scale` bins per unit (0 on an
+    /// axis where they do not spread: all in bin 0).
+    fn of(refs: &[Ref], min: Vec3A, scale: Vec3A) -> Self {
+        let mut bins = Bins::EMPTY;
+        for r in refs {
+            let c = r.aabb.center();
+            for axis in 0..3 {
+                let bin = &mut bins.0[axis][bin_of(c[axis], min[axis], scale[axis], N)];
+                bin.0 = bin.0.union(&r.aabb);
+                bin.1 += 1;
+            }
+        }
+        bins
     }
+
+    /// Both sets of bins in one.
+    fn merge(mut self, other: &Self) -> Self {
+        for (a, b) in self.0.iter_mut().flatten().zip(other.0.iter().flatten()) {
+            *a = (a.0.union(&b.0), a.1 + b.1);
+        }
+        self
+    }
+}
+
+/// The union of `refs`' boxes and of their centroids.
+fn bounds_of(refs: &[Ref]) -> (Aabb, Aabb) {
+    refs.iter().fold((Aabb::INVALID, Aabb::INVALID), |(b, c), r| {
+        (b.union(&r.aabb), c.union(&Aabb::from_point(r.aabb.center())))
+    })
+}
+
+/// The bounds of `refs` and the split of lowest cost, with [`BINS`] bins per axis, or
+/// [`SMALL_BINS`] under [`SMALL_NODE`] primitives (where setting up and sweeping the bins is
+/// most of the work).
+fn choose(refs: &[Ref]) -> (Aabb, Split) {
+    if refs.len() < SMALL_NODE { choose_in::<SMALL_BINS>(refs) } else { choose_in::<BINS>(refs) }
+}
+
+/// [`choose`] with `N` bins per axis; the passes over `refs` run in parallel chunks for large
+/// nodes (unions and counts, so the result is the same).
+fn choose_in<const N: usize>(refs: &[Ref]) -> (Aabb, Split) {
+    let parallel = refs.len() >= 4 * PARALLEL_MIN;
+    let (bounds, centroids) = if parallel {
+        let pair = |a: (Aabb, Aabb), b: (Aabb, Aabb)| (a.0.union(&b.0), a.1.union(&b.1));
+        refs.par_chunks(PARALLEL_MIN).map(bounds_of).reduce(|| (Aabb::INVALID, Aabb::INVALID), pair)
+    } else {
+        bounds_of(refs)
+    };
     let count = refs.len();
     if count == 1 {
         return (bounds, Split::Leaf);
     }
+    let extent = centroids.max - centroids.min;
+    // Zero (or NaN, from NaN boxes) where the centroids do not spread: no boundary there.
+    let scale = Vec3A::select(extent.cmpgt(Vec3A::ZERO), N as f32 / extent, Vec3A::ZERO);
+    let bins = if parallel {
+        let min = centroids.min;
+        refs.par_chunks(PARALLEL_MIN).map(|c| Bins::<N>::of(c, min, scale)).reduce(|| Bins::EMPTY, |a, b| a.merge(&b))
+    } else {
+        Bins::<N>::of(refs, centroids.min, scale)
+    };
     // (cost of the two children, axis, bin)
     let mut best = (f32::INFINITY, 0, 0);
-    for axis in 0..3 {
-        let (min, extent) = (centroids.min[axis], centroids.max[axis] - centroids.min[axis]);
-        if extent.is_nan() || extent <= 0.0 {
-            continue;
-        }
-        let scale = BINS as f32 / extent;
-        let mut bins = [(Aabb::empty(), 0usize); BINS];
-        for r in refs {
-            let bin = &mut bins[bin_of(r.centroid(axis), min, scale)];
-            bin.0 = bin.0.union(&r.aabb);
-            bin.1 += 1;
-        }
+    for (axis, bins) in bins.0.iter().enumerate() {
         // Cost of everything from bin k up, swept from the right.
-        let mut right = [0.0f32; BINS];
-        let (mut b, mut n) = (Aabb::empty(), 0);
-        for k in (1..BINS).rev() {
+        let mut right = [0.0f32; N];
+        let (mut b, mut n) = (Aabb::INVALID, 0);
+        for k in (1..N).rev() {
             b = b.union(&bins[k].0);
-            n += bins[k].1;
+            n += bins[k].1 as usize;
             right[k] = b.half_area() * packets(n);
         }
-        let (mut b, mut n) = (Aabb::empty(), 0);
-        for k in 1..BINS {
+        let (mut b, mut n) = (Aabb::INVALID, 0);
+        for k in 1..N {
             b = b.union(&bins[k - 1].0);
-            n += bins[k - 1].1;
+            n += bins[k - 1].1 as usize;
             if n == 0 || n == count {
                 continue;
             }
@@ -157,8 +212,7 @@ fn choose(refs: &[Ref]) -> (Aabb, Split) {
         return (bounds, if fits { Split::Leaf } else { Split::Halves });
     }
     let (_, axis, bin) = best;
-    let (min, extent) = (centroids.min[axis], centroids.max[axis] - centroids.min[axis]);
-    (bounds, Split::Bins { axis, bin, min, scale: BINS as f32 / extent })
+    (bounds, Split::Bins { axis, bin, min: centroids.min[axis], scale: scale[axis], bins: N })
 }
 
 /// Reorders `refs` for `split` and returns how many go left (neither side empty).
@@ -166,10 +220,10 @@ fn partition(refs: &mut [Ref], split: &Split) -> usize {
     match *split {
         Split::Leaf => unreachable!("a leaf is not partitioned"),
         Split::Halves => refs.len() / 2,
-        Split::Bins { axis, bin, min, scale } => {
+        Split::Bins { axis, bin, min, scale, bins } => {
             let mut left = 0;
             for j in 0..refs.len() {
-                if bin_of(refs[j].centroid(axis), min, scale) < bin {
+                if bin_of(refs[j].centroid(axis), min, scale, bins) < bin {
                     refs.swap(j, left);
                     left += 1;
                 }
