@@ -263,7 +263,7 @@ pub enum RayOrder {
     /// Any order: within each block of 64, the rays are grouped by direction octant first.
     Mixed,
     /// Already grouped (rays that should travel together are consecutive, e.g. one point's
-    /// rays octant by octant): packets are consecutive rays.
+    /// rays quadrant by quadrant around its normal): packets are consecutive rays.
     Grouped,
 }
 
