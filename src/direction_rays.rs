@@ -1,9 +1,8 @@
 //! The shadow rays of a direction run ([`PlacedLight::sample_directions`]): set up a SIMD
-//! vector of samples at a time, laid out quadrant by quadrant around the surface normal so that
-//! consecutive rays make
-//! coherent packets, traced in one call, and their answers added back to each sample's
-//! arriving light. Every sample gets exactly what [`DirectionTerms::light_sample`] and its own
-//! shadow ray give it.
+//! vector of samples at a time, laid out quadrant by quadrant around the surface normal so
+//! that consecutive rays make coherent packets, traced in one call, and their answers added
+//! back to each sample's arriving light. Every sample gets exactly what
+//! [`DirectionTerms::light_sample`] and its own shadow ray give it.
 //!
 //! [`PlacedLight::sample_directions`]: crate::light::PlacedLight::sample_directions
 
@@ -27,9 +26,10 @@ use crate::{
 };
 
 /// The lanes of a group that need a ray, by the quadrant of their direction around the
-/// surface normal (bit 0 of the quadrant's index set: negative along the first tangent; bit 1:
-/// along the second), bit k for lane k. Quadrants in this order are neighbours in turn, so a
-/// packet that spans two holds two adjacent quarters of the hemisphere.
+/// surface normal, in azimuth order: (+u, +v), (−u, +v), (−u, −v), (+u, −v) for the signs of
+/// its components along the tangents u and v; bit k for lane k. Neighbouring quadrants come
+/// one after the other, so a packet that spans two holds two adjacent quarters of the
+/// hemisphere.
 #[cfg(target_arch = "x86_64")]
 type QuadrantLanes = [u32; 4];
 
@@ -178,8 +178,9 @@ impl DirectionRays {
     /// A packet of rays from one point into one quarter of the hemisphere (a wedge around the
     /// normal) stays together deeper than one from the world octants, whose pieces of a
     /// hemisphere can be thin slivers, and fewer of its rays go on alone. Trace system at 64
-    /// spp, fastest / median of seven against octants: cornell −6 % / −5 %, many_spheres −3 % /
-    /// −3 %, sphere_plane −2 % / −3 %, Sponza −2 % / −3 %, dragon −4 % / −1 %.
+    /// spp against octants, fastest / median of nine (three copies of each binary): cornell
+    /// −8 % / −9 %, many_spheres −2 % / −3 %, Sponza −2 % / −3 %, sphere_plane −3 % / −1 %, the
+    /// dragon −1 % / +1 %.
     ///
     /// # Safety
     /// The CPU must have `L`'s instruction set.

@@ -528,8 +528,8 @@ pub struct Blas {
 
 impl Blas {
     /// Builds a BVH over `prims` (in any order), each primitive in one leaf (so a deformable
-    /// BLAS can be refit): by [`binned_sah::build`] from [`SMALL_SET`] primitives up, else by
-    /// obvhs's PLOC with [`small_set_params`]. Spatial pre-splits are not used: with PLOC they
+    /// BLAS can be refit): by [`binned_sah::build`] from 1024 primitives up, else by obvhs's
+    /// PLOC with its medium preset and leaves of at most one packet. Spatial pre-splits are not used: with PLOC they
     /// traced no faster on the peer scenes (sphere_plane and Sponza 4–8 % slower, cornell within
     /// 2 %) and cost the dragon 60–90 ms of build; with the binned builder they left Sponza's
     /// SAH cost where it was.

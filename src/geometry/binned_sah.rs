@@ -1,14 +1,14 @@
 //! A top-down binned SAH builder (Wald 2007) for the BVH2 of large BLASes.
 //!
-//! At each node the primitives' centroids are sorted into [`BINS`] bins along each axis and the
-//! boundary of lowest surface-area cost is taken. The cost counts a leaf's triangles by the
+//! At each node the primitives' centroids are sorted into 32 bins along each axis (8 under 64
+//! primitives) and the boundary of lowest surface-area cost is taken. The cost counts a leaf's triangles by the
 //! packets of four they are tested in (a leaf of five costs as much as one of eight), so leaves
 //! come out as full packets and the wide tree needs fewer nodes: on the peer sphere_plane, 20 %
 //! fewer triangle packets and half the wide nodes of obvhs's PLOC build with leaf collapsing, at
 //! the same SAH cost.
 //!
-//! Subtrees of [`PARALLEL_MIN`] primitives or more are built in parallel; the result does not
-//! depend on the thread count. Children come after their parents in the node array, the two
+//! Subtrees of 8192 primitives or more are built in parallel, and the passes over nodes of
+//! 32768 or more in parallel chunks; the result does not depend on the thread count. Children come after their parents in the node array, the two
 //! children of an inner node side by side, as [`obvhs::bvh2::Bvh2`] expects.
 
 use glam::Vec3A;
