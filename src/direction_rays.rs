@@ -9,9 +9,6 @@
 use glam::{BVec3A, Vec3A};
 
 #[cfg(target_arch = "x86_64")]
-use glam::Vec3;
-
-#[cfg(target_arch = "x86_64")]
 use crate::{
     geometry::lanes::{Avx, Avx512, Lanes, RayLanes},
     math::Onb,
@@ -204,8 +201,9 @@ impl DirectionRays {
         // Which lanes need a ray (a positive weight whose clear value differs from the floor),
         // their quadrants counted.
         self.groups.clear();
-        let tangents = Onb::from_normal(spawn.normal().into());
-        let (u, v) = (tangents.u, tangents.v);
+        let normal = spawn.normal();
+        let tangents = Onb::from_normal(normal.into());
+        let (u, v) = (Vec3A::from(tangents.u), Vec3A::from(tangents.v));
         let mut count = [0u32; 4];
         for g in 0..groups {
             let masks = unsafe {
@@ -215,8 +213,7 @@ impl DirectionRays {
                     | L::bits(c[1].ne(L::splat(floor.y)))
                     | L::bits(c[2].ne(L::splat(floor.z)));
                 let valid = (1u32 << (n - g * width).min(width)) - 1;
-                let along = |t: Vec3| x.mul(L::splat(t.x)).add(y.mul(L::splat(t.y))).add(z.mul(L::splat(t.z)));
-                let negative = [L::bits(along(u).lt(zero)), L::bits(along(v).lt(zero))];
+                let negative = [L::bits(along(&[x, y, z], u).lt(zero)), L::bits(along(&[x, y, z], v).lt(zero))];
                 quadrant_lanes(L::bits(w.gt(zero)) & differs & valid, negative)
             };
             for (count, lanes) in count.iter_mut().zip(masks) {
@@ -232,7 +229,6 @@ impl DirectionRays {
         }
         let traced = at as usize;
         let (front, back) = spawn.sides();
-        let normal = spawn.normal();
         // Room for the rays and one more, where lanes without a ray write theirs. Every ray
         // below is written before it is read, so the buffer is never cleared.
         if self.rays.len() <= traced {
@@ -261,8 +257,7 @@ impl DirectionRays {
             unsafe {
                 let [x, y, z] = dir_lanes::<L>(run, g);
                 // Behind the surface: the same products and sums as `SpawnOrigins::towards`.
-                let along = x.mul(L::splat(normal.x)).add(y.mul(L::splat(normal.y))).add(z.mul(L::splat(normal.z)));
-                let behind = along.lt(zero);
+                let behind = along(&[x, y, z], normal).lt(zero);
                 let one = L::splat(1.0);
                 let lanes = RayLanes {
                     origin: [
@@ -323,6 +318,19 @@ unsafe fn clear_lanes<L: Lanes>(run: &DirectionRun, terms: &DirectionTerms, g: u
         let s = L::splat(f).add(L::splat(1.0 - f).mul(w));
         (w, [L::splat(radiance.x).mul(s), L::splat(radiance.y).mul(s), L::splat(radiance.z).mul(s)])
     }
+}
+
+/// Each lane's component of direction `d` (x, y and z lanes) along `t`: `x·t.x + y·t.y + z·t.z`,
+/// summed in that order.
+///
+/// # Safety
+/// The CPU must have `L`'s instruction set.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn along<L: Lanes>(d: &[L; 3], t: Vec3A) -> L {
+    let [x, y, z] = *d;
+    // SAFETY: the caller's CPU has `L`'s instruction set.
+    unsafe { x.mul(L::splat(t.x)).add(y.mul(L::splat(t.y))).add(z.mul(L::splat(t.z))) }
 }
 
 /// Group `g`'s directions: x, y and z lanes.

@@ -906,7 +906,8 @@ impl std::fmt::Debug for Blas {
     }
 }
 
-fn subtree_depth(nodes: &[Bvh2Node]) -> usize {
+/// Depth of the deepest leaf of a BVH2 (the root alone is 1; an empty tree is 0).
+pub(super) fn subtree_depth(nodes: &[Bvh2Node]) -> usize {
     let mut max = 0;
     let mut stack = vec![(0usize, 1usize)];
     while let Some((i, d)) = stack.pop() {

@@ -14,9 +14,11 @@
 use glam::Vec3A;
 use obvhs::{
     aabb::Aabb,
-    bvh2::{Bvh2, node::Bvh2Node},
+    bvh2::{Bvh2, DEFAULT_MAX_STACK_DEPTH, node::Bvh2Node},
 };
 use rayon::prelude::*;
+
+use super::accel::subtree_depth;
 
 /// Centroid bins per axis.
 const BINS: usize = 32;
@@ -56,7 +58,8 @@ impl Ref {
 pub fn build(aabbs: &[Aabb]) -> Bvh2 {
     let mut refs: Vec<Ref> = aabbs.iter().enumerate().map(|(i, &aabb)| Ref { aabb, index: i as u32 }).collect();
     let nodes = subtree(&mut refs, 0);
-    let max_depth = depth(&nodes);
+    // obvhs's convention (as its PLOC builder sets it): a bound for its traversal stacks.
+    let max_depth = (subtree_depth(&nodes) + 1).max(DEFAULT_MAX_STACK_DEPTH);
     Bvh2 {
         nodes,
         primitive_indices: refs.iter().map(|r| r.index).collect(),
@@ -64,20 +67,6 @@ pub fn build(aabbs: &[Aabb]) -> Bvh2 {
         max_depth,
         ..Default::default()
     }
-}
-
-/// Depth of the deepest leaf (the root alone is 1).
-fn depth(nodes: &[Bvh2Node]) -> usize {
-    let mut deepest = 0;
-    let mut todo = vec![(0usize, 1usize)];
-    while let Some((n, d)) = todo.pop() {
-        deepest = deepest.max(d);
-        if nodes[n].prim_count == 0 {
-            let first = nodes[n].first_index as usize;
-            todo.extend([(first, d + 1), (first + 1, d + 1)]);
-        }
-    }
-    deepest
 }
 
 /// Packets of four that `count` triangles take.
@@ -326,7 +315,7 @@ mod tests {
         }
         assert!(seen.iter().all(|&s| s), "every primitive in a leaf");
         assert!(bvh.children_are_ordered_after_parents);
-        assert_eq!(bvh.max_depth, depth(&bvh.nodes));
+        assert_eq!(bvh.max_depth, (subtree_depth(&bvh.nodes) + 1).max(DEFAULT_MAX_STACK_DEPTH));
     }
 
     #[test]
@@ -343,7 +332,7 @@ mod tests {
         let bvh = build(&aabbs);
         check(&bvh, &aabbs);
         // 100 → 50 → 25 → 12/13 → 6/7: leaves of six or seven, four levels down.
-        assert_eq!(bvh.max_depth, 5);
+        assert_eq!(subtree_depth(&bvh.nodes), 5);
     }
 
     #[test]

@@ -246,13 +246,14 @@ impl SlotPlan {
     }
 
     /// Fills `kids` with the BVH2 nodes that become the children of inner node `n`'s wide node
-    /// of `width` slots, in BVH2 order.
-    fn fill(&self, bvh2: &[Bvh2Node], n: usize, width: usize, kids: &mut Vec<usize>) {
+    /// of `width` slots, in BVH2 order. `todo` is scratch space.
+    fn fill(&self, bvh2: &[Bvh2Node], n: usize, width: usize, kids: &mut Vec<usize>, todo: &mut Vec<(usize, usize)>) {
         kids.clear();
         let first = bvh2[n].first_index as usize;
         let k = self.shared(first, width).1;
         // (node, slots it may take); the second child is taken after the first.
-        let mut todo = vec![(first + 1, width - k), (first, k)];
+        todo.clear();
+        todo.extend([(first + 1, width - k), (first, k)]);
         while let Some((m, mut slots)) = todo.pop() {
             while slots > 1 && self.left[m][slots] == 0 {
                 slots -= 1;
@@ -327,8 +328,9 @@ impl<const W: usize> WideBvh<W> {
         // (BVH2 node whose subtree fills the wide node, wide node)
         let mut todo = vec![(0usize, 0usize)];
         let mut kids = Vec::with_capacity(W);
+        let mut slots = Vec::with_capacity(W);
         while let Some((n, out)) = todo.pop() {
-            plan.fill(bvh2, n, W, &mut kids);
+            plan.fill(bvh2, n, W, &mut kids, &mut slots);
             for (slot, &k) in kids.iter().enumerate() {
                 let node = &bvh2[k];
                 nodes[out].set(slot, node.aabb());
