@@ -657,14 +657,18 @@ impl WideBvh<8> {
                 continue;
             }
             let n = &self.nodes[node as usize];
-            for c in 0..8 {
-                // A node's children fill its first slots: the rest are empty.
-                if n.count[c] == 0 && n.child[c] == 0 {
-                    break;
-                }
-                // Only rays that entered this node, and are not yet blocked, go on to its children.
+            // Every child's test first, with no branch between them: each is a chain of
+            // dependent operations ending in a lane mask, and eight independent chains overlap
+            // where a branch on each mask would stall on it (an empty slot is an inverted box,
+            // which no ray enters).
+            let mut tested = [0u32; 8];
+            for (c, t) in tested.iter_mut().enumerate() {
                 // SAFETY: the caller's CPU has `L`'s instruction set.
-                let entered = unsafe { n.test_packet(c, p) } & lanes & open;
+                *t = unsafe { n.test_packet(c, p) };
+            }
+            for (c, &t) in tested.iter().enumerate() {
+                // Only rays that entered this node, and are not yet blocked, go on to its children.
+                let entered = t & lanes & open;
                 if entered == 0 {
                     continue;
                 }
