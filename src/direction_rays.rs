@@ -241,16 +241,8 @@ impl DirectionRays {
                 continue;
             }
             // Each lane's place: its quadrant's next, counting the lanes before it in that
-            // quadrant, or past the rays for none (no branch per lane).
-            let mut at = [traced as u32; 16];
-            for (k, at) in at[..width].iter_mut().enumerate() {
-                let below = (1u32 << k) - 1;
-                for (lanes, cursor) in masks.iter().zip(&cursor) {
-                    if lanes >> k & 1 != 0 {
-                        *at = cursor + (lanes & below).count_ones();
-                    }
-                }
-            }
+            // quadrant, or past the rays for none.
+            let at = unsafe { L::places(masks, &cursor, traced as u32) };
             for (cursor, lanes) in cursor.iter_mut().zip(masks) {
                 *cursor += lanes.count_ones();
             }

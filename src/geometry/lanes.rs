@@ -50,6 +50,10 @@ pub(crate) trait Lanes: Copy {
     /// (`at` holds at least `WIDTH` indices; lanes may share one); the fourth lane of each
     /// vector is 0.
     unsafe fn write_rays(lanes: &RayLanes<Self>, out: &mut [Ray], at: &[u32]);
+    /// Each lane's place in a run laid out group by group: for lane k in `groups[q]` (disjoint
+    /// masks), `start[q]` plus the number of lanes below k in `groups[q]`; `none` for a lane
+    /// in no group.
+    unsafe fn places(groups: &[u32; 4], start: &[u32; 4], none: u32) -> [u32; 16];
     /// `x[0..WIDTH]`.
     unsafe fn load(x: &[f32]) -> Self;
     /// Adds lane k of `x`, `y` and `z` to `out[k]`, for a full vector of `out` (`WIDTH`
@@ -214,6 +218,21 @@ impl Lanes for Avx {
                 _mm256_storeu_ps(p.add(8), back[k]);
             }
         }
+    }
+    /// Lane by lane, without a branch.
+    #[target_feature(enable = "avx")]
+    #[inline]
+    unsafe fn places(groups: &[u32; 4], start: &[u32; 4], none: u32) -> [u32; 16] {
+        let mut at = [none; 16];
+        for (k, at) in at[..8].iter_mut().enumerate() {
+            let below = (1u32 << k) - 1;
+            for (lanes, start) in groups.iter().zip(start) {
+                if lanes >> k & 1 != 0 {
+                    *at = start + (lanes & below).count_ones();
+                }
+            }
+        }
+        at
     }
     #[target_feature(enable = "avx")]
     #[inline]
@@ -430,6 +449,22 @@ impl Lanes for Avx512 {
             unsafe { _mm512_storeu_ps((&mut out[at as usize] as *mut Ray).cast::<f32>(), row) };
         }
     }
+    /// One expand per group: `start[q], start[q] + 1, …` spread over the group's lanes in
+    /// order.
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn places(groups: &[u32; 4], start: &[u32; 4], none: u32) -> [u32; 16] {
+        let iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+        let mut at = _mm512_set1_epi32(none as i32);
+        for (&lanes, &start) in groups.iter().zip(start) {
+            let run = _mm512_add_epi32(_mm512_set1_epi32(start as i32), iota);
+            at = _mm512_mask_expand_epi32(at, lanes as __mmask16, run);
+        }
+        let mut out = [0u32; 16];
+        // SAFETY: `out` holds sixteen u32.
+        unsafe { _mm512_storeu_si512(out.as_mut_ptr().cast(), at) };
+        out
+    }
     #[target_feature(enable = "avx512f")]
     #[inline]
     unsafe fn load(x: &[f32]) -> Self {
@@ -642,6 +677,54 @@ mod tests {
             unsafe { rays_into_lanes::<Avx512>() };
         } else {
             eprintln!("no AVX-512 on this CPU: sixteen-lane packets are not used and not tested");
+        }
+    }
+
+    /// Lanes split into four disjoint groups at random get consecutive places group by group,
+    /// in lane order within a group, and lanes in none get the given index.
+    #[test]
+    fn grouped_lanes_get_their_places_in_order() {
+        if !std::arch::is_x86_feature_detected!("avx") {
+            eprintln!("no AVX on this CPU: packets are not used and not tested");
+            return;
+        }
+        // SAFETY: AVX was detected; AVX-512 is checked.
+        unsafe { places_in_order::<Avx>() };
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            unsafe { places_in_order::<Avx512>() };
+        } else {
+            eprintln!("no AVX-512 on this CPU: sixteen-lane packets are not used and not tested");
+        }
+    }
+
+    /// [`grouped_lanes_get_their_places_in_order`] for `L`.
+    ///
+    /// # Safety
+    /// The CPU must have `L`'s instruction set.
+    unsafe fn places_in_order<L: Lanes>() {
+        let mut rng = SplitMix64::new(8);
+        for _ in 0..200 {
+            // Lane k in group g[k] (4: none).
+            let g: Vec<usize> = (0..L::WIDTH).map(|_| (rng.next_f32() * 5.0) as usize).collect();
+            let mut groups = [0u32; 4];
+            for (k, &g) in g.iter().enumerate() {
+                if g < 4 {
+                    groups[g] |= 1 << k;
+                }
+            }
+            let start = [3, 40, 41, 90].map(|s| s + (rng.next_f32() * 4.0) as u32);
+            // SAFETY: the caller's CPU has `L`'s instruction set.
+            let at = unsafe { L::places(&groups, &start, 999) };
+            let mut next = start;
+            for (k, &g) in g.iter().enumerate() {
+                let want = if g < 4 {
+                    next[g] += 1;
+                    next[g] - 1
+                } else {
+                    999
+                };
+                assert_eq!(at[k], want, "{} lanes, lane {k} in group {g}", L::WIDTH);
+            }
         }
     }
 
