@@ -83,11 +83,62 @@ impl Cmj {
         self.fill_portable(first, p, out);
     }
 
-    /// [`Cmj::fill`] compiled for AVX-512F: sixteen lanes. Same operations, same values.
+    /// [`Cmj::fill`] compiled for AVX-512F: sixteen lanes. Same operations, same values. Where
+    /// n is a power of two and the grid at most 16 × 16, the column and row shuffles are
+    /// worked out once per call, for all 16 columns and rows at once, and looked up by a lane
+    /// permute ([`Cmj::fill_small_grid_avx512`]).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f")]
     fn fill_avx512(&self, first: u32, p: u32, out: &mut [Vec2]) {
+        if self.n.is_power_of_two() && self.m.get() <= 16 && self.k.get() <= 16 {
+            return self.fill_small_grid_avx512(first, p, out);
+        }
         self.fill_portable(first, p, out);
+    }
+
+    /// [`Cmj::fill`] for a power-of-two n on a grid of at most 16 × 16, sixteen samples at a
+    /// time: the sample order's permutation and the two jitters per sample (three of the five
+    /// hashes), the column and row shuffles from tables of sixteen lanes. Each lane does the
+    /// scalar code's operations in its order, so every value is [`Cmj::sample`]'s.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    fn fill_small_grid_avx512(&self, first: u32, p: u32, out: &mut [Vec2]) {
+        use std::arch::x86_64::*;
+
+        use super::hash::lanes::{permute_pow2_lanes, randfloat_lanes};
+        let sc = Scrambles::new(p);
+        let (wn, wm, wk) = (self.n.mask(), self.m.mask(), self.k.mask());
+        let shift = self.m.get().trailing_zeros();
+        let u = |x: u32| _mm512_set1_epi32(x as i32);
+        let iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+        // Column c's shuffled sub-column in lane c (lanes past m hold values never looked up).
+        let by_col = permute_pow2_lanes(_mm512_and_si512(iota, u(wm)), wm, sc.x);
+        let by_row = permute_pow2_lanes(_mm512_and_si512(iota, u(wk)), wk, sc.y);
+        let [inv_m, inv_k] = self.inv.map(|v| _mm512_set1_ps(v));
+        let below_one = _mm512_set1_ps(1.0 - f32::EPSILON * 0.5);
+        // x and y of lanes 0–7, then of lanes 8–15, interleaved as `Vec2`s lie in memory.
+        let low = _mm512_setr_epi32(0, 16, 1, 17, 2, 18, 3, 19, 4, 20, 5, 21, 6, 22, 7, 23);
+        let high = _mm512_add_epi32(low, u(8));
+        for (i, chunk) in out.chunks_mut(16).enumerate() {
+            let s = _mm512_add_epi32(u(first + 16 * i as u32), iota);
+            let s = permute_pow2_lanes(s, wn, sc.order);
+            let (col, row) = (_mm512_and_si512(s, u(wm)), _mm512_srlv_epi32(s, u(shift)));
+            let sx = _mm512_permutexvar_epi32(col, by_col);
+            let sy = _mm512_permutexvar_epi32(row, by_row);
+            let (jx, jy) = (randfloat_lanes(s, sc.jx), randfloat_lanes(s, sc.jy));
+            let f = |v| _mm512_cvtepu32_ps(v);
+            let x = _mm512_mul_ps(_mm512_add_ps(f(col), _mm512_mul_ps(_mm512_add_ps(f(sy), jx), inv_k)), inv_m);
+            let y = _mm512_mul_ps(_mm512_add_ps(f(row), _mm512_mul_ps(_mm512_add_ps(f(sx), jy), inv_m)), inv_k);
+            let (x, y) = (_mm512_min_ps(x, below_one), _mm512_min_ps(y, below_one));
+            let pairs = [_mm512_permutex2var_ps(x, low, y), _mm512_permutex2var_ps(x, high, y)];
+            let floats = chunk.as_mut_ptr().cast::<f32>();
+            for (h, pair) in pairs.into_iter().enumerate() {
+                // The floats of this half that the chunk holds (a chunk may be short).
+                let n = (2 * chunk.len()).saturating_sub(16 * h).min(16);
+                // SAFETY: the masked store writes only the chunk's first 2·len floats.
+                unsafe { _mm512_mask_storeu_ps(floats.add(16 * h), ((1u32 << n) - 1) as __mmask16, pair) };
+            }
+        }
     }
 
     #[inline(always)]
