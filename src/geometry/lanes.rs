@@ -636,6 +636,24 @@ impl Lanes for Avx512 {
     }
 }
 
+/// Runs a test's eight-lane version where the CPU has AVX and its sixteen-lane version where
+/// it has AVX-512 as well, saying which it skips.
+#[cfg(test)]
+pub(crate) fn both_widths(eight: unsafe fn(), sixteen: unsafe fn()) {
+    if !std::arch::is_x86_feature_detected!("avx") {
+        eprintln!("no AVX on this CPU: packets are not used and not tested");
+        return;
+    }
+    // SAFETY: AVX was detected.
+    unsafe { eight() };
+    if std::arch::is_x86_feature_detected!("avx512f") {
+        // SAFETY: AVX-512 was detected.
+        unsafe { sixteen() };
+    } else {
+        eprintln!("no AVX-512 on this CPU: sixteen-lane packets are not used and not tested");
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use glam::Vec3A;
@@ -667,34 +685,14 @@ mod tests {
     /// lanes added to elements give each element its own lane.
     #[test]
     fn rays_are_transposed_into_their_lanes() {
-        if !std::arch::is_x86_feature_detected!("avx") {
-            eprintln!("no AVX on this CPU: packets are not used and not tested");
-            return;
-        }
-        // SAFETY: AVX was detected; AVX-512 is checked.
-        unsafe { rays_into_lanes::<Avx>() };
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            unsafe { rays_into_lanes::<Avx512>() };
-        } else {
-            eprintln!("no AVX-512 on this CPU: sixteen-lane packets are not used and not tested");
-        }
+        both_widths(rays_into_lanes::<Avx>, rays_into_lanes::<Avx512>);
     }
 
     /// Lanes split into four disjoint groups at random get consecutive places group by group,
     /// in lane order within a group, and lanes in none get the given index.
     #[test]
     fn grouped_lanes_get_their_places_in_order() {
-        if !std::arch::is_x86_feature_detected!("avx") {
-            eprintln!("no AVX on this CPU: packets are not used and not tested");
-            return;
-        }
-        // SAFETY: AVX was detected; AVX-512 is checked.
-        unsafe { places_in_order::<Avx>() };
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            unsafe { places_in_order::<Avx512>() };
-        } else {
-            eprintln!("no AVX-512 on this CPU: sixteen-lane packets are not used and not tested");
-        }
+        both_widths(places_in_order::<Avx>, places_in_order::<Avx512>);
     }
 
     /// [`grouped_lanes_get_their_places_in_order`] for `L`.

@@ -274,18 +274,8 @@ mod tests {
     /// through vertices and edges, rays parallel to an axis, and segments of every length.
     #[test]
     fn packet_edges_are_the_single_ray_edges_bit_for_bit() {
-        use crate::geometry::lanes::{Avx, Avx512};
-        if !std::arch::is_x86_feature_detected!("avx") {
-            eprintln!("no AVX on this CPU: packets are not used and not tested");
-            return;
-        }
-        // SAFETY: AVX was detected; AVX-512 is checked.
-        unsafe { packet_edges_are_single_ray_edges::<Avx>() };
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            unsafe { packet_edges_are_single_ray_edges::<Avx512>() };
-        } else {
-            eprintln!("no AVX-512 on this CPU: sixteen-lane packets are not used and not tested");
-        }
+        use crate::geometry::lanes::{Avx, Avx512, both_widths};
+        both_widths(packet_edges_are_single_ray_edges::<Avx>, packet_edges_are_single_ray_edges::<Avx512>);
     }
 
     /// [`packet_edges_are_the_single_ray_edges_bit_for_bit`] for packets of `L::WIDTH` rays.
