@@ -24,6 +24,29 @@ fn randfloat(mut i: u32, p: u32) -> f32 {
     (i as f32 * (1.0 / 4_294_967_808.0)).min(1.0 - f32::EPSILON * 0.5)
 }
 
+/// [`randfloat`] of each of sixteen lanes (AVX-512F), with its operations, so each lane gets its
+/// value.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+fn randfloat_lanes(i: std::arch::x86_64::__m512i, p: u32) -> std::arch::x86_64::__m512 {
+    use std::arch::x86_64::*;
+    let u = |x: u32| _mm512_set1_epi32(x as i32);
+    let xor = _mm512_xor_si512;
+    let mut i = xor(i, u(p));
+    i = xor(i, _mm512_srli_epi32::<17>(i));
+    i = xor(i, _mm512_srli_epi32::<10>(i));
+    i = _mm512_mullo_epi32(i, u(0xb365_34e5));
+    i = xor(i, _mm512_srli_epi32::<12>(i));
+    i = xor(i, _mm512_srli_epi32::<21>(i));
+    i = _mm512_mullo_epi32(i, u(0x93fc_4795));
+    i = xor(i, u(0xdf6e_307f));
+    i = xor(i, _mm512_srli_epi32::<17>(i));
+    i = _mm512_mullo_epi32(i, u(1 | p >> 18));
+    let f = _mm512_mul_ps(_mm512_cvtepu32_ps(i), _mm512_set1_ps(1.0 / 4_294_967_808.0));
+    _mm512_min_ps(f, _mm512_set1_ps(1.0 - f32::EPSILON * 0.5))
+}
+
 /// The `n`-point correlated multi-jittered patterns, with the grid shape worked out once. Each
 /// pattern is stratified on an m × k grid (m·k = n) and in both 1-D projections, with the
 /// sample order itself shuffled. Computed per sample, so every (pixel, pass, dimension) gets a pattern of its own without a
@@ -105,7 +128,7 @@ impl Cmj {
     fn fill_small_grid_avx512(&self, first: u32, p: u32, out: &mut [Vec2]) {
         use std::arch::x86_64::*;
 
-        use super::hash::lanes::{permute_pow2_lanes, randfloat_lanes};
+        use super::hash::permute_pow2_lanes;
         let sc = Scrambles::new(p);
         let (wn, wm, wk) = (self.n.mask(), self.m.mask(), self.k.mask());
         let shift = self.m.get().trailing_zeros();

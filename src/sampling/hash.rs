@@ -129,61 +129,37 @@ fn permute_round(mut i: u32, w: u32, p: u32) -> u32 {
     i ^ (i >> 5)
 }
 
-/// [`permute_pow2`] and CMJ's `randfloat` sixteen lanes at a time (AVX-512F): each lane does
-/// the scalar function's operations, so gives its value.
+/// [`permute_pow2`] of each of sixteen lanes (AVX-512F), with the scalar function's
+/// operations, so each lane gets its value.
 #[cfg(target_arch = "x86_64")]
-pub(super) mod lanes {
+#[target_feature(enable = "avx512f")]
+#[inline]
+pub(super) fn permute_pow2_lanes(i: std::arch::x86_64::__m512i, mask: u32, seed: u32) -> std::arch::x86_64::__m512i {
     use std::arch::x86_64::*;
-
-    /// [`super::permute_pow2`] of each lane.
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    pub fn permute_pow2_lanes(i: __m512i, mask: u32, seed: u32) -> __m512i {
-        let u = |x: u32| _mm512_set1_epi32(x as i32);
-        let w = u(mask);
-        let masked_shift = |i: __m512i, n: u32| _mm512_srlv_epi32(_mm512_and_si512(i, w), u(n));
-        let xor = _mm512_xor_si512;
-        let mul = |i: __m512i, k: u32| _mm512_mullo_epi32(i, u(k));
-        let mut i = xor(i, u(seed));
-        i = mul(i, 0xe170_893d);
-        i = xor(i, u(seed >> 16));
-        i = xor(i, masked_shift(i, 4));
-        i = xor(i, u(seed >> 8));
-        i = mul(i, 0x0929_eb3f);
-        i = xor(i, u(seed >> 23));
-        i = xor(i, masked_shift(i, 1));
-        i = mul(i, 1 | seed >> 27);
-        i = mul(i, 0x6935_fa69);
-        i = xor(i, masked_shift(i, 11));
-        i = mul(i, 0x74dc_b303);
-        i = xor(i, masked_shift(i, 2));
-        i = mul(i, 0x9e50_1cc3);
-        i = xor(i, masked_shift(i, 2));
-        i = mul(i, 0xc860_a3df);
-        i = _mm512_and_si512(i, w);
-        i = xor(i, _mm512_srli_epi32::<5>(i));
-        _mm512_and_si512(_mm512_add_epi32(i, u(seed)), w)
-    }
-
-    /// Kensler's hash to a float in [0, 1) of each lane (CMJ's `randfloat`).
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    pub fn randfloat_lanes(i: __m512i, p: u32) -> __m512 {
-        let u = |x: u32| _mm512_set1_epi32(x as i32);
-        let xor = _mm512_xor_si512;
-        let mut i = xor(i, u(p));
-        i = xor(i, _mm512_srli_epi32::<17>(i));
-        i = xor(i, _mm512_srli_epi32::<10>(i));
-        i = _mm512_mullo_epi32(i, u(0xb365_34e5));
-        i = xor(i, _mm512_srli_epi32::<12>(i));
-        i = xor(i, _mm512_srli_epi32::<21>(i));
-        i = _mm512_mullo_epi32(i, u(0x93fc_4795));
-        i = xor(i, u(0xdf6e_307f));
-        i = xor(i, _mm512_srli_epi32::<17>(i));
-        i = _mm512_mullo_epi32(i, u(1 | p >> 18));
-        let f = _mm512_mul_ps(_mm512_cvtepu32_ps(i), _mm512_set1_ps(1.0 / 4_294_967_808.0));
-        _mm512_min_ps(f, _mm512_set1_ps(1.0 - f32::EPSILON * 0.5))
-    }
+    let u = |x: u32| _mm512_set1_epi32(x as i32);
+    let w = u(mask);
+    let masked_shift = |i: __m512i, n: u32| _mm512_srlv_epi32(_mm512_and_si512(i, w), u(n));
+    let xor = _mm512_xor_si512;
+    let mul = |i: __m512i, k: u32| _mm512_mullo_epi32(i, u(k));
+    let mut i = xor(i, u(seed));
+    i = mul(i, 0xe170_893d);
+    i = xor(i, u(seed >> 16));
+    i = xor(i, masked_shift(i, 4));
+    i = xor(i, u(seed >> 8));
+    i = mul(i, 0x0929_eb3f);
+    i = xor(i, u(seed >> 23));
+    i = xor(i, masked_shift(i, 1));
+    i = mul(i, 1 | seed >> 27);
+    i = mul(i, 0x6935_fa69);
+    i = xor(i, masked_shift(i, 11));
+    i = mul(i, 0x74dc_b303);
+    i = xor(i, masked_shift(i, 2));
+    i = mul(i, 0x9e50_1cc3);
+    i = xor(i, masked_shift(i, 2));
+    i = mul(i, 0xc860_a3df);
+    i = _mm512_and_si512(i, w);
+    i = xor(i, _mm512_srli_epi32::<5>(i));
+    _mm512_and_si512(_mm512_add_epi32(i, u(seed)), w)
 }
 
 /// A small deterministic generator (SplitMix64) for building sample sets from a seed.
