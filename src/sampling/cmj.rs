@@ -245,9 +245,12 @@ mod tests {
         }
     }
 
+    /// Every fill path gives `sample`'s values: with AVX-512, lanes for power-of-two grids up to
+    /// 16 × 16 (n ≤ 256) and the vectorised loop above that (1024 is 32 × 32); one sample at a
+    /// time for other n.
     #[test]
     fn fill_gives_the_samples_of_sample() {
-        for n in [1u32, 2, 8, 12, 16, 64, 256] {
+        for n in [1u32, 2, 8, 12, 16, 64, 256, 1024] {
             let cmj = Cmj::new(n);
             for p in [0u32, 1, 99, 0xdead_beef] {
                 for first in [0, n / 3, n - 1] {
