@@ -78,24 +78,40 @@ fn packets(count: usize) -> f32 {
 /// What to do with a node's primitives.
 enum Split {
     Leaf,
-    /// Primitives whose centroid falls in a bin below `bin` (of `bins`) on `axis` go left.
+    /// Primitives whose centroid falls in a bin below `bin` on `axis` (whose bins start at
+    /// `min`, `scale` bins per unit) go left.
     Bins {
         axis: usize,
         bin: usize,
         min: f32,
         scale: f32,
-        bins: usize,
     },
     /// No boundary separates the centroids (all equal): halves by position.
     Halves,
 }
 
-/// The bin of a centroid `c` on an axis starting at `min` with `scale` bins per unit, of
-/// `bins` bins.
+/// The bins, on each axis, of a centroid `c` for axes starting at `min` with `scale` bins per
+/// unit, of `bins` bins: the scaled offset truncated, 0 for NaN or below, the last bin at or
+/// above it (the last boundary belongs to the last bin).
 #[inline(always)]
-fn bin_of(c: f32, min: f32, scale: f32, bins: usize) -> usize {
-    // `as` saturates (NaN gives 0), and the last boundary belongs to the last bin.
-    (((c - min) * scale) as usize).min(bins - 1)
+fn bins_of(c: Vec3A, min: Vec3A, scale: Vec3A, bins: usize) -> [u32; 3] {
+    let f = (c - min) * scale;
+    // Three lanes at once, clamped before truncating; maxps returns its second operand when
+    // either is NaN, so NaN goes to 0. (The scalar saturating conversion took a third of the
+    // binning pass: the builder's `choose` 17.5 → 11.8 % of a one-spp dragon frame.)
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::*;
+        // SAFETY: SSE2 is part of the x86_64 baseline; an __m128i holds four i32.
+        let [x, y, z, _] = unsafe {
+            let f = _mm_min_ps(_mm_max_ps(f.into(), _mm_setzero_ps()), _mm_set1_ps((bins - 1) as f32));
+            std::mem::transmute::<__m128i, [u32; 4]>(_mm_cvttps_epi32(f))
+        };
+        [x, y, z]
+    }
+    // `as` saturates (NaN gives 0).
+    #[cfg(not(target_arch = "x86_64"))]
+    f.to_array().map(|v| (v as usize).min(bins - 1) as u32)
 }
 
 /// Each axis's bins: the union of the boxes whose centroid falls in each, and how many.
@@ -110,9 +126,9 @@ impl<const N: usize> Bins<N> {
     fn of(refs: &[Ref], min: Vec3A, scale: Vec3A) -> Self {
         let mut bins = Bins::EMPTY;
         for r in refs {
-            let c = r.aabb.center();
-            for axis in 0..3 {
-                let bin = &mut bins.0[axis][bin_of(c[axis], min[axis], scale[axis], N)];
+            let index = bins_of(r.aabb.center(), min, scale, N);
+            for (axis, &i) in index.iter().enumerate() {
+                let bin = &mut bins.0[axis][i as usize];
                 bin.0 = bin.0.union(&r.aabb);
                 bin.1 += 1;
             }
@@ -201,7 +217,7 @@ fn choose_in<const N: usize>(refs: &[Ref]) -> (Aabb, Split) {
         return (bounds, if fits { Split::Leaf } else { Split::Halves });
     }
     let (_, axis, bin) = best;
-    (bounds, Split::Bins { axis, bin, min: centroids.min[axis], scale: scale[axis], bins: N })
+    (bounds, Split::Bins { axis, bin, min: centroids.min[axis], scale: scale[axis] })
 }
 
 /// Reorders `refs` for `split` and returns how many go left (neither side empty).
@@ -209,10 +225,15 @@ fn partition(refs: &mut [Ref], split: &Split) -> usize {
     match *split {
         Split::Leaf => unreachable!("a leaf is not partitioned"),
         Split::Halves => refs.len() / 2,
-        Split::Bins { axis, bin, min, scale, bins } => {
+        Split::Bins { axis, bin, min, scale } => {
+            // The bin below `bin` without the conversion: for a whole `bin` ≥ 1, the truncated
+            // (clamped) index is below it exactly when the scaled offset is, and NaN (bin 0)
+            // goes left too.
+            let limit = bin as f32;
             let mut left = 0;
             for j in 0..refs.len() {
-                if bin_of(refs[j].centroid(axis), min, scale, bins) < bin {
+                let offset = (refs[j].centroid(axis) - min) * scale;
+                if offset < limit || offset.is_nan() {
                     refs.swap(j, left);
                     left += 1;
                 }
