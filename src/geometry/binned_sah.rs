@@ -46,13 +46,6 @@ struct Ref {
     index: u32,
 }
 
-impl Ref {
-    #[inline(always)]
-    fn centroid(&self, axis: usize) -> f32 {
-        (self.aabb.min[axis] + self.aabb.max[axis]) * 0.5
-    }
-}
-
 /// Builds a BVH2 over `aabbs` (one per primitive; at least one). Leaves hold at most
 /// [`MAX_LEAF`] primitives, as ranges of `primitive_indices`.
 pub fn build(aabbs: &[Aabb]) -> Bvh2 {
@@ -232,7 +225,8 @@ fn partition(refs: &mut [Ref], split: &Split) -> usize {
             let limit = bin as f32;
             let mut left = 0;
             for j in 0..refs.len() {
-                let offset = (refs[j].centroid(axis) - min) * scale;
+                // obvhs's `center_axis` is `center` on one axis: the centroid binned above.
+                let offset = (refs[j].aabb.center_axis(axis) - min) * scale;
                 if offset < limit || offset.is_nan() {
                     refs.swap(j, left);
                     left += 1;

@@ -327,10 +327,9 @@ impl<const W: usize> WideBvh<W> {
         let plan = SlotPlan::new(bvh2, W);
         // (BVH2 node whose subtree fills the wide node, wide node)
         let mut todo = vec![(0usize, 0usize)];
-        let mut kids = Vec::with_capacity(W);
-        let mut slots = Vec::with_capacity(W);
+        let (mut kids, mut scratch) = (Vec::with_capacity(W), Vec::with_capacity(W));
         while let Some((n, out)) = todo.pop() {
-            plan.fill(bvh2, n, W, &mut kids, &mut slots);
+            plan.fill(bvh2, n, W, &mut kids, &mut scratch);
             for (slot, &k) in kids.iter().enumerate() {
                 let node = &bvh2[k];
                 nodes[out].set(slot, node.aabb());
