@@ -4,6 +4,7 @@
 use glam::Vec2;
 
 use super::{
+    ONE_MINUS_EPSILON,
     generators::grid_shape,
     hash::{Modulus, permute, permute_pow2},
 };
@@ -21,7 +22,7 @@ fn randfloat(mut i: u32, p: u32) -> f32 {
     i ^= 0xdf6e_307f;
     i ^= i >> 17;
     i = i.wrapping_mul(1 | p >> 18);
-    (i as f32 * (1.0 / 4_294_967_808.0)).min(1.0 - f32::EPSILON * 0.5)
+    (i as f32 * (1.0 / 4_294_967_808.0)).min(ONE_MINUS_EPSILON)
 }
 
 /// [`randfloat`] of each of sixteen lanes (AVX-512F), with its operations, so each lane gets its
@@ -44,7 +45,7 @@ fn randfloat_lanes(i: std::arch::x86_64::__m512i, p: u32) -> std::arch::x86_64::
     i = xor(i, _mm512_srli_epi32::<17>(i));
     i = _mm512_mullo_epi32(i, u(1 | p >> 18));
     let f = _mm512_mul_ps(_mm512_cvtepu32_ps(i), _mm512_set1_ps(1.0 / 4_294_967_808.0));
-    _mm512_min_ps(f, _mm512_set1_ps(1.0 - f32::EPSILON * 0.5))
+    _mm512_min_ps(f, _mm512_set1_ps(ONE_MINUS_EPSILON))
 }
 
 /// The `n`-point correlated multi-jittered patterns, with the grid shape worked out once. Each
@@ -138,7 +139,7 @@ impl Cmj {
         let by_col = permute_pow2_lanes(_mm512_and_si512(iota, u(wm)), wm, sc.x);
         let by_row = permute_pow2_lanes(_mm512_and_si512(iota, u(wk)), wk, sc.y);
         let [inv_m, inv_k] = self.inv.map(|v| _mm512_set1_ps(v));
-        let below_one = _mm512_set1_ps(1.0 - f32::EPSILON * 0.5);
+        let below_one = _mm512_set1_ps(ONE_MINUS_EPSILON);
         // x and y of lanes 0–7, then of lanes 8–15, interleaved as `Vec2`s lie in memory.
         let low = _mm512_setr_epi32(0, 16, 1, 17, 2, 18, 3, 19, 4, 20, 5, 21, 6, 22, 7, 23);
         let high = _mm512_add_epi32(low, u(8));
@@ -191,7 +192,7 @@ impl Cmj {
         let jy = randfloat(s, sc.jy);
         let x = (col as f32 + (sy as f32 + jx) * inv_k) * inv_m;
         let y = (row as f32 + (sx as f32 + jy) * inv_m) * inv_k;
-        let below_one = |v: f32| v.min(1.0 - f32::EPSILON * 0.5);
+        let below_one = |v: f32| v.min(ONE_MINUS_EPSILON);
         [below_one(x), below_one(y)]
     }
 }

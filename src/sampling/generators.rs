@@ -95,7 +95,7 @@ pub fn grid_shape(n: u32) -> (u32, u32) {
 /// Clamps a coordinate into [0,1) so that `x + jitter` rounding up to 1.0 cannot escape.
 #[inline]
 fn below_one(x: f32) -> f32 {
-    x.min(1.0 - f32::EPSILON * 0.5)
+    x.min(super::ONE_MINUS_EPSILON)
 }
 
 fn regular(n: u32, out: &mut Vec<Vec2>) {

@@ -165,7 +165,7 @@ impl ZSobol {
         let morton = (morton2(x, y) << self.log2_spp) | index as u64;
         let a = self.sample_index(morton, dim) as u32;
         let hash = mix64(seed ^ mix64(dim as u64 + 1));
-        let to_unit = |bits: u32| (bits as f32 * (1.0 / 4_294_967_296.0)).min(1.0 - f32::EPSILON * 0.5);
+        let to_unit = |bits: u32| (bits as f32 * (1.0 / 4_294_967_296.0)).min(super::ONE_MINUS_EPSILON);
         [to_unit(fast_owen(sobol_bits(a, 0), hash as u32)), to_unit(fast_owen(sobol_bits(a, 1), (hash >> 32) as u32))]
     }
 }
