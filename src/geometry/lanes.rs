@@ -198,10 +198,15 @@ impl Lanes for Avx {
                 back[k] = _mm256_maskload_ps(p.add(8), tail);
             }
         }
-        let [ox, oy, oz, _, dx, dy, dz, _] = transpose8(&front).map(Avx);
-        let [ix, iy, iz, _, tmax, ..] = transpose8(&back).map(Avx);
-        let (origin, dir, inv_dir) = ([ox, oy, oz], [dx, dy, dz], [ix, iy, iz]);
-        RayLanes { origin, dir, inv_dir, tmax }
+        // Indexed, not `.map(Avx)`: `map` is generic std code, compiled without AVX, and out
+        // of line it passes the rows through memory.
+        let (f, b) = (transpose8(&front), transpose8(&back));
+        RayLanes {
+            origin: [Avx(f[0]), Avx(f[1]), Avx(f[2])],
+            dir: [Avx(f[4]), Avx(f[5]), Avx(f[6])],
+            inv_dir: [Avx(b[0]), Avx(b[1]), Avx(b[2])],
+            tmax: Avx(b[4]),
+        }
     }
     #[target_feature(enable = "avx")]
     #[inline]
@@ -418,8 +423,15 @@ impl Lanes for Avx512 {
             // the first RAY_FLOATS.
             *row = unsafe { _mm512_maskz_loadu_ps((1 << RAY_FLOATS) - 1, p) };
         }
-        let [ox, oy, oz, _, dx, dy, dz, _, ix, iy, iz, _, tmax, ..] = transpose16(&row).map(Avx512);
-        RayLanes { origin: [ox, oy, oz], dir: [dx, dy, dz], inv_dir: [ix, iy, iz], tmax }
+        // Indexed, not `.map(Avx512)`: `map` is generic std code, compiled without AVX-512, and
+        // out of line it passes the rows through memory.
+        let t = transpose16(&row);
+        RayLanes {
+            origin: [Avx512(t[0]), Avx512(t[1]), Avx512(t[2])],
+            dir: [Avx512(t[4]), Avx512(t[5]), Avx512(t[6])],
+            inv_dir: [Avx512(t[8]), Avx512(t[9]), Avx512(t[10])],
+            tmax: Avx512(t[12]),
+        }
     }
     #[target_feature(enable = "avx512f")]
     #[inline]
