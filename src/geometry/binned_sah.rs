@@ -11,7 +11,7 @@
 //! 32768 or more in parallel chunks; the result does not depend on the thread count. Children come after their parents in the node array, the two
 //! children of an inner node side by side, as [`obvhs::bvh2::Bvh2`] expects.
 
-use glam::Vec3A;
+use glam::{BVec3A, Vec3A};
 use obvhs::{
     aabb::Aabb,
     bvh2::{Bvh2, DEFAULT_MAX_STACK_DEPTH, node::Bvh2Node},
@@ -44,6 +44,21 @@ const PARALLEL_MIN: usize = 8192;
 struct Ref {
     aabb: Aabb,
     index: u32,
+}
+
+impl Ref {
+    /// This ref where `pick`, else `other`, chosen by selects rather than a branch.
+    #[inline(always)]
+    fn or(self, other: Ref, pick: bool) -> Ref {
+        let m = BVec3A::splat(pick);
+        Ref {
+            aabb: Aabb {
+                min: Vec3A::select(m, self.aabb.min, other.aabb.min),
+                max: Vec3A::select(m, self.aabb.max, other.aabb.max),
+            },
+            index: if pick { self.index } else { other.index },
+        }
+    }
 }
 
 /// Builds a BVH2 over `aabbs` (one per primitive; at least one). Leaves hold at most
@@ -227,10 +242,13 @@ fn partition(refs: &mut [Ref], split: &Split) -> usize {
             for j in 0..refs.len() {
                 // obvhs's `center_axis` is `center` on one axis: the centroid binned above.
                 let offset = (refs[j].aabb.center_axis(axis) - min) * scale;
-                if offset < limit || offset.is_nan() {
-                    refs.swap(j, left);
-                    left += 1;
-                }
+                let goes_left = offset < limit || offset.is_nan();
+                // `if goes_left { refs.swap(j, left) }` without the branch, whose outcome is as
+                // good as random near the root: both places are written, by selects.
+                let (a, b) = (refs[j], refs[left]);
+                refs[left] = a.or(b, goes_left);
+                refs[j] = b.or(a, goes_left);
+                left += usize::from(goes_left);
             }
             left
         }
@@ -291,8 +309,6 @@ fn subtree_serial(refs: &mut [Ref], offset: usize) -> Vec<Bvh2Node> {
 
 #[cfg(test)]
 mod tests {
-    use glam::Vec3A;
-
     use super::*;
     use crate::sampling::hash::SplitMix64;
 
@@ -370,5 +386,28 @@ mod tests {
         check(&bvh, &aabbs);
         let leaves: Vec<u32> = bvh.nodes.iter().filter(|n| n.prim_count > 0).map(|n| n.prim_count).collect();
         assert!(leaves.iter().all(|&c| c % 4 == 0), "leaves {leaves:?}");
+    }
+
+    #[test]
+    fn partition_swaps_exactly_as_the_branching_loop_did() {
+        let aabbs = boxes(1000, 7);
+        let mut refs: Vec<Ref> = aabbs.iter().enumerate().map(|(i, &aabb)| Ref { aabb, index: i as u32 }).collect();
+        // A NaN box goes left, as its bin is 0.
+        refs[500].aabb = Aabb::new(Vec3A::splat(f32::NAN), Vec3A::splat(f32::NAN));
+        for (axis, bin) in [(0, 1), (1, 16), (2, 31), (0, 9)] {
+            let split = Split::Bins { axis, bin, min: 0.0, scale: 32.0 / 100.0 };
+            let mut want = refs.clone();
+            let mut left = 0;
+            for j in 0..want.len() {
+                let offset = want[j].aabb.center_axis(axis) * (32.0 / 100.0);
+                if offset < bin as f32 || offset.is_nan() {
+                    want.swap(j, left);
+                    left += 1;
+                }
+            }
+            assert_eq!(partition(&mut refs, &split), left, "axis {axis}, bin {bin}");
+            let key = |r: &[Ref]| r.iter().map(|r| (r.index, r.aabb.min.x.to_bits())).collect::<Vec<_>>();
+            assert_eq!(key(&refs), key(&want), "axis {axis}, bin {bin}");
+        }
     }
 }
