@@ -313,47 +313,44 @@ fn update(
     (SceneGeometry::from_instances(blases, instances, planes, objects), problems, work)
 }
 
+/// The mesh of an entry that is baked: static (no [`Dynamic`] marker, not deforming), its
+/// only shape component, and a mesh that `users` counts once.
+fn baked_mesh<'a>(entry: &ShapeData<'a>, users: &HashMap<usize, usize>) -> Option<&'a TriangleMesh> {
+    let &(_, _, _, _, sphere, plane, cuboid, mesh, deforming, dynamic) = entry;
+    let other_shape = sphere.is_some() || plane.is_some() || cuboid.is_some();
+    mesh.filter(|m| !(other_shape || dynamic || deforming.is_some() || users[&key(&m.0)] > 1))
+}
+
 /// Bakes the static meshes that one entity each uses (no [`Dynamic`] marker, not deforming,
 /// no other shape component) into one world-space BLAS: which entities went in, and the BLAS
 /// (`None` when there are none). Unusable meshes are reported and left out.
-fn bake_static_meshes(entries: &[ShapeData], found: &mut Vec<String>) -> (HashSet<Entity>, Option<Arc<Blas>>) {
+fn bake_static_meshes<'a>(entries: &[ShapeData<'a>], found: &mut Vec<String>) -> (HashSet<Entity>, Option<Arc<Blas>>) {
     let mut users: HashMap<usize, usize> = HashMap::new();
     for e in entries {
         if let Some(mesh) = e.7 {
             *users.entry(key(&mesh.0)).or_default() += 1;
         }
     }
+    let bakes = |entry: &ShapeData<'a>| baked_mesh(entry, &users);
+    // Every baked triangle goes straight into one vector, sized once.
+    let mut all = world_space::Converted::default();
+    all.prims.reserve(entries.iter().filter_map(bakes).map(|m| m.0.indices.len()).sum());
     let mut baked = HashSet::new();
-    let (mut prims, mut degenerate) = (Vec::new(), 0);
-    for (object, &(entity, name, transform, matte, sphere, plane, cuboid, mesh, deforming, dynamic)) in
-        entries.iter().enumerate()
-    {
-        let Some(mesh) = mesh else { continue };
-        let other_shape = sphere.is_some() || plane.is_some() || cuboid.is_some();
-        if other_shape || dynamic || deforming.is_some() || users[&key(&mesh.0)] > 1 {
-            continue;
-        }
+    for (object, entry) in entries.iter().enumerate() {
+        let Some(mesh) = bakes(entry) else { continue };
+        let &(entity, name, transform, matte, ..) = entry;
         baked.insert(entity);
-        let converted =
-            world_space::validate_material(matte).and_then(|()| world_space::mesh(&mesh.0, transform, object as u32));
-        match converted {
-            Ok(c) => {
-                // The first mesh's primitives are moved, not copied.
-                if prims.is_empty() {
-                    prims = c.prims
-                } else {
-                    prims.extend(c.prims)
-                }
-                degenerate += c.degenerate;
-            }
-            Err(e) => found.push(describe(entity, name, e)),
+        let converted = world_space::validate_material(matte)
+            .and_then(|()| world_space::append_mesh(&mesh.0, transform, object as u32, &mut all));
+        if let Err(e) = converted {
+            found.push(describe(entity, name, e));
         }
     }
-    if prims.is_empty() {
+    if all.prims.is_empty() {
         return (baked, None);
     }
-    let mut blas = Blas::build(prims);
-    blas.degenerate_triangles = degenerate;
+    let mut blas = Blas::build(all.prims);
+    blas.degenerate_triangles = all.degenerate;
     (baked, Some(Arc::new(blas)))
 }
 
