@@ -537,13 +537,11 @@ impl Blas {
         let triangle_count = prims.iter().filter(|p| matches!(p.shape, Shape::Triangle(_))).count();
         let bvh = if prims.is_empty() {
             Bvh2::default()
+        } else if prims.len() < SMALL_SET {
+            let aabbs: Vec<Aabb> = prims.iter().map(Prim::bounds).collect();
+            build_bvh2(&aabbs, small_set_params(), &mut Duration::default())
         } else {
-            let aabbs: Vec<Aabb> = prims.par_iter().with_min_len(PAR_CHUNK).map(Prim::bounds).collect();
-            if prims.len() < SMALL_SET {
-                build_bvh2(&aabbs, small_set_params(), &mut Duration::default())
-            } else {
-                binned_sah::build(&aabbs)
-            }
+            binned_sah::build(prims.len(), |i| prims[i].bounds())
         };
         let prims = bvh.primitive_indices.par_iter().with_min_len(PAR_CHUNK).map(|&i| prims[i as usize]).collect();
         let depth = subtree_depth(&bvh.nodes);

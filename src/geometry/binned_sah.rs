@@ -61,10 +61,16 @@ impl Ref {
     }
 }
 
-/// Builds a BVH2 over `aabbs` (one per primitive; at least one). Leaves hold at most
-/// [`MAX_LEAF`] primitives, as ranges of `primitive_indices`.
-pub fn build(aabbs: &[Aabb]) -> Bvh2 {
-    let mut refs: Vec<Ref> = aabbs.iter().enumerate().map(|(i, &aabb)| Ref { aabb, index: i as u32 }).collect();
+/// Builds a BVH2 over `count` primitives (at least one), primitive `i` bounded by
+/// `bounds(i)`. Leaves hold at most [`MAX_LEAF`] primitives, as ranges of
+/// `primitive_indices`. The boxes go straight into the builder's references, in parallel:
+/// no array of boxes is made first.
+pub fn build(count: usize, bounds: impl Fn(usize) -> Aabb + Sync) -> Bvh2 {
+    let mut refs: Vec<Ref> = (0..count)
+        .into_par_iter()
+        .with_min_len(PARALLEL_MIN)
+        .map(|i| Ref { aabb: bounds(i), index: i as u32 })
+        .collect();
     let nodes = subtree(&mut refs, 0);
     // obvhs's convention (as its PLOC builder sets it): a bound for its traversal stacks.
     let max_depth = (subtree_depth(&nodes) + 1).max(DEFAULT_MAX_STACK_DEPTH);
@@ -353,14 +359,14 @@ mod tests {
     fn every_primitive_lands_in_one_leaf_under_tight_boxes() {
         for n in [1, 2, 7, 8, 9, 100, 3 * PARALLEL_MIN + 5] {
             let aabbs = boxes(n, n as u64);
-            check(&build(&aabbs), &aabbs);
+            check(&build(aabbs.len(), |i| aabbs[i]), &aabbs);
         }
     }
 
     #[test]
     fn equal_centroids_are_split_in_halves() {
         let aabbs = vec![Aabb::new(Vec3A::ZERO, Vec3A::ONE); 100];
-        let bvh = build(&aabbs);
+        let bvh = build(aabbs.len(), |i| aabbs[i]);
         check(&bvh, &aabbs);
         // 100 → 50 → 25 → 12/13 → 6/7: leaves of six or seven, four levels down.
         assert_eq!(subtree_depth(&bvh.nodes), 5);
@@ -369,8 +375,16 @@ mod tests {
     #[test]
     fn the_tree_does_not_depend_on_the_thread_count() {
         let aabbs = boxes(5 * PARALLEL_MIN, 3);
-        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap().install(|| build(&aabbs));
-        let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap().install(|| build(&aabbs));
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap()
+            .install(|| build(aabbs.len(), |i| aabbs[i]));
+        let two = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap()
+            .install(|| build(aabbs.len(), |i| aabbs[i]));
         assert_eq!(one.primitive_indices, two.primitive_indices);
         let key = |b: &Bvh2| b.nodes.iter().map(|n| (n.first_index, n.prim_count)).collect::<Vec<_>>();
         assert_eq!(key(&one), key(&two));
@@ -382,7 +396,7 @@ mod tests {
         let aabbs: Vec<Aabb> = (0..16)
             .map(|i| Aabb::new(Vec3A::new(i as f32 * 2.0, 0.0, 0.0), Vec3A::new(i as f32 * 2.0 + 1.0, 1.0, 1.0)))
             .collect();
-        let bvh = build(&aabbs);
+        let bvh = build(aabbs.len(), |i| aabbs[i]);
         check(&bvh, &aabbs);
         let leaves: Vec<u32> = bvh.nodes.iter().filter(|n| n.prim_count > 0).map(|n| n.prim_count).collect();
         assert!(leaves.iter().all(|&c| c % 4 == 0), "leaves {leaves:?}");

@@ -936,7 +936,7 @@ mod tests {
                 Aabb::new(min, min + Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()))
             })
             .collect();
-        let binned = super::super::binned_sah::build(&boxes).nodes;
+        let binned = super::super::binned_sah::build(boxes.len(), |i| boxes[i]).nodes;
         let ploc = build_bvh2(&boxes, BvhBuildParams::medium_build(), &mut Duration::default()).nodes;
         // The binned layout takes the sequential pass.
         assert!(children_after_parents(&binned));
