@@ -30,7 +30,7 @@ use super::{
     ray::{Ray, Shear},
     shapes::{PlanePrim, SpherePrim, Triangle},
     tri4::{RayTri4, Tri4},
-    wide_bvh::{Bvh4, Node, NodeTest, WideBvh, prefetch},
+    wide_bvh::{Bvh4, Node, NodeTest, WideBvh, children_after_parents, prefetch},
 };
 #[cfg(target_arch = "x86_64")]
 use super::{
@@ -904,8 +904,31 @@ impl std::fmt::Debug for Blas {
     }
 }
 
-/// Depth of the deepest leaf of a BVH2 (the root alone is 1; an empty tree is 0).
+/// Depth of the deepest leaf of a BVH2 (the root alone is 1; an empty tree is 0): in one
+/// forward pass where every inner node's children come after it (the binned builder's
+/// layout), else by walking the tree, whose random node reads miss the cache on large trees.
 pub(super) fn subtree_depth(nodes: &[Bvh2Node]) -> usize {
+    if children_after_parents(nodes) { forward_depth(nodes) } else { walked_depth(nodes) }
+}
+
+/// [`subtree_depth`] of a tree whose inner nodes' children come after them: each node's depth
+/// is set by its parent before the pass reaches it.
+fn forward_depth(nodes: &[Bvh2Node]) -> usize {
+    let mut depth = vec![0u32; nodes.len()];
+    let mut max = 0;
+    for (i, n) in nodes.iter().enumerate() {
+        let d = if i == 0 { 1 } else { depth[i] };
+        max = max.max(d);
+        if n.prim_count == 0 {
+            let first = n.first_index as usize;
+            depth[first..first + 2].fill(d + 1);
+        }
+    }
+    max as usize
+}
+
+/// [`subtree_depth`] by a depth-first walk from the root.
+fn walked_depth(nodes: &[Bvh2Node]) -> usize {
     let mut max = 0;
     let mut stack = vec![(0usize, 1usize)];
     while let Some((i, d)) = stack.pop() {
@@ -1384,4 +1407,27 @@ pub fn outward_normal(mesh: &Mesh, triangle: usize, to_world: &Affine3A) -> Vec3
     let [a, b, c] = mesh.indices[triangle].map(|i| mesh.positions[i as usize]);
     let n = (b - a).cross(c - a);
     (to_world.matrix3.inverse().transpose() * Vec3A::from(n)).normalize().into()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::hash::SplitMix64;
+
+    #[test]
+    fn the_forward_depth_pass_agrees_with_the_walk() {
+        let mut rng = SplitMix64::new(11);
+        for n in [1usize, 2, 9, 100, 5000] {
+            let boxes: Vec<Aabb> = (0..n)
+                .map(|_| {
+                    let min = Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 100.0;
+                    Aabb::new(min, min + Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()))
+                })
+                .collect();
+            let binned = binned_sah::build(n, |i| boxes[i]).nodes;
+            assert!(children_after_parents(&binned), "{n} boxes");
+            assert_eq!(forward_depth(&binned), walked_depth(&binned), "{n} boxes");
+            assert_eq!(subtree_depth(&binned), walked_depth(&binned), "{n} boxes");
+        }
+    }
 }

@@ -273,7 +273,7 @@ impl SlotPlan {
 }
 
 /// Whether every inner node of `bvh2` has its children after it in the array.
-fn children_after_parents(bvh2: &[Bvh2Node]) -> bool {
+pub(super) fn children_after_parents(bvh2: &[Bvh2Node]) -> bool {
     bvh2.iter()
         .enumerate()
         .all(|(i, n)| n.prim_count > 0 || (n.first_index as usize > i && n.first_index as usize + 1 < bvh2.len()))
