@@ -47,9 +47,9 @@ struct Ref {
 }
 
 impl Ref {
-    /// This ref where `pick`, else `other`, chosen by selects rather than a branch.
+    /// This ref if `pick`, else `other`, chosen by selects rather than a branch.
     #[inline(always)]
-    fn or(self, other: Ref, pick: bool) -> Ref {
+    fn if_else(self, pick: bool, other: Ref) -> Ref {
         let m = BVec3A::splat(pick);
         Ref {
             aabb: Aabb {
@@ -252,8 +252,8 @@ fn partition(refs: &mut [Ref], split: &Split) -> usize {
                 // `if goes_left { refs.swap(j, left) }` without the branch, whose outcome is as
                 // good as random near the root: both places are written, by selects.
                 let (a, b) = (refs[j], refs[left]);
-                refs[left] = a.or(b, goes_left);
-                refs[j] = b.or(a, goes_left);
+                refs[left] = a.if_else(goes_left, b);
+                refs[j] = b.if_else(goes_left, a);
                 left += usize::from(goes_left);
             }
             left
