@@ -21,12 +21,12 @@ use crate::resources::RenderSettings;
 use glam::Vec2;
 
 use cmj::Cmj;
-
-/// The largest f32 below 1: where sample coordinates are clamped so that they stay in [0, 1).
-pub(crate) const ONE_MINUS_EPSILON: f32 = 1.0 - crate::math::MACHINE_EPSILON;
 pub use generators::SamplerKind;
 use hash::{Modulus, SplitMix64, hash_sample, mix64, permute, seed_key};
 use sobol::ZSobol;
+
+/// The largest f32 below 1: where sample coordinates are clamped so that they stay in [0, 1).
+pub(crate) const ONE_MINUS_EPSILON: f32 = 1.0 - crate::math::MACHINE_EPSILON;
 
 /// Sample dimensions: each consumer of 2-D samples owns one pair.
 pub mod dims {
