@@ -536,6 +536,8 @@ fn render(args: RenderArgs) -> Result<(), HemiError> {
 struct Totals {
     rays: RayCounts,
     trace_secs: f64,
+    /// The part of `trace_secs` spent in the ambient occluder (see [`crate::stats::TraceSplit`]).
+    ao_secs: f64,
     frames: u32,
     /// Per-frame JSON records, kept only for `--stats-json`.
     json: Option<Vec<serde_json::Value>>,
@@ -554,6 +556,8 @@ impl Totals {
                 "rays": { "primary": self.rays.primary, "ao": self.rays.ao, "shadow": self.rays.shadow },
                 "mrays_per_s": per_s(self.rays.total()),
                 "ao_mrays_per_s": per_s(self.rays.ao),
+                "ao_seconds": self.ao_secs,
+                "ao_kernel_mrays_per_s": if self.ao_secs > 0.0 { self.rays.ao as f64 / self.ao_secs / 1e6 } else { 0.0 },
             }
         })
     }
@@ -573,6 +577,7 @@ fn render_image(renderer: &mut Renderer, spp: u32, print_stats: bool, totals: &m
         let stats = renderer.run_frame()?;
         totals.rays.add(&stats.rays);
         totals.trace_secs += stats.time_of("trace").as_secs_f64();
+        totals.ao_secs += stats.trace_time_of(crate::light::Term::Ambient).as_secs_f64();
         totals.frames += 1;
         if let Some(records) = &mut totals.json {
             records.push(stats.to_json());

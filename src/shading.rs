@@ -11,6 +11,7 @@ use crate::{
     light::{DirectionRun, LightGroup, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term},
     resources::AovValues,
     sampling::{SampleSets, dims},
+    stats::{TraceSplit, cycle_count},
 };
 
 /// Rays traced, by kind.
@@ -207,6 +208,10 @@ pub struct Tracer {
     points: Vec<RunPoint>,
     /// Rays traced by this tracer.
     pub rays: RayCounts,
+    /// Whether the pixel being traced is timed: light groups' cycles then go to `split`.
+    pub timing: bool,
+    /// Cycle counts of the timed pixels ([`TraceSplit`]); the caller counts whole pixels.
+    pub split: TraceSplit,
 }
 
 /// Light samples of a run computed ahead: dimension `dims::LIGHTS + k` of sample `j` is
@@ -274,8 +279,12 @@ impl Tracer {
         for &(first_dim, group) in scene.lights {
             arriving.clear();
             arriving.resize(points.len(), Vec3A::ZERO);
+            let start = self.timing.then(cycle_count);
             group.shade_points(self, scene, &points, pixel, first, first_dim, skip_black, &mut arriving);
             let term = group.term();
+            if let Some(start) = start {
+                self.split.add_term(term, cycle_count() - start);
+            }
             for (p, &a) in points.iter().zip(&arriving) {
                 out[p.j as usize].add_light(term, term.reflectance(&p.at.material), a.into());
             }
@@ -326,7 +335,11 @@ impl Tracer {
             }
             arriving.clear();
             arriving.resize(out.len(), Vec3A::ZERO);
+            let start = self.timing.then(cycle_count);
             group.shade(self, scene, &spawn, &at, pixel, first, first_dim, &mut arriving);
+            if let Some(start) = start {
+                self.split.add_term(term, cycle_count() - start);
+            }
             out.add_light(term, reflectance, &arriving);
         }
         self.arriving = arriving;

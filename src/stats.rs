@@ -4,7 +4,71 @@ use std::{fmt::Write, time::Duration};
 
 use bevy_ecs::prelude::Resource;
 
-use crate::{geometry::accel::BvhWork, shading::RayCounts};
+use crate::{geometry::accel::BvhWork, light::Term, shading::RayCounts};
+
+/// A reading of the CPU's cycle counter (the time-stamp counter on x86_64, nanoseconds since
+/// the first call elsewhere): only differences and ratios of readings mean anything.
+#[inline(always)]
+pub fn cycle_count() -> u64 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        // SAFETY: every x86_64 CPU has RDTSC, and reading it has no other effect.
+        unsafe { std::arch::x86_64::_rdtsc() }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        static EPOCH: std::sync::OnceLock<std::time::Instant> = std::sync::OnceLock::new();
+        EPOCH.get_or_init(std::time::Instant::now).elapsed().as_nanos() as u64
+    }
+}
+
+/// Whether the trace system times pixel `pixel` for [`TraceSplit`]: a fixed, evenly spread
+/// sixteenth of the pixels (Fibonacci hashing), so reading the counter costs next to nothing.
+#[inline(always)]
+pub fn timed_pixel(pixel: u32) -> bool {
+    pixel.wrapping_mul(0x9E37_79B9) >> 28 == 0
+}
+
+/// Cycle counts over the pixels [`timed_pixel`] picks: whole pixels (camera rays, shading,
+/// film), and the part spent in lights of each term (their sampling, shadow rays and sums).
+/// Their ratios split the trace system's wall time by stage.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TraceSplit {
+    /// Cycles of the timed pixels, start to end.
+    pub pixels: u64,
+    /// Cycles inside ambient-term lights (the ambient occluder: AO).
+    pub ambient: u64,
+    /// Cycles inside diffuse-term lights (direct light).
+    pub diffuse: u64,
+}
+
+impl TraceSplit {
+    /// Counts `cycles` spent in a light of term `term`.
+    #[inline]
+    pub fn add_term(&mut self, term: Term, cycles: u64) {
+        match term {
+            Term::Ambient => self.ambient += cycles,
+            Term::Diffuse => self.diffuse += cycles,
+        }
+    }
+
+    /// Adds another split's counts to this one.
+    pub fn add(&mut self, other: &TraceSplit) {
+        self.pixels += other.pixels;
+        self.ambient += other.ambient;
+        self.diffuse += other.diffuse;
+    }
+
+    /// The share of `trace` (the trace system's wall time) spent in lights of `term`: its
+    /// share of the timed pixels' cycles.
+    pub fn time_of(&self, term: Term, trace: Duration) -> Duration {
+        let cycles = match term {
+            Term::Ambient => self.ambient,
+            Term::Diffuse => self.diffuse,
+        };
+        if self.pixels == 0 { Duration::ZERO } else { trace.mul_f64((cycles as f64 / self.pixels as f64).min(1.0)) }
+    }
+}
 
 /// Wall time one system spent in this frame.
 #[derive(Clone, Debug, PartialEq)]
@@ -48,6 +112,8 @@ pub struct FrameStats {
     pub buffer_bytes: usize,
     /// Samples rejected because they were NaN or infinite (should stay 0).
     pub nonfinite_samples: u64,
+    /// How the trace system's time divides between AO, direct light and the rest.
+    pub trace_split: TraceSplit,
 }
 
 impl FrameStats {
@@ -79,6 +145,18 @@ impl FrameStats {
         if t > 0.0 { self.rays.ao as f64 / t / 1e6 } else { 0.0 }
     }
 
+    /// The trace system's wall time spent in lights of `term` (see [`TraceSplit`]).
+    pub fn trace_time_of(&self, term: Term) -> Duration {
+        self.trace_split.time_of(term, self.time_of("trace"))
+    }
+
+    /// AO rays per second of the trace system's time spent in the ambient occluder (sampling,
+    /// AO rays and sums, as [`TraceSplit`] measures it), in millions: the AO kernel alone.
+    pub fn ao_kernel_mrays_per_second(&self) -> f64 {
+        let t = self.trace_time_of(Term::Ambient).as_secs_f64();
+        if t > 0.0 { self.rays.ao as f64 / t / 1e6 } else { 0.0 }
+    }
+
     /// This frame as JSON (the `--stats-json` record of one frame).
     pub fn to_json(&self) -> serde_json::Value {
         let systems: Vec<serde_json::Value> = self
@@ -95,6 +173,11 @@ impl FrameStats {
             "rays": { "primary": self.rays.primary, "ao": self.rays.ao, "shadow": self.rays.shadow },
             "mrays_per_s": self.mrays_per_second(),
             "ao_mrays_per_s": self.ao_mrays_per_second(),
+            "ao_kernel_mrays_per_s": self.ao_kernel_mrays_per_second(),
+            "trace_split": {
+                "ao_ms": self.trace_time_of(Term::Ambient).as_secs_f64() * 1e3,
+                "direct_ms": self.trace_time_of(Term::Diffuse).as_secs_f64() * 1e3,
+            },
             "bvh": {
                 "blas_built": self.bvh_work.blas_built,
                 "blas_refit": self.bvh_work.blas_refit,
@@ -124,6 +207,17 @@ impl FrameStats {
         );
         for sys in &self.systems {
             let _ = writeln!(s, "  {:<12} {:>10.3} ms  {}", sys.name, sys.time.as_secs_f64() * 1e3, sys.note);
+            if sys.name == "trace" && self.trace_split.pixels > 0 {
+                let trace = self.time_of("trace").as_secs_f64() * 1e3;
+                let (ao, direct) = (self.trace_time_of(Term::Ambient), self.trace_time_of(Term::Diffuse));
+                let (ao, direct) = (ao.as_secs_f64() * 1e3, direct.as_secs_f64() * 1e3);
+                let _ = writeln!(
+                    s,
+                    "    of which     AO {ao:.1} ms ({:.2} Mrays/s), direct light {direct:.1} ms, camera rays and the rest {:.1} ms",
+                    self.ao_kernel_mrays_per_second(),
+                    trace - ao - direct
+                );
+            }
         }
         let r = &self.rays;
         let _ = writeln!(
@@ -144,5 +238,33 @@ impl FrameStats {
             let _ = writeln!(s, "  warning: {} NaN/Inf samples were dropped", self.nonfinite_samples);
         }
         s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_sixteenth_of_every_tile_is_timed() {
+        let width = 512;
+        let mut per_tile = vec![0u32; 32 * 32];
+        for pixel in 0..width * width {
+            if timed_pixel(pixel) {
+                per_tile[((pixel / width / 16) * 32 + pixel % width / 16) as usize] += 1;
+            }
+        }
+        // 16 of each tile's 256 pixels on average.
+        assert_eq!(per_tile.iter().sum::<u32>(), 16_385);
+        assert!(per_tile.iter().all(|&n| (12..=20).contains(&n)), "{per_tile:?}");
+    }
+
+    #[test]
+    fn terms_get_their_share_of_the_trace_time() {
+        let split = TraceSplit { pixels: 400, ambient: 300, diffuse: 40 };
+        let trace = Duration::from_millis(200);
+        assert_eq!(split.time_of(Term::Ambient, trace), Duration::from_millis(150));
+        assert_eq!(split.time_of(Term::Diffuse, trace), Duration::from_millis(20));
+        assert_eq!(TraceSplit::default().time_of(Term::Ambient, trace), Duration::ZERO);
     }
 }

@@ -16,7 +16,7 @@ use crate::{
     resources::{AOV_FLOATS, Accumulation, AovValues, FrameSamples, RenderSettings, SceneProblems, luminance},
     sampling::{SampleSets, dims},
     shading::{Lights, RayCounts, SampleResult, Scene, Tracer},
-    stats::FrameStats,
+    stats::{FrameStats, TraceSplit, cycle_count, timed_pixel},
 };
 
 /// A rectangle of pixels traced as one task.
@@ -35,6 +35,7 @@ struct TileResult {
     sq_sums: Vec<f32>,
     aovs: Vec<AovValues>,
     rays: RayCounts,
+    split: TraceSplit,
     nonfinite: u64,
 }
 
@@ -95,6 +96,7 @@ pub fn trace(
     frame.samples_per_pixel = count;
     frame.active_pixels = results.iter().map(|r| r.counts.iter().filter(|&&c| c > 0).count()).sum();
     let mut rays = RayCounts::default();
+    let mut split = TraceSplit::default();
     for (tile, result) in tiles.iter().zip(&results) {
         let w = (tile.x1 - tile.x0) as usize;
         for (row, y) in (tile.y0..tile.y1).enumerate() {
@@ -108,9 +110,11 @@ pub fn trace(
             }
         }
         rays.add(&result.rays);
+        split.add(&result.split);
         stats.nonfinite_samples += result.nonfinite;
     }
     stats.rays = rays;
+    stats.trace_split = split;
     stats.samples_traced = count;
     let note = format!("{} tiles, {count} spp, {}", tiles.len(), lights.summary());
     stats.record("trace", start.elapsed(), note);
@@ -164,6 +168,8 @@ fn trace_tile<C: CameraRays>(
     for y in tile.y0..tile.y1 {
         for x in tile.x0..tile.x1 {
             let pixel = y * job.width + x;
+            tracer.timing = timed_pixel(pixel);
+            let start = tracer.timing.then(cycle_count);
             let mut sum = Vec3::ZERO;
             let mut sq_sum = 0.0;
             let mut aov = [0.0; AOV_FLOATS];
@@ -274,9 +280,12 @@ fn trace_tile<C: CameraRays>(
             if job.aovs {
                 aovs.push(aov);
             }
+            if let Some(start) = start {
+                tracer.split.pixels += cycle_count() - start;
+            }
         }
     }
-    TileResult { sums, counts, sq_sums, aovs, rays: tracer.rays, nonfinite }
+    TileResult { sums, counts, sq_sums, aovs, rays: tracer.rays, split: tracer.split, nonfinite }
 }
 
 #[cfg(test)]

@@ -41,11 +41,28 @@ fn stats_prints_a_table_per_frame() {
     let (code, out, err) =
         hemi(&["render", "--out", png.to_str().unwrap(), "--size", "16x16", "--spp", "4", "--spf", "2", "--stats"]);
     assert_eq!(code, 0, "{err}");
-    assert_eq!(out.matches("Mrays/s").count(), 2, "{out}");
-    for system in ["scene_changes", "bvh", "trace", "accumulate", "resolve"] {
+    assert_eq!(out.lines().filter(|l| l.starts_with("frame ")).count(), 2, "{out}");
+    for system in ["scene_changes", "bvh", "trace", "accumulate", "resolve", "of which     AO"] {
         assert!(out.contains(system), "missing {system} in {out}");
     }
     assert!(err.contains("Mrays/s"));
+}
+
+#[test]
+fn stats_json_holds_the_ao_rate_of_the_trace_and_of_the_ao_kernel() {
+    let (png, json) = (temp("stats_json.png"), temp("stats.json"));
+    let args = ["render", "--out", png.to_str().unwrap(), "--size", "32x32", "--spp", "4", "--stats-json"];
+    let (code, _, err) = hemi(&[&args[..], &[json.to_str().unwrap()]].concat());
+    assert_eq!(code, 0, "{err}");
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let total = &doc["total"];
+    let (trace, kernel) = (total["ao_mrays_per_s"].as_f64().unwrap(), total["ao_kernel_mrays_per_s"].as_f64().unwrap());
+    // The AO kernel is part of the trace system's time, so its rate is the higher one.
+    assert!(trace > 0.0 && kernel > trace, "trace {trace}, kernel {kernel}");
+    let ao_seconds = total["ao_seconds"].as_f64().unwrap();
+    assert!(ao_seconds > 0.0 && ao_seconds < total["trace_seconds"].as_f64().unwrap());
+    let frame = &doc["frames"][0];
+    assert!(frame["trace_split"]["ao_ms"].as_f64().unwrap() > 0.0, "{frame}");
 }
 
 #[test]

@@ -197,6 +197,19 @@ fn no_shadow_rays_when_a_light_cannot_contribute() {
 }
 
 #[test]
+fn the_trace_split_times_only_the_lights_a_scene_has() {
+    let light = || Some((PointLight::default(), Vec3::new(0.0, 3.0, 0.0)));
+    let split = |occluders, light| floor_scene(occluders, light).run_frame().unwrap().trace_split;
+    let both = split(1, light());
+    assert!(both.ambient > 0 && both.diffuse > 0, "{both:?}");
+    assert!(both.ambient + both.diffuse < both.pixels, "{both:?}");
+    let direct_only = split(0, light());
+    assert!(direct_only.ambient == 0 && direct_only.diffuse > 0, "{direct_only:?}");
+    let ao_only = split(2, None);
+    assert!(ao_only.ambient > 0 && ao_only.diffuse == 0, "{ao_only:?}");
+}
+
+#[test]
 fn shared_meshes_are_instanced_by_many_entities() {
     let mesh = Arc::new(hemi::scene::mesh_gen::uv_sphere(0.4, 8, 16));
     let mut r = floor_scene(1, None);
