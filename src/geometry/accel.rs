@@ -30,7 +30,7 @@ use super::{
     ray::{Ray, Shear},
     shapes::{PlanePrim, SpherePrim, Triangle},
     tri4::{RayTri4, Tri4},
-    wide_bvh::{Bvh4, Node, NodeTest, WideBvh, children_after_parents, prefetch},
+    wide_bvh::{Bvh4, Node, NodeTest, WideBvh, prefetch},
 };
 #[cfg(target_arch = "x86_64")]
 use super::{
@@ -535,16 +535,17 @@ impl Blas {
     /// SAH cost where it was.
     pub fn build(prims: Vec<Prim>) -> Self {
         let triangle_count = prims.iter().filter(|p| matches!(p.shape, Shape::Triangle(_))).count();
-        let bvh = if prims.is_empty() {
-            Bvh2::default()
+        let (bvh, depth) = if prims.is_empty() {
+            (Bvh2::default(), 0)
         } else if prims.len() < SMALL_SET {
             let aabbs: Vec<Aabb> = prims.iter().map(Prim::bounds).collect();
-            build_bvh2(&aabbs, small_set_params(), &mut Duration::default())
+            let bvh = build_bvh2(&aabbs, small_set_params(), &mut Duration::default());
+            let depth = subtree_depth(&bvh.nodes);
+            (bvh, depth)
         } else {
             binned_sah::build(prims.len(), |i| prims[i].bounds())
         };
         let prims = bvh.primitive_indices.par_iter().with_min_len(PAR_CHUNK).map(|&i| prims[i as usize]).collect();
-        let depth = subtree_depth(&bvh.nodes);
         let mut blas = Blas {
             bvh,
             tree: Tree::default(),
@@ -904,31 +905,9 @@ impl std::fmt::Debug for Blas {
     }
 }
 
-/// Depth of the deepest leaf of a BVH2 (the root alone is 1; an empty tree is 0): in one
-/// forward pass where every inner node's children come after it (the binned builder's
-/// layout), else by walking the tree, whose random node reads miss the cache on large trees.
+/// Depth of the deepest leaf of a BVH2 (the root alone is 1; an empty tree is 0), by a
+/// depth-first walk from the root. The binned builder counts its trees' depth as it builds.
 pub(super) fn subtree_depth(nodes: &[Bvh2Node]) -> usize {
-    if children_after_parents(nodes) { forward_depth(nodes) } else { walked_depth(nodes) }
-}
-
-/// [`subtree_depth`] of a tree whose inner nodes' children come after them: each node's depth
-/// is set by its parent before the pass reaches it.
-fn forward_depth(nodes: &[Bvh2Node]) -> usize {
-    let mut depth = vec![0u32; nodes.len()];
-    let mut max = 0;
-    for (i, n) in nodes.iter().enumerate() {
-        let d = if i == 0 { 1 } else { depth[i] };
-        max = max.max(d);
-        if n.prim_count == 0 {
-            let first = n.first_index as usize;
-            depth[first..first + 2].fill(d + 1);
-        }
-    }
-    max as usize
-}
-
-/// [`subtree_depth`] by a depth-first walk from the root.
-fn walked_depth(nodes: &[Bvh2Node]) -> usize {
     let mut max = 0;
     let mut stack = vec![(0usize, 1usize)];
     while let Some((i, d)) = stack.pop() {
@@ -1407,27 +1386,4 @@ pub fn outward_normal(mesh: &Mesh, triangle: usize, to_world: &Affine3A) -> Vec3
     let [a, b, c] = mesh.indices[triangle].map(|i| mesh.positions[i as usize]);
     let n = (b - a).cross(c - a);
     (to_world.matrix3.inverse().transpose() * Vec3A::from(n)).normalize().into()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::sampling::hash::SplitMix64;
-
-    #[test]
-    fn the_forward_depth_pass_agrees_with_the_walk() {
-        let mut rng = SplitMix64::new(11);
-        for n in [1usize, 2, 9, 100, 5000] {
-            let boxes: Vec<Aabb> = (0..n)
-                .map(|_| {
-                    let min = Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 100.0;
-                    Aabb::new(min, min + Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()))
-                })
-                .collect();
-            let binned = binned_sah::build(n, |i| boxes[i]).nodes;
-            assert!(children_after_parents(&binned), "{n} boxes");
-            assert_eq!(forward_depth(&binned), walked_depth(&binned), "{n} boxes");
-            assert_eq!(subtree_depth(&binned), walked_depth(&binned), "{n} boxes");
-        }
-    }
 }

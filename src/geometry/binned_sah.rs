@@ -18,8 +18,6 @@ use obvhs::{
 };
 use rayon::prelude::*;
 
-use super::accel::subtree_depth;
-
 /// Centroid bins per axis.
 const BINS: usize = 32;
 
@@ -62,25 +60,26 @@ impl Ref {
 }
 
 /// Builds a BVH2 over `count` primitives (at least one), primitive `i` bounded by
-/// `bounds(i)`. Leaves hold at most [`MAX_LEAF`] primitives, as ranges of
-/// `primitive_indices`. The boxes go straight into the builder's references, in parallel:
-/// no array of boxes is made first.
-pub fn build(count: usize, bounds: impl Fn(usize) -> Aabb + Sync) -> Bvh2 {
+/// `bounds(i)`, and returns it with its depth (the root alone is 1), counted while building.
+/// Leaves hold at most [`MAX_LEAF`] primitives, as ranges of `primitive_indices`. The boxes go
+/// straight into the builder's references, in parallel: no array of boxes is made first.
+pub fn build(count: usize, bounds: impl Fn(usize) -> Aabb + Sync) -> (Bvh2, usize) {
     let mut refs: Vec<Ref> = (0..count)
         .into_par_iter()
         .with_min_len(PARALLEL_MIN)
         .map(|i| Ref { aabb: bounds(i), index: i as u32 })
         .collect();
-    let nodes = subtree(&mut refs, 0);
+    let (nodes, depth) = subtree(&mut refs, 0);
     // obvhs's convention (as its PLOC builder sets it): a bound for its traversal stacks.
-    let max_depth = (subtree_depth(&nodes) + 1).max(DEFAULT_MAX_STACK_DEPTH);
-    Bvh2 {
+    let max_depth = (depth + 1).max(DEFAULT_MAX_STACK_DEPTH);
+    let bvh = Bvh2 {
         nodes,
         primitive_indices: refs.iter().map(|r| r.index).collect(),
         children_are_ordered_after_parents: true,
         max_depth,
         ..Default::default()
-    }
+    };
+    (bvh, depth)
 }
 
 /// Packets of four that `count` triangles take.
@@ -263,17 +262,17 @@ fn partition(refs: &mut [Ref], split: &Split) -> usize {
 
 /// The subtree over `refs` (which start at `offset` in the whole array), root first; inner
 /// nodes' `first_index` counts from this subtree's root.
-fn subtree(refs: &mut [Ref], offset: usize) -> Vec<Bvh2Node> {
+fn subtree(refs: &mut [Ref], offset: usize) -> (Vec<Bvh2Node>, usize) {
     if refs.len() < PARALLEL_MIN {
         return subtree_serial(refs, offset);
     }
     let (bounds, split) = choose(refs);
     if let Split::Leaf = split {
-        return vec![Bvh2Node::new(bounds, refs.len() as u32, offset as u32)];
+        return (vec![Bvh2Node::new(bounds, refs.len() as u32, offset as u32)], 1);
     }
     let mid = partition(refs, &split);
     let (left, right) = refs.split_at_mut(mid);
-    let (l, r) = rayon::join(|| subtree(left, offset), || subtree(right, offset + mid));
+    let ((l, l_depth), (r, r_depth)) = rayon::join(|| subtree(left, offset), || subtree(right, offset + mid));
     // Root, the two children's roots, then the rest of each child's nodes.
     let mut nodes = Vec::with_capacity(1 + l.len() + r.len());
     nodes.push(Bvh2Node::new(bounds, 0, 1));
@@ -289,15 +288,17 @@ fn subtree(refs: &mut [Ref], offset: usize) -> Vec<Bvh2Node> {
     nodes.push(moved(&r[0], l.len() + 1));
     nodes.extend(l[1..].iter().map(|n| moved(n, 2)));
     nodes.extend(r[1..].iter().map(|n| moved(n, l.len() + 1)));
-    nodes
+    (nodes, 1 + l_depth.max(r_depth))
 }
 
 /// [`subtree`] on this thread.
-fn subtree_serial(refs: &mut [Ref], offset: usize) -> Vec<Bvh2Node> {
+fn subtree_serial(refs: &mut [Ref], offset: usize) -> (Vec<Bvh2Node>, usize) {
     let mut nodes = vec![Bvh2Node::new(Aabb::empty(), 0, 0)];
-    // (node, first ref, end)
-    let mut todo = vec![(0usize, 0usize, refs.len())];
-    while let Some((node, start, end)) = todo.pop() {
+    let mut depth = 0;
+    // (node, first ref, end, the node's depth)
+    let mut todo = vec![(0usize, 0usize, refs.len(), 1usize)];
+    while let Some((node, start, end, d)) = todo.pop() {
+        depth = depth.max(d);
         let (bounds, split) = choose(&refs[start..end]);
         if let Split::Leaf = split {
             nodes[node] = Bvh2Node::new(bounds, (end - start) as u32, (offset + start) as u32);
@@ -307,16 +308,16 @@ fn subtree_serial(refs: &mut [Ref], offset: usize) -> Vec<Bvh2Node> {
         let children = nodes.len();
         nodes[node] = Bvh2Node::new(bounds, 0, children as u32);
         nodes.extend([Bvh2Node::new(Aabb::empty(), 0, 0); 2]);
-        todo.push((children + 1, mid, end));
-        todo.push((children, start, mid));
+        todo.push((children + 1, mid, end, d + 1));
+        todo.push((children, start, mid, d + 1));
     }
-    nodes
+    (nodes, depth)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sampling::hash::SplitMix64;
+    use crate::{geometry::accel::subtree_depth, sampling::hash::SplitMix64};
 
     fn boxes(n: usize, seed: u64) -> Vec<Aabb> {
         let mut rng = SplitMix64::new(seed);
@@ -330,7 +331,7 @@ mod tests {
     }
 
     /// Checks the layout obvhs expects and that every node's box is the union of what it holds.
-    fn check(bvh: &Bvh2, aabbs: &[Aabb]) {
+    fn check((bvh, depth): &(Bvh2, usize), aabbs: &[Aabb]) {
         let mut seen = vec![false; aabbs.len()];
         let mut todo = vec![0usize];
         while let Some(n) = todo.pop() {
@@ -352,7 +353,8 @@ mod tests {
         }
         assert!(seen.iter().all(|&s| s), "every primitive in a leaf");
         assert!(bvh.children_are_ordered_after_parents);
-        assert_eq!(bvh.max_depth, (subtree_depth(&bvh.nodes) + 1).max(DEFAULT_MAX_STACK_DEPTH));
+        assert_eq!(*depth, subtree_depth(&bvh.nodes));
+        assert_eq!(bvh.max_depth, (depth + 1).max(DEFAULT_MAX_STACK_DEPTH));
     }
 
     #[test]
@@ -366,10 +368,10 @@ mod tests {
     #[test]
     fn equal_centroids_are_split_in_halves() {
         let aabbs = vec![Aabb::new(Vec3A::ZERO, Vec3A::ONE); 100];
-        let bvh = build(aabbs.len(), |i| aabbs[i]);
-        check(&bvh, &aabbs);
+        let built = build(aabbs.len(), |i| aabbs[i]);
+        check(&built, &aabbs);
         // 100 → 50 → 25 → 12/13 → 6/7: leaves of six or seven, four levels down.
-        assert_eq!(subtree_depth(&bvh.nodes), 5);
+        assert_eq!(built.1, 5);
     }
 
     #[test]
@@ -379,12 +381,12 @@ mod tests {
             .num_threads(1)
             .build()
             .unwrap()
-            .install(|| build(aabbs.len(), |i| aabbs[i]));
+            .install(|| build(aabbs.len(), |i| aabbs[i]).0);
         let two = rayon::ThreadPoolBuilder::new()
             .num_threads(2)
             .build()
             .unwrap()
-            .install(|| build(aabbs.len(), |i| aabbs[i]));
+            .install(|| build(aabbs.len(), |i| aabbs[i]).0);
         assert_eq!(one.primitive_indices, two.primitive_indices);
         let key = |b: &Bvh2| b.nodes.iter().map(|n| (n.first_index, n.prim_count)).collect::<Vec<_>>();
         assert_eq!(key(&one), key(&two));
@@ -396,9 +398,9 @@ mod tests {
         let aabbs: Vec<Aabb> = (0..16)
             .map(|i| Aabb::new(Vec3A::new(i as f32 * 2.0, 0.0, 0.0), Vec3A::new(i as f32 * 2.0 + 1.0, 1.0, 1.0)))
             .collect();
-        let bvh = build(aabbs.len(), |i| aabbs[i]);
-        check(&bvh, &aabbs);
-        let leaves: Vec<u32> = bvh.nodes.iter().filter(|n| n.prim_count > 0).map(|n| n.prim_count).collect();
+        let built = build(aabbs.len(), |i| aabbs[i]);
+        check(&built, &aabbs);
+        let leaves: Vec<u32> = built.0.nodes.iter().filter(|n| n.prim_count > 0).map(|n| n.prim_count).collect();
         assert!(leaves.iter().all(|&c| c % 4 == 0), "leaves {leaves:?}");
     }
 

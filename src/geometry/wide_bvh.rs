@@ -273,7 +273,7 @@ impl SlotPlan {
 }
 
 /// Whether every inner node of `bvh2` has its children after it in the array.
-pub(super) fn children_after_parents(bvh2: &[Bvh2Node]) -> bool {
+fn children_after_parents(bvh2: &[Bvh2Node]) -> bool {
     bvh2.iter()
         .enumerate()
         .all(|(i, n)| n.prim_count > 0 || (n.first_index as usize > i && n.first_index as usize + 1 < bvh2.len()))
@@ -936,7 +936,7 @@ mod tests {
                 Aabb::new(min, min + Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()))
             })
             .collect();
-        let binned = super::super::binned_sah::build(boxes.len(), |i| boxes[i]).nodes;
+        let binned = super::super::binned_sah::build(boxes.len(), |i| boxes[i]).0.nodes;
         let ploc = build_bvh2(&boxes, BvhBuildParams::medium_build(), &mut Duration::default()).nodes;
         // The binned layout takes the sequential pass.
         assert!(children_after_parents(&binned));
