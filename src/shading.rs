@@ -11,7 +11,7 @@ use crate::{
     light::{DirectionRun, LightGroup, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term},
     resources::AovValues,
     sampling::{SampleSets, dims},
-    stats::{TraceSplit, cycle_count},
+    stats::{TraceSplit, cycle_count, cycles_since},
 };
 
 /// Rays traced, by kind.
@@ -283,7 +283,7 @@ impl Tracer {
             group.shade_points(self, scene, &points, pixel, first, first_dim, skip_black, &mut arriving);
             let term = group.term();
             if let Some(start) = start {
-                self.split.add_term(term, cycle_count() - start);
+                self.split.add_term(term, cycles_since(start));
             }
             for (p, &a) in points.iter().zip(&arriving) {
                 out[p.j as usize].add_light(term, term.reflectance(&p.at.material), a.into());
@@ -338,7 +338,7 @@ impl Tracer {
             let start = self.timing.then(cycle_count);
             group.shade(self, scene, &spawn, &at, pixel, first, first_dim, &mut arriving);
             if let Some(start) = start {
-                self.split.add_term(term, cycle_count() - start);
+                self.split.add_term(term, cycles_since(start));
             }
             out.add_light(term, reflectance, &arriving);
         }

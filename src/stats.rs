@@ -22,6 +22,13 @@ pub fn cycle_count() -> u64 {
     }
 }
 
+/// Cycles since the reading `start` of [`cycle_count`]; 0 if the counter read lower (a thread
+/// moved to a core whose counter lags).
+#[inline(always)]
+pub fn cycles_since(start: u64) -> u64 {
+    cycle_count().saturating_sub(start)
+}
+
 /// Whether the trace system times pixel `pixel` for [`TraceSplit`]: a fixed, evenly spread
 /// sixteenth of the pixels (Fibonacci hashing), so reading the counter costs next to nothing.
 #[inline(always)]

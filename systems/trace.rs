@@ -16,7 +16,7 @@ use crate::{
     resources::{AOV_FLOATS, Accumulation, AovValues, FrameSamples, RenderSettings, SceneProblems, luminance},
     sampling::{SampleSets, dims},
     shading::{Lights, RayCounts, SampleResult, Scene, Tracer},
-    stats::{FrameStats, TraceSplit, cycle_count, timed_pixel},
+    stats::{FrameStats, TraceSplit, cycle_count, cycles_since, timed_pixel},
 };
 
 /// A rectangle of pixels traced as one task.
@@ -281,7 +281,7 @@ fn trace_tile<C: CameraRays>(
                 aovs.push(aov);
             }
             if let Some(start) = start {
-                tracer.split.pixels += cycle_count() - start;
+                tracer.split.pixels += cycles_since(start);
             }
         }
     }
