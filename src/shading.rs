@@ -206,6 +206,8 @@ pub struct Tracer {
     run: RunSamples,
     /// The shading points of such a run.
     points: Vec<RunPoint>,
+    /// The surface hits of a run of camera rays.
+    surfaces: Vec<Option<SurfaceHit>>,
     /// Rays traced by this tracer.
     pub rays: RayCounts,
     /// Whether the pixel being traced is timed: light groups' cycles then go to `split`.
@@ -293,12 +295,20 @@ impl Tracer {
         self.points = points;
     }
 
-    /// The camera ray's first hit (one primary ray), with the distance it travelled.
-    #[inline(always)]
-    pub fn primary(&mut self, scene: &Scene, ray: &Ray) -> Option<PrimaryHit> {
-        self.rays.primary += 1;
-        let hit = scene.geometry.intersect(ray, &mut self.stack)?;
-        Some(PrimaryHit { hit, depth: hit.t * ray.dir.length() })
+    /// The first hits of a run of camera rays that travel together (one pixel's samples, or a
+    /// row of pixels), with the distance each travelled, into `out`; traced in packets where
+    /// the scene allows ([`SceneGeometry::intersect_many`]).
+    pub fn primaries(&mut self, scene: &Scene, rays: &[Ray], out: &mut Vec<Option<PrimaryHit>>) {
+        self.rays.primary += rays.len() as u64;
+        self.surfaces.clear();
+        self.surfaces.resize(rays.len(), None);
+        scene.geometry.intersect_many(rays, &mut self.stack, &mut self.surfaces);
+        out.clear();
+        out.extend(
+            rays.iter()
+                .zip(&self.surfaces)
+                .map(|(ray, hit)| hit.map(|hit| PrimaryHit { hit, depth: hit.t * ray.dir.length() })),
+        );
     }
 
     /// Light reflected at a primary hit for the samples `first, first + 1, …` of `pixel`, one

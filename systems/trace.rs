@@ -159,13 +159,35 @@ fn trace_tile<C: CameraRays>(
     // One pixel's samples of this frame.
     let mut samples = Vec::with_capacity(job.count as usize);
     let (mut films, mut lenses, mut hits, mut radiance) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut camera_rays = Vec::new();
     let mut nonfinite = 0;
     let pixels = ((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize;
     let mut sums = Vec::with_capacity(pixels);
     let mut counts = Vec::with_capacity(pixels);
     let mut sq_sums = Vec::with_capacity(pixels);
     let mut aovs = Vec::with_capacity(if job.aovs { pixels } else { 0 });
+    // Without jitter or lens every sample of a pixel has the same camera ray: it is traced once
+    // per pixel, a row of the tile's pixels at a time (neighbouring rays travel together).
+    let one_ray_per_pixel = !job.jitter && !C::USES_LENS;
+    let mut row_hits = Vec::new();
     for y in tile.y0..tile.y1 {
+        if one_ray_per_pixel {
+            camera_rays.clear();
+            let (mut timed, start) = (0, cycle_count());
+            for x in tile.x0..tile.x1 {
+                let pixel = y * job.width + x;
+                if !acc.pixel_done(pixel as usize, target) {
+                    camera_rays.push(camera.ray(x, y, Vec2::splat(0.5), Vec2::ZERO));
+                    timed += u64::from(timed_pixel(pixel));
+                }
+            }
+            tracer.primaries(scene, &camera_rays, &mut row_hits);
+            // The timed pixels' part of the row's camera rays.
+            if timed > 0 {
+                tracer.split.pixels += cycles_since(start) * timed / camera_rays.len() as u64;
+            }
+        }
+        let mut row_hits = row_hits.iter();
         for x in tile.x0..tile.x1 {
             let pixel = y * job.width + x;
             tracer.timing = timed_pixel(pixel);
@@ -186,11 +208,9 @@ fn trace_tile<C: CameraRays>(
                 }
                 continue;
             }
-            // Without jitter or lens every sample's camera ray is the same: trace it once, and
-            // shade all samples at its hit together, evaluating the lights that draw no samples
-            // (point lights) once.
-            let shared = (!job.jitter && !C::USES_LENS)
-                .then(|| tracer.primary(scene, &camera.ray(x, y, Vec2::splat(0.5), Vec2::ZERO)));
+            // A shared camera hit: shade all samples at it together, evaluating the lights that
+            // draw no samples (point lights) once.
+            let shared = one_ray_per_pixel.then(|| *row_hits.next().expect("one camera ray per pixel still sampled"));
             // What the lights that draw no samples add to every sample (shared hits only).
             let mut fixed = SampleResult::default();
             match &shared {
@@ -251,10 +271,9 @@ fn trace_tile<C: CameraRays>(
                         scene.sets.fill(pixel, first, dims::LENS, &mut lenses);
                     }
                     tracer.prepare_run(scene, pixel, first, count);
-                    hits.clear();
-                    hits.extend(
-                        (0..count as usize).map(|j| tracer.primary(scene, &camera.ray(x, y, films[j], lenses[j]))),
-                    );
+                    camera_rays.clear();
+                    camera_rays.extend((0..count as usize).map(|j| camera.ray(x, y, films[j], lenses[j])));
+                    tracer.primaries(scene, &camera_rays, &mut hits);
                     samples.resize(count as usize, SampleResult::default());
                     tracer.shade_run(scene, &hits, pixel, first, !job.aovs, &mut samples);
                 }

@@ -4,7 +4,7 @@ use bevy_ecs::entity::Entity;
 use glam::{Vec3, Vec3A};
 use hemi::{
     components::{Matte, Mesh, Plane, Transform},
-    geometry::{Object, Prim, Ray, RayOrder, SceneGeometry, Shape, shapes::SpherePrim, world_space},
+    geometry::{Object, Prim, Ray, RayOrder, SceneGeometry, Shape, SurfaceHit, shapes::SpherePrim, world_space},
     sampling::hash::SplitMix64,
     scene::mesh_gen::{torus_knot, uv_sphere},
 };
@@ -291,4 +291,66 @@ fn runs_match_brute_force(geometry: &SceneGeometry, rng: &mut SplitMix64) {
         total += rays.len();
     }
     assert!(total > 10_000 && blocked > total / 10 && blocked < total * 9 / 10, "{blocked} of {total} blocked");
+}
+
+/// A hit's t, point, error bound, normal and object, as bits for exact comparisons.
+type HitBits = (u32, [u32; 3], [u32; 3], [u32; 3], u32);
+
+/// The bits of a hit.
+fn hit_bits(hit: &Option<SurfaceHit>) -> Option<HitBits> {
+    let bits = |v: Vec3A| v.to_array().map(f32::to_bits);
+    hit.map(|h| (h.t.to_bits(), bits(h.p), bits(h.p_error), bits(h.normal), h.object))
+}
+
+#[test]
+fn a_run_of_camera_rays_gets_the_hits_of_single_queries() {
+    // Triangles only (so the tree holds triangle packets and runs are traced as packets),
+    // over a plane.
+    let mut rng = SplitMix64::new(5);
+    let meshes = [uv_sphere(0.7, 10, 20), torus_knot(2, 3, 0.8, 0.15, 120, 10)];
+    let (mut prims, mut objects, mut vertices) = (Vec::new(), Vec::new(), Vec::new());
+    for i in 0..30u32 {
+        let t = Transform::from_translation(Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 10.0 - 5.0);
+        let converted = world_space::mesh(&meshes[i as usize % 2], &t, i).unwrap().prims;
+        for p in &converted {
+            if let Shape::Triangle(tri) = p.shape {
+                vertices.extend(tri.p);
+            }
+        }
+        prims.extend(converted);
+        objects.push(Object { entity: Entity::PLACEHOLDER, material: Matte::default() });
+    }
+    let planes = vec![world_space::plane(&Default::default(), &Transform::from_xyz(0.0, -6.0, 0.0), 30).unwrap()];
+    objects.push(Object { entity: Entity::PLACEHOLDER, material: Matte::default() });
+    let geometry = SceneGeometry::build(prims, planes, objects);
+    let mut stack = Vec::new();
+    let (mut hits, mut rays_traced) = (0, 0);
+    for bundle in 0..600 {
+        let origin = (Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 16.0) - 8.0;
+        // A pixel's worth of nearly parallel rays; every third bundle aims exactly at a mesh
+        // vertex (hits at a shared vertex or edge, on several triangles at one distance), and
+        // every fifth has finite segments.
+        let aim = if bundle % 3 == 0 {
+            vertices[(rng.next_f32() * vertices.len() as f32) as usize % vertices.len()]
+        } else {
+            origin + random_unit(&mut rng) * 10.0
+        };
+        let count = [16, 37, 8, 5][bundle % 4];
+        let rays: Vec<Ray> = (0..count)
+            .map(|k| {
+                let jitter = if k % 4 == 0 { Vec3A::ZERO } else { random_unit(&mut rng) * 2e-3 };
+                let tmax = if bundle % 5 == 0 { rng.next_f32() * 12.0 } else { f32::INFINITY };
+                Ray::new(origin, aim - origin + jitter, tmax)
+            })
+            .collect();
+        let mut many = vec![None; count];
+        geometry.intersect_many(&rays, &mut stack, &mut many);
+        for (ray, hit) in rays.iter().zip(&many) {
+            let single = geometry.intersect(ray, &mut stack);
+            assert_eq!(hit_bits(hit), hit_bits(&single), "bundle {bundle}, ray {ray:?}");
+            hits += usize::from(single.is_some());
+            rays_traced += 1;
+        }
+    }
+    assert!(hits > rays_traced / 3, "{hits} of {rays_traced} rays hit");
 }

@@ -362,8 +362,65 @@ fn packet_width() -> PacketWidth {
 /// into). Callers must make sure the CPU has the instruction set.
 #[cfg(target_arch = "x86_64")]
 macro_rules! packet_kernels {
-    ($lanes_type:ty, $feature:literal, $packets:ident, $lanes:ident, $scene:ident, $instance:ident) => {
+    ($lanes_type:ty, $feature:literal, $packets:ident, $lanes:ident, $scene:ident, $instance:ident, $closest:ident) => {
         impl Blas {
+            /// The closest hits of `rays` (one packet; lanes of `live`) in `tree`, this BLAS's
+            /// eight-wide tree, traced together: each lane's `tmax` shrinks to its hit's `t`
+            /// and `best` gets its (slot, b1, b2), exactly as [`Blas::closest`] finds them.
+            /// Returns the lanes it could not answer so: where a second triangle is hit at
+            /// exactly the closest distance (the single-ray traversal's order decides which one
+            /// it keeps) or the packet's stack overflowed. Trace those alone.
+            #[target_feature(enable = $feature)]
+            fn $closest(
+                &self,
+                tree: &Bvh8,
+                rays: &[Ray],
+                live: u32,
+                tmax: &mut [f32; 16],
+                best: &mut [Option<(u32, f32, f32)>; 16],
+            ) -> u32 {
+                // SAFETY (all blocks below): this function is compiled for the lane type's
+                // instruction set and AVX, which the caller's CPU has.
+                let in_lanes = unsafe { <$lanes_type>::rays(rays) };
+                let packet = unsafe { RayPacket::new(&in_lanes) };
+                let edges = unsafe { RayTriPacket::new(&in_lanes) };
+                let mut tied = 0u32;
+                let leaf = |first: u32, count: u32, lanes: u32, tmax: &mut [f32; 16]| {
+                    for packet in &self.packets[first as usize..(first + count) as usize] {
+                        for (lane, &slot) in packet.slot.iter().enumerate() {
+                            if slot == u32::MAX {
+                                continue;
+                            }
+                            let e = unsafe { packet.edges_packet(lane, &edges) };
+                            let mut crossing = (e.pass | e.exact) & lanes;
+                            if crossing == 0 {
+                                continue;
+                            }
+                            let tri = packet.triangle(lane);
+                            while crossing != 0 {
+                                let k = crossing.trailing_zeros() as usize;
+                                crossing &= crossing - 1;
+                                // The scalar test, accepting a hit at exactly the current
+                                // closest distance too, to see ties.
+                                let ray = rays[k].with_tmax(tmax[k].next_up());
+                                if let Some((t, b1, b2)) = tri.intersect(&ray, &Shear::new(ray.dir)) {
+                                    if t < tmax[k] {
+                                        tmax[k] = t;
+                                        best[k] = Some((slot, b1, b2));
+                                        tied &= !(1 << k);
+                                    } else {
+                                        tied |= 1 << k;
+                                    }
+                                }
+                            }
+                        }
+                    }
+                };
+                let first = &rays[live.trailing_zeros() as usize];
+                let overflow = unsafe { tree.closest_packet(&packet, first, live, tmax, leaf) };
+                tied | overflow
+            }
+
             /// [`Blas::occluded_many`] by packets of consecutive rays (a pixel's shadow rays,
             /// which leave one point), traversed together while at least four of them enter
             /// a node. Every ray gets exactly the answer of its own traversal.
@@ -489,7 +546,15 @@ macro_rules! packet_kernels {
 }
 
 #[cfg(target_arch = "x86_64")]
-packet_kernels!(Avx, "avx", occluded_packets_avx, occluded_lanes_avx, occluded_packets_avx, instance_blocks_avx);
+packet_kernels!(
+    Avx,
+    "avx",
+    occluded_packets_avx,
+    occluded_lanes_avx,
+    occluded_packets_avx,
+    instance_blocks_avx,
+    closest_lanes_avx
+);
 #[cfg(target_arch = "x86_64")]
 packet_kernels!(
     Avx512,
@@ -497,7 +562,8 @@ packet_kernels!(
     occluded_packets_avx512,
     occluded_lanes_avx512,
     occluded_packets_avx512,
-    instance_blocks_avx512
+    instance_blocks_avx512,
+    closest_lanes_avx512
 );
 
 /// Fewest rays in one [`Blas::occluded_many`] call for packet traversal (a point light's
@@ -1195,6 +1261,60 @@ impl SceneGeometry {
     pub fn intersect(&self, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> Option<SurfaceHit> {
         let mut ray = *ray;
         let best = self.closest_instance(&mut ray, stack);
+        self.hit_with_planes(ray, best)
+    }
+
+    /// [`SceneGeometry::intersect`] for each of `rays` into `hits` (same length), the same hits:
+    /// in packets where the scene is one world-space BLAS of triangle packets under an
+    /// eight-wide tree (a static scene), which suits runs of rays that travel together, such
+    /// as one pixel's camera rays.
+    pub fn intersect_many(&self, rays: &[Ray], stack: &mut Vec<(u32, f32)>, hits: &mut [Option<SurfaceHit>]) {
+        #[cfg(target_arch = "x86_64")]
+        if let [inst] = &self.instances[..]
+            && inst.identity
+            && rays.len() >= PACKET_RUN
+            && let blas = &self.blases[inst.blas as usize]
+            && let Tree::Eight(tree) = &blas.tree
+            && !blas.packets.is_empty()
+        {
+            let width = match packet_width() {
+                PacketWidth::Eight => 8,
+                PacketWidth::Sixteen => 16,
+            };
+            for (chunk, out) in rays.chunks(width).zip(hits.chunks_mut(width)) {
+                let mut tmax = [0.0; 16];
+                for (t, ray) in tmax.iter_mut().zip(chunk) {
+                    *t = ray.tmax;
+                }
+                let mut best = [None; 16];
+                let live = (1u32 << chunk.len()) - 1;
+                // SAFETY: an eight-wide tree is built only where AVX was detected, and
+                // sixteen-lane packets are chosen only where AVX-512 was.
+                let alone = unsafe {
+                    match packet_width() {
+                        PacketWidth::Sixteen => blas.closest_lanes_avx512(tree, chunk, live, &mut tmax, &mut best),
+                        PacketWidth::Eight => blas.closest_lanes_avx(tree, chunk, live, &mut tmax, &mut best),
+                    }
+                };
+                for (k, (ray, hit)) in chunk.iter().zip(out).enumerate() {
+                    *hit = if alone & (1 << k) != 0 {
+                        self.intersect(ray, stack)
+                    } else {
+                        self.hit_with_planes(ray.with_tmax(tmax[k]), best[k].map(|(slot, b1, b2)| (0, slot, b1, b2)))
+                    };
+                }
+            }
+            return;
+        }
+        for (ray, hit) in rays.iter().zip(hits) {
+            *hit = self.intersect(ray, stack);
+        }
+    }
+
+    /// The closest hit along `ray` given the closest primitive hit `best` (instance, slot,
+    /// barycentrics) at `ray.tmax`: a plane hit before it wins.
+    #[inline]
+    fn hit_with_planes(&self, mut ray: Ray, best: Option<(u32, u32, f32, f32)>) -> Option<SurfaceHit> {
         let mut plane_hit = None;
         for plane in &self.planes {
             if let Some(t) = plane.intersect(&ray) {

@@ -488,7 +488,11 @@ where
 
     /// Closest-hit traversal, front to back: calls `leaf(first, count, ray, stack)` for leaves
     /// the ray enters before `ray.tmax`, nearest entry first; `leaf` shrinks `ray.tmax` to the
-    /// hits it finds. Uses `stack` above its current length only.
+    /// hits it finds. Uses `stack` above its current length only. A box is pruned only when its
+    /// computed entry lies past `ray.tmax` by more than the node test's rounding bound (the
+    /// factor that widens its exit), so a hit at exactly `ray.tmax`'s distance on a box's
+    /// boundary is never lost to rounding, whatever order the leaves come in: this and
+    /// the packet traversal (`closest_packet`) always find the same closest distance.
     #[inline(always)]
     pub fn closest(
         &self,
@@ -509,7 +513,7 @@ where
                 leaf(n.child[slot], n.count[slot], ray, stack);
             } else {
                 let n = &self.nodes[item as usize];
-                let (mut mask, near) = n.test(&r, ray.tmax);
+                let (mut mask, near) = n.test(&r, ray.tmax * far_scale());
                 if mask != 0 {
                     let code = |i: usize| if n.count[i] > 0 { LEAF | (item << 3) | i as u32 } else { n.child[i] };
                     // Hit children sorted by entry distance (insertion sort of at most W).
@@ -539,7 +543,7 @@ where
                     return;
                 }
                 match stack.pop() {
-                    Some((i, d)) if d <= ray.tmax => {
+                    Some((i, d)) if d <= ray.tmax * far_scale() => {
                         item = i;
                         break;
                     }
@@ -607,7 +611,7 @@ impl Node<8> {
     /// # Safety
     /// The CPU must have `L`'s instruction set.
     #[inline(always)]
-    unsafe fn test_packet<L: Lanes>(&self, c: usize, p: &RayPacket<L>) -> u32 {
+    unsafe fn test_packet<L: Lanes>(&self, c: usize, p: &RayPacket<L>, tmax: L) -> u32 {
         // SAFETY: the caller's CPU has `L`'s instruction set.
         unsafe {
             let mut near = L::splat(NEAR_START);
@@ -619,7 +623,7 @@ impl Node<8> {
                 near = near_plane.sub(p.origin[a]).mul(p.inv_dir[a]).max_keep(near);
                 far = far_plane.sub(p.origin[a]).mul(p.inv_dir[a]).min_keep(far);
             }
-            let far = far.mul(L::splat(far_scale())).min_keep(p.tmax);
+            let far = far.mul(L::splat(far_scale())).min_keep(tmax);
             L::bits(near.le(far))
         }
     }
@@ -687,7 +691,7 @@ impl WideBvh<8> {
             let mut tested = [0u32; 8];
             for (c, t) in tested.iter_mut().enumerate() {
                 // SAFETY: the caller's CPU has `L`'s instruction set.
-                *t = unsafe { n.test_packet(c, p) };
+                *t = unsafe { n.test_packet(c, p, p.tmax) };
             }
             for (c, &t) in tested.iter().enumerate() {
                 // Only rays that entered this node, and are not yet blocked, go on to its children.
@@ -711,6 +715,81 @@ impl WideBvh<8> {
             }
         }
         live & !open
+    }
+
+    /// Closest-hit traversal of a packet of rays together: each node is tested against all the
+    /// packet's live rays at once, each against its own `tmax[lane]`, and the children are
+    /// visited nearest first for the packet's first live ray. `leaf(first, count, lanes, tmax)`
+    /// tests a leaf against `lanes` and shrinks their `tmax` to the hits it finds. Returns the
+    /// lanes whose subtree overflowed the packet's stack, which the caller must trace alone.
+    ///
+    /// Every ray reaches every leaf its own [`WideBvh::closest`] could find its hit in (a leaf
+    /// whose box it enters before its current `tmax`), so `tmax` ends at each ray's closest hit;
+    /// which of several hits at exactly that distance is found first may differ.
+    ///
+    /// # Safety
+    /// The CPU must have `L`'s instruction set (and AVX, for this eight-wide tree).
+    #[inline(always)]
+    pub(crate) unsafe fn closest_packet<L: Lanes>(
+        &self,
+        p: &RayPacket<L>,
+        first_ray: &Ray,
+        live: u32,
+        tmax: &mut [f32; 16],
+        mut leaf: impl FnMut(u32, u32, u32, &mut [f32; 16]),
+    ) -> u32 {
+        if self.nodes.is_empty() || live == 0 {
+            return 0;
+        }
+        let order = RayBox::new(first_ray);
+        let mut overflow = 0;
+        let mut todo = [std::mem::MaybeUninit::<(u32, u32)>::uninit(); PACKET_STACK];
+        let mut len = 1;
+        todo[0].write((0, live));
+        // SAFETY (all blocks below): the caller's CPU has `L`'s instruction set.
+        let widened = |tmax: &[f32; 16]| unsafe { L::load(&tmax[..]).mul(L::splat(far_scale())) };
+        let mut tmax_lanes = widened(tmax);
+        while len > 0 {
+            len -= 1;
+            // SAFETY: every entry below `len` was written before `len` passed it.
+            let (node, lanes) = unsafe { todo[len].assume_init() };
+            let n = &self.nodes[node as usize];
+            let mut tested = [0u32; 8];
+            for (c, t) in tested.iter_mut().enumerate() {
+                *t = unsafe { n.test_packet(c, p, tmax_lanes) } & lanes;
+            }
+            // Leaves now; inner children pushed farthest first (for the first ray), so that the
+            // nearest is popped next.
+            let (_, entry) = n.test(&order, f32::INFINITY);
+            let mut inner = [(0usize, 0f32); 8];
+            let mut k = 0;
+            for (c, &entered) in tested.iter().enumerate() {
+                if entered == 0 {
+                    continue;
+                }
+                if n.count[c] > 0 {
+                    leaf(n.child[c], n.count[c], entered, tmax);
+                    tmax_lanes = widened(tmax);
+                } else {
+                    let mut j = k;
+                    while j > 0 && inner[j - 1].1 < entry[c] {
+                        inner[j] = inner[j - 1];
+                        j -= 1;
+                    }
+                    inner[j] = (c, entry[c]);
+                    k += 1;
+                }
+            }
+            for &(c, _) in &inner[..k] {
+                if len < PACKET_STACK {
+                    todo[len].write((n.child[c], tested[c]));
+                    len += 1;
+                } else {
+                    overflow |= tested[c];
+                }
+            }
+        }
+        overflow
     }
 }
 
