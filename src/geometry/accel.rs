@@ -353,10 +353,10 @@ fn packet_width() -> PacketWidth {
     })
 }
 
-/// Defines, for one lane type and the instruction set it needs, the packet occlusion kernels:
-/// `Blas::$packets` and `SceneGeometry::$scene` (a run of rays by packets, within one BLAS or
-/// through the top level), and the per-packet `Blas::$lanes` and `SceneGeometry::$instance`
-/// they use. Each is compiled for that instruction set, and the closures they hand to the
+/// Defines, for one lane type and the instruction set it needs, the packet kernels: for
+/// occlusion, `Blas::$packets` and `SceneGeometry::$scene` (a run of rays by packets, within one
+/// BLAS or through the top level) and the per-packet `Blas::$lanes` and `SceneGeometry::$instance`
+/// they use; for closest hits, the per-packet `Blas::$closest`. Each is compiled for that instruction set, and the closures they hand to the
 /// generic traversal are written inside them so that they are compiled for it too (a closure
 /// gets the instruction set of the function it is written in, not of the one it is inlined
 /// into). Callers must make sure the CPU has the instruction set.
