@@ -303,42 +303,103 @@ fn hit_bits(hit: &Option<SurfaceHit>) -> Option<HitBits> {
 }
 
 #[test]
-fn a_run_of_camera_rays_gets_the_hits_of_single_queries() {
-    // Triangles only (so the tree holds triangle packets and runs are traced as packets),
-    // over a plane.
+fn runs_of_camera_rays_get_the_hits_of_single_queries() {
+    use std::sync::Arc;
+
+    use glam::{Affine3A, Quat};
+    use hemi::geometry::accel::{Blas, Instance};
+
     let mut rng = SplitMix64::new(5);
     let meshes = [uv_sphere(0.7, 10, 20), torus_knot(2, 3, 0.8, 0.15, 120, 10)];
-    let (mut prims, mut objects, mut vertices) = (Vec::new(), Vec::new(), Vec::new());
+    let matte = || Object { entity: Entity::PLACEHOLDER, material: Matte::default() };
+    let plane = || vec![world_space::plane(&Default::default(), &Transform::from_xyz(0.0, -6.0, 0.0), 30).unwrap()];
+    // Thirty meshes in world space, their triangle corners, and one BLAS each.
+    let (mut vertices, mut pieces) = (Vec::new(), Vec::new());
     for i in 0..30u32 {
         let t = Transform::from_translation(Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 10.0 - 5.0);
-        let converted = world_space::mesh(&meshes[i as usize % 2], &t, i).unwrap().prims;
-        for p in &converted {
+        let prims = world_space::mesh(&meshes[i as usize % 2], &t, i).unwrap().prims;
+        for p in &prims {
             if let Shape::Triangle(tri) = p.shape {
                 vertices.extend(tri.p);
             }
         }
-        prims.extend(converted);
-        objects.push(Object { entity: Entity::PLACEHOLDER, material: Matte::default() });
+        pieces.push(prims);
     }
-    let planes = vec![world_space::plane(&Default::default(), &Transform::from_xyz(0.0, -6.0, 0.0), 30).unwrap()];
-    objects.push(Object { entity: Entity::PLACEHOLDER, material: Matte::default() });
-    let geometry = SceneGeometry::build(prims, planes, objects);
+    // Two halves of a ground grid at y = −5.5 that meet along x = 0: rays at a seam vertex hit
+    // both halves at one distance.
+    let n = 6;
+    let half = |x0: i32| Mesh {
+        positions: (0..=n)
+            .flat_map(|z| (0..=n).map(move |x| Vec3::new((x0 + x) as f32, -5.5, z as f32 - 3.0)))
+            .collect(),
+        indices: (0..n as u32)
+            .flat_map(|z| {
+                (0..n as u32).flat_map(move |x| {
+                    let i = z * (n as u32 + 1) + x;
+                    [[i, i + n as u32 + 1, i + 1], [i + 1, i + n as u32 + 1, i + n as u32 + 2]]
+                })
+            })
+            .collect(),
+    };
+    for (k, x0) in [-n, 0].into_iter().enumerate() {
+        pieces.push(world_space::mesh(&half(x0), &Transform::default(), 30 + k as u32).unwrap().prims);
+    }
+    let seam: Vec<Vec3A> = (0..=n).map(|z| Vec3A::new(0.0, -5.5, z as f32 - 3.0)).collect();
+    // Baked into one BLAS of triangles (a static scene: packets straight into it).
+    let baked = SceneGeometry::build(pieces.concat(), plane(), (0..33).map(|_| matte()).collect());
+    // As world-space instances under a top level, with a BLAS of spheres (traced ray by ray);
+    // and once more with a rotated, scaled instance besides (camera rays then go one by one).
+    let mut blases: Vec<Arc<Blas>> = pieces.into_iter().map(|p| Arc::new(Blas::build(p))).collect();
+    let spheres = (0..6)
+        .map(|i| Prim {
+            shape: Shape::Sphere(SpherePrim {
+                center: (Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 10.0) - 5.0,
+                radius: 0.3 + rng.next_f32(),
+            }),
+            object: 32 + i,
+        })
+        .collect();
+    blases.push(Arc::new(Blas::build(spheres)));
+    blases.push(Arc::new(Blas::from_mesh(&meshes[1])));
+    let mut instances: Vec<Instance> = (0..33)
+        .map(|b| Instance::new(b, blases[b as usize].bounds().unwrap(), Affine3A::IDENTITY, None).unwrap())
+        .collect();
+    let objects = || (0..40).map(|_| matte()).collect();
+    let world = SceneGeometry::from_instances(blases.clone(), instances.clone(), plane(), objects());
+    let m = Affine3A::from_scale_rotation_translation(
+        Vec3::splat(1.5),
+        Quat::from_rotation_y(0.6),
+        Vec3::new(1.0, 2.0, 0.5),
+    );
+    instances.push(Instance::new(33, blases[33].bounds().unwrap(), m, Some(38)).unwrap());
+    let transformed = SceneGeometry::from_instances(blases, instances, plane(), objects());
+    for geometry in [&baked, &world, &transformed] {
+        bundles_get_single_hits(geometry, &vertices, &seam, &mut rng);
+    }
+}
+
+/// Checks `intersect_many` against `intersect` on bundles of nearly parallel rays from one
+/// point (a pixel's worth), every third aimed exactly at one of `vertices` (hits at a shared
+/// vertex or edge, on several triangles at one distance), every fifth with finite segments.
+/// Every sixth spreads wide with its second ray exact at a `seam` vertex (two BLASes hit at one
+/// distance), so that one exact ray, not the packet's first, can reach a mesh alone.
+fn bundles_get_single_hits(geometry: &SceneGeometry, vertices: &[Vec3A], seam: &[Vec3A], rng: &mut SplitMix64) {
     let mut stack = Vec::new();
     let (mut hits, mut rays_traced) = (0, 0);
-    for bundle in 0..600 {
+    for bundle in 0..900 {
         let origin = (Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 16.0) - 8.0;
-        // A pixel's worth of nearly parallel rays; every third bundle aims exactly at a mesh
-        // vertex (hits at a shared vertex or edge, on several triangles at one distance), and
-        // every fifth has finite segments.
-        let aim = if bundle % 3 == 0 {
-            vertices[(rng.next_f32() * vertices.len() as f32) as usize % vertices.len()]
-        } else {
-            origin + random_unit(&mut rng) * 10.0
+        let pick = |list: &[Vec3A], u: f32| list[(u * list.len() as f32) as usize % list.len()];
+        let wide = bundle % 6 == 3;
+        let aim = match bundle % 3 {
+            _ if wide => pick(seam, rng.next_f32()),
+            0 => pick(vertices, rng.next_f32()),
+            _ => origin + random_unit(rng) * 10.0,
         };
         let count = [16, 37, 8, 5][bundle % 4];
         let rays: Vec<Ray> = (0..count)
             .map(|k| {
-                let jitter = if k % 4 == 0 { Vec3A::ZERO } else { random_unit(&mut rng) * 2e-3 };
+                let exact = if wide { k == 1 } else { k % 4 == 0 };
+                let jitter = if exact { Vec3A::ZERO } else { random_unit(rng) * if wide { 2.0 } else { 2e-3 } };
                 let tmax = if bundle % 5 == 0 { rng.next_f32() * 12.0 } else { f32::INFINITY };
                 Ray::new(origin, aim - origin + jitter, tmax)
             })

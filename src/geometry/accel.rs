@@ -362,7 +362,16 @@ fn packet_width() -> PacketWidth {
 /// into). Callers must make sure the CPU has the instruction set.
 #[cfg(target_arch = "x86_64")]
 macro_rules! packet_kernels {
-    ($lanes_type:ty, $feature:literal, $packets:ident, $lanes:ident, $scene:ident, $instance:ident, $closest:ident) => {
+    (
+        $lanes_type:ty,
+        $feature:literal,
+        $packets:ident,
+        $lanes:ident,
+        $scene:ident,
+        $instance:ident,
+        $closest:ident,
+        $closest_top:ident
+    ) => {
         impl Blas {
             /// The closest hits of `rays` (one packet; lanes of `live`) in `tree`, this BLAS's
             /// eight-wide tree, traced together: each lane's `tmax` shrinks to its hit's `t`
@@ -470,6 +479,72 @@ macro_rules! packet_kernels {
         }
 
         impl SceneGeometry {
+            /// The closest hits of `rays` (one packet; lanes of `live`) through the top-level
+            /// tree `top`, whose instances must all be in world space, traced together: each
+            /// lane's `tmax` shrinks to its hit's `t` and `best` gets its (instance, slot, b1,
+            /// b2), exactly as [`SceneGeometry::intersect`] finds them before the planes. An
+            /// instance's BLAS of triangle packets takes the rays it gets as a packet, any other
+            /// BLAS each ray alone. Returns the lanes to trace alone instead: a hit at exactly a
+            /// lane's closest distance so far (in a second triangle or instance, where the
+            /// single-ray order decides), or the packet's stack overflowed.
+            #[target_feature(enable = $feature)]
+            fn $closest_top(
+                &self,
+                top: &Bvh8,
+                rays: &[Ray],
+                live: u32,
+                tmax: &mut [f32; 16],
+                best: &mut [Option<(u32, u32, f32, f32)>; 16],
+                stack: &mut Vec<(u32, f32)>,
+            ) -> u32 {
+                let mut alone = 0u32;
+                let leaf = |first: u32, count: u32, lanes: u32, tmax: &mut [f32; 16]| {
+                    for i in first..first + count {
+                        let open = lanes & !alone;
+                        if open == 0 {
+                            continue;
+                        }
+                        let blas = &self.blases[self.instances[i as usize].blas as usize];
+                        match &blas.tree {
+                            Tree::Eight(tree) if !blas.packets.is_empty() && open.count_ones() >= 2 => {
+                                let mut found = [None; 16];
+                                alone |= blas.$closest(tree, rays, open, tmax, &mut found);
+                                for (b, f) in best.iter_mut().zip(found) {
+                                    if let Some((slot, b1, b2)) = f {
+                                        *b = Some((i, slot, b1, b2));
+                                    }
+                                }
+                            }
+                            _ => {
+                                let mut each = open;
+                                while each != 0 {
+                                    let k = each.trailing_zeros() as usize;
+                                    each &= each - 1;
+                                    // Accepting a hit at exactly the closest distance so far
+                                    // too, to see ties.
+                                    let mut ray = rays[k].with_tmax(tmax[k].next_up());
+                                    if let Some((slot, b1, b2)) = blas.closest(&mut ray, stack) {
+                                        if ray.tmax < tmax[k] {
+                                            tmax[k] = ray.tmax;
+                                            best[k] = Some((i, slot, b1, b2));
+                                        } else {
+                                            alone |= 1 << k;
+                                        }
+                                    }
+                                }
+                            }
+                        }
+                    }
+                };
+                // SAFETY: this function is compiled for the lane type's instruction set and
+                // AVX, which the caller's CPU has.
+                let overflow = unsafe {
+                    let packet = RayPacket::new(&<$lanes_type>::rays(rays));
+                    top.closest_packet(&packet, &rays[live.trailing_zeros() as usize], live, tmax, leaf)
+                };
+                alone | overflow
+            }
+
             /// [`SceneGeometry::occluded_many`] through the top level by packets of consecutive
             /// rays, as within one BLAS; an instance reached by two or more of a packet's rays
             /// gets them as one packet in its own frame.
@@ -553,7 +628,8 @@ packet_kernels!(
     occluded_lanes_avx,
     occluded_packets_avx,
     instance_blocks_avx,
-    closest_lanes_avx
+    closest_lanes_avx,
+    closest_top_avx
 );
 #[cfg(target_arch = "x86_64")]
 packet_kernels!(
@@ -563,7 +639,8 @@ packet_kernels!(
     occluded_lanes_avx512,
     occluded_packets_avx512,
     instance_blocks_avx512,
-    closest_lanes_avx512
+    closest_lanes_avx512,
+    closest_top_avx512
 );
 
 /// Fewest rays in one [`Blas::occluded_many`] call for packet traversal (a point light's
@@ -1113,6 +1190,9 @@ pub struct SceneGeometry {
     tlas: Vec<Bvh2Node>,
     /// The top-level BVH2 collapsed to a wide tree, which traversal uses.
     top: Tree,
+    /// Whether runs of camera rays go through the top level in packets: every instance is in
+    /// world space (no transform) and some BLAS holds triangle packets.
+    top_packets: bool,
     planes: Vec<PlanePrim>,
     /// Objects, indexed by `SurfaceHit::object`.
     pub objects: Vec<Object>,
@@ -1165,6 +1245,7 @@ impl SceneGeometry {
         let bounds = tlas.first().map(|n| (n.aabb().min, n.aabb().max));
         let depth = subtree_depth(&tlas) + blases.iter().map(|b| b.depth).max().unwrap_or(0);
         SceneGeometry {
+            top_packets: instances.iter().all(|i| i.identity) && blases.iter().any(|b| !b.packets.is_empty()),
             blases,
             instances,
             top: Tree::from_bvh2(&tlas),
@@ -1265,49 +1346,84 @@ impl SceneGeometry {
     }
 
     /// [`SceneGeometry::intersect`] for each of `rays` into `hits` (same length), the same hits:
-    /// in packets where the scene is one world-space BLAS of triangle packets under an
-    /// eight-wide tree (a static scene), which suits runs of rays that travel together, such
-    /// as one pixel's camera rays.
+    /// in packets where the trees are eight-wide, every instance is in world space and there are
+    /// triangle packets (straight into the one BLAS of a static scene, else through the top
+    /// level), which suits runs of rays that travel together, such as one pixel's camera rays.
     pub fn intersect_many(&self, rays: &[Ray], stack: &mut Vec<(u32, f32)>, hits: &mut [Option<SurfaceHit>]) {
         #[cfg(target_arch = "x86_64")]
-        if let [inst] = &self.instances[..]
-            && inst.identity
-            && rays.len() >= PACKET_RUN
-            && let blas = &self.blases[inst.blas as usize]
-            && let Tree::Eight(tree) = &blas.tree
-            && !blas.packets.is_empty()
-        {
-            let width = match packet_width() {
-                PacketWidth::Eight => 8,
-                PacketWidth::Sixteen => 16,
+        if rays.len() >= PACKET_RUN {
+            // One world-space BLAS with triangle packets (a static scene): no top level.
+            let world = match &self.instances[..] {
+                [inst] if inst.identity => match &*self.blases[inst.blas as usize] {
+                    blas @ Blas { tree: Tree::Eight(tree), .. } if !blas.packets.is_empty() => Some((blas, tree)),
+                    _ => None,
+                },
+                _ => None,
             };
-            for (chunk, out) in rays.chunks(width).zip(hits.chunks_mut(width)) {
-                let mut tmax = [0.0; 16];
-                for (t, ray) in tmax.iter_mut().zip(chunk) {
-                    *t = ray.tmax;
-                }
-                let mut best = [None; 16];
-                let live = (1u32 << chunk.len()) - 1;
-                // SAFETY: an eight-wide tree is built only where AVX was detected, and
-                // sixteen-lane packets are chosen only where AVX-512 was.
-                let alone = unsafe {
-                    match packet_width() {
-                        PacketWidth::Sixteen => blas.closest_lanes_avx512(tree, chunk, live, &mut tmax, &mut best),
-                        PacketWidth::Eight => blas.closest_lanes_avx(tree, chunk, live, &mut tmax, &mut best),
-                    }
+            let packets = world.is_some() || (self.top_packets && matches!(self.top, Tree::Eight(_)));
+            if packets {
+                let width = match packet_width() {
+                    PacketWidth::Eight => 8,
+                    PacketWidth::Sixteen => 16,
                 };
-                for (k, (ray, hit)) in chunk.iter().zip(out).enumerate() {
-                    *hit = if alone & (1 << k) != 0 {
-                        self.intersect(ray, stack)
-                    } else {
-                        self.hit_with_planes(ray.with_tmax(tmax[k]), best[k].map(|(slot, b1, b2)| (0, slot, b1, b2)))
-                    };
+                for (chunk, out) in rays.chunks(width).zip(hits.chunks_mut(width)) {
+                    let mut tmax = [0.0; 16];
+                    for (t, ray) in tmax.iter_mut().zip(chunk) {
+                        *t = ray.tmax;
+                    }
+                    let mut best = [None; 16];
+                    let live = (1u32 << chunk.len()) - 1;
+                    let alone = self.closest_packet(world, chunk, live, &mut tmax, &mut best, stack);
+                    for (k, (ray, hit)) in chunk.iter().zip(out).enumerate() {
+                        *hit = if alone & (1 << k) != 0 {
+                            self.intersect(ray, stack)
+                        } else {
+                            self.hit_with_planes(ray.with_tmax(tmax[k]), best[k])
+                        };
+                    }
                 }
+                return;
             }
-            return;
         }
         for (ray, hit) in rays.iter().zip(hits) {
             *hit = self.intersect(ray, stack);
+        }
+    }
+
+    /// One packet of [`SceneGeometry::intersect_many`]: into `world`, the static scene's BLAS
+    /// and its tree, or else through the top level (which must be eight-wide). Returns the lanes
+    /// to trace alone.
+    #[cfg(target_arch = "x86_64")]
+    fn closest_packet(
+        &self,
+        world: Option<(&Blas, &Bvh8)>,
+        rays: &[Ray],
+        live: u32,
+        tmax: &mut [f32; 16],
+        best: &mut [Option<(u32, u32, f32, f32)>; 16],
+        stack: &mut Vec<(u32, f32)>,
+    ) -> u32 {
+        let sixteen = matches!(packet_width(), PacketWidth::Sixteen);
+        // SAFETY: eight-wide trees are built only where AVX was detected, and sixteen-lane
+        // packets are chosen only where AVX-512 was.
+        unsafe {
+            match (world, &self.top) {
+                (Some((blas, tree)), _) => {
+                    let mut found = [None; 16];
+                    let alone = if sixteen {
+                        blas.closest_lanes_avx512(tree, rays, live, tmax, &mut found)
+                    } else {
+                        blas.closest_lanes_avx(tree, rays, live, tmax, &mut found)
+                    };
+                    for (b, f) in best.iter_mut().zip(found) {
+                        *b = f.map(|(slot, b1, b2)| (0, slot, b1, b2));
+                    }
+                    alone
+                }
+                (None, Tree::Eight(top)) if sixteen => self.closest_top_avx512(top, rays, live, tmax, best, stack),
+                (None, Tree::Eight(top)) => self.closest_top_avx(top, rays, live, tmax, best, stack),
+                (None, Tree::Four(_)) => live,
+            }
         }
     }
 
