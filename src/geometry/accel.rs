@@ -36,7 +36,7 @@ use super::{
 use super::{
     lanes::{Avx, Avx512, Lanes},
     tri4::RayTriPacket,
-    wide_bvh::{Bvh8, RayPacket},
+    wide_bvh::{Bvh8, LaneHits, RayPacket},
 };
 use crate::{
     components::{Matte, Mesh},
@@ -229,7 +229,7 @@ struct TopClosest<'a> {
 }
 
 impl TreeQuery for TopClosest<'_> {
-    type Output = Option<(u32, u32, f32, f32)>;
+    type Output = Option<ClosestHit>;
     #[inline(always)]
     fn run<const W: usize>(self, tree: &WideBvh<W>) -> Self::Output
     where
@@ -343,6 +343,30 @@ enum PacketWidth {
     Sixteen,
 }
 
+#[cfg(target_arch = "x86_64")]
+impl PacketWidth {
+    /// Rays per packet.
+    fn lanes(self) -> usize {
+        match self {
+            PacketWidth::Eight => 8,
+            PacketWidth::Sixteen => 16,
+        }
+    }
+}
+
+/// A closest hit in a scene: (instance, primitive slot, b1, b2).
+type ClosestHit = (u32, u32, f32, f32);
+
+/// Where [`SceneGeometry::intersect_many`] traces a packet.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+enum CameraPackets<'a> {
+    /// Straight into a static scene's one world-space BLAS of triangle packets, and its tree.
+    World(&'a Blas, &'a Bvh8),
+    /// Through the top level (every instance in world space).
+    Top(&'a Bvh8),
+}
+
 /// The packet width this CPU and environment get (checked once).
 #[cfg(target_arch = "x86_64")]
 fn packet_width() -> PacketWidth {
@@ -374,27 +398,25 @@ macro_rules! packet_kernels {
     ) => {
         impl Blas {
             /// The closest hits of `rays` (one packet; lanes of `live`) in `tree`, this BLAS's
-            /// eight-wide tree, traced together: each lane's `tmax` shrinks to its hit's `t`
-            /// and `best` gets its (slot, b1, b2), exactly as [`Blas::closest`] finds them.
-            /// Returns the lanes it could not answer so: where a second triangle is hit at
-            /// exactly the closest distance (the single-ray traversal's order decides which one
-            /// it keeps) or the packet's stack overflowed. Trace those alone.
+            /// eight-wide tree, as instance `instance`, traced together and offered to `hits`:
+            /// exactly what [`Blas::closest`] finds, except that a second hit at exactly a
+            /// lane's closest distance is marked a tie. Returns the lanes whose subtree
+            /// overflowed the packet's stack; trace those, and the tied ones, alone.
             #[target_feature(enable = $feature)]
             fn $closest(
                 &self,
                 tree: &Bvh8,
                 rays: &[Ray],
                 live: u32,
-                tmax: &mut [f32; 16],
-                best: &mut [Option<(u32, f32, f32)>; 16],
+                instance: u32,
+                hits: &mut LaneHits<ClosestHit>,
             ) -> u32 {
                 // SAFETY (all blocks below): this function is compiled for the lane type's
                 // instruction set and AVX, which the caller's CPU has.
                 let in_lanes = unsafe { <$lanes_type>::rays(rays) };
                 let packet = unsafe { RayPacket::new(&in_lanes) };
                 let edges = unsafe { RayTriPacket::new(&in_lanes) };
-                let mut tied = 0u32;
-                let leaf = |first: u32, count: u32, lanes: u32, tmax: &mut [f32; 16]| {
+                let leaf = |first: u32, count: u32, lanes: u32, hits: &mut LaneHits<ClosestHit>| {
                     for packet in &self.packets[first as usize..(first + count) as usize] {
                         for (lane, &slot) in packet.slot.iter().enumerate() {
                             if slot == u32::MAX {
@@ -409,25 +431,17 @@ macro_rules! packet_kernels {
                             while crossing != 0 {
                                 let k = crossing.trailing_zeros() as usize;
                                 crossing &= crossing - 1;
-                                // The scalar test, accepting a hit at exactly the current
-                                // closest distance too, to see ties.
-                                let ray = rays[k].with_tmax(tmax[k].next_up());
+                                // The scalar test, as the single-ray leaf finishes it.
+                                let ray = hits.probe(rays, k);
                                 if let Some((t, b1, b2)) = tri.intersect(&ray, &Shear::new(ray.dir)) {
-                                    if t < tmax[k] {
-                                        tmax[k] = t;
-                                        best[k] = Some((slot, b1, b2));
-                                        tied &= !(1 << k);
-                                    } else {
-                                        tied |= 1 << k;
-                                    }
+                                    hits.offer(k, t, (instance, slot, b1, b2));
                                 }
                             }
                         }
                     }
                 };
                 let first = &rays[live.trailing_zeros() as usize];
-                let overflow = unsafe { tree.closest_packet(&packet, first, live, tmax, leaf) };
-                tied | overflow
+                unsafe { tree.closest_packet(&packet, first, live, hits, leaf) }
             }
 
             /// [`Blas::occluded_many`] by packets of consecutive rays (a pixel's shadow rays,
@@ -480,56 +494,38 @@ macro_rules! packet_kernels {
 
         impl SceneGeometry {
             /// The closest hits of `rays` (one packet; lanes of `live`) through the top-level
-            /// tree `top`, whose instances must all be in world space, traced together: each
-            /// lane's `tmax` shrinks to its hit's `t` and `best` gets its (instance, slot, b1,
-            /// b2), exactly as [`SceneGeometry::intersect`] finds them before the planes. An
-            /// instance's BLAS of triangle packets takes the rays it gets as a packet, any other
-            /// BLAS each ray alone. Returns the lanes to trace alone instead: a hit at exactly a
-            /// lane's closest distance so far (in a second triangle or instance, where the
-            /// single-ray order decides), or the packet's stack overflowed.
+            /// tree `top`, whose instances must all be in world space, traced together and
+            /// offered to `hits` (instance, slot, b1, b2): exactly what
+            /// [`SceneGeometry::intersect`] finds before the planes, except that a second hit
+            /// at exactly a lane's closest distance (in another triangle or instance) is marked
+            /// a tie. An instance's BLAS of triangle packets takes the rays it gets as a packet,
+            /// any other BLAS each ray alone. Returns the lanes whose subtree overflowed a
+            /// packet's stack; trace those, and the tied ones, alone.
             #[target_feature(enable = $feature)]
             fn $closest_top(
                 &self,
                 top: &Bvh8,
                 rays: &[Ray],
                 live: u32,
-                tmax: &mut [f32; 16],
-                best: &mut [Option<(u32, u32, f32, f32)>; 16],
+                hits: &mut LaneHits<ClosestHit>,
                 stack: &mut Vec<(u32, f32)>,
             ) -> u32 {
-                let mut alone = 0u32;
-                let leaf = |first: u32, count: u32, lanes: u32, tmax: &mut [f32; 16]| {
+                let mut overflow = 0u32;
+                let leaf = |first: u32, count: u32, lanes: u32, hits: &mut LaneHits<ClosestHit>| {
                     for i in first..first + count {
-                        let open = lanes & !alone;
-                        if open == 0 {
-                            continue;
-                        }
                         let blas = &self.blases[self.instances[i as usize].blas as usize];
                         match &blas.tree {
-                            Tree::Eight(tree) if !blas.packets.is_empty() && open.count_ones() >= 2 => {
-                                let mut found = [None; 16];
-                                alone |= blas.$closest(tree, rays, open, tmax, &mut found);
-                                for (b, f) in best.iter_mut().zip(found) {
-                                    if let Some((slot, b1, b2)) = f {
-                                        *b = Some((i, slot, b1, b2));
-                                    }
-                                }
+                            Tree::Eight(tree) if !blas.packets.is_empty() && lanes.count_ones() >= 2 => {
+                                overflow |= blas.$closest(tree, rays, lanes, i, hits);
                             }
                             _ => {
-                                let mut each = open;
+                                let mut each = lanes;
                                 while each != 0 {
                                     let k = each.trailing_zeros() as usize;
                                     each &= each - 1;
-                                    // Accepting a hit at exactly the closest distance so far
-                                    // too, to see ties.
-                                    let mut ray = rays[k].with_tmax(tmax[k].next_up());
+                                    let mut ray = hits.probe(rays, k);
                                     if let Some((slot, b1, b2)) = blas.closest(&mut ray, stack) {
-                                        if ray.tmax < tmax[k] {
-                                            tmax[k] = ray.tmax;
-                                            best[k] = Some((i, slot, b1, b2));
-                                        } else {
-                                            alone |= 1 << k;
-                                        }
+                                        hits.offer(k, ray.tmax, (i, slot, b1, b2));
                                     }
                                 }
                             }
@@ -538,11 +534,11 @@ macro_rules! packet_kernels {
                 };
                 // SAFETY: this function is compiled for the lane type's instruction set and
                 // AVX, which the caller's CPU has.
-                let overflow = unsafe {
+                let top_overflow = unsafe {
                     let packet = RayPacket::new(&<$lanes_type>::rays(rays));
-                    top.closest_packet(&packet, &rays[live.trailing_zeros() as usize], live, tmax, leaf)
+                    top.closest_packet(&packet, &rays[live.trailing_zeros() as usize], live, hits, leaf)
                 };
-                alone | overflow
+                overflow | top_overflow
             }
 
             /// [`SceneGeometry::occluded_many`] through the top level by packets of consecutive
@@ -1271,10 +1267,7 @@ impl SceneGeometry {
     pub fn packet_lanes(&self) -> usize {
         #[cfg(target_arch = "x86_64")]
         if self.node_width() == 8 {
-            return match packet_width() {
-                PacketWidth::Eight => 8,
-                PacketWidth::Sixteen => 16,
-            };
+            return packet_width().lanes();
         }
         0
     }
@@ -1351,78 +1344,68 @@ impl SceneGeometry {
     /// level), which suits runs of rays that travel together, such as one pixel's camera rays.
     pub fn intersect_many(&self, rays: &[Ray], stack: &mut Vec<(u32, f32)>, hits: &mut [Option<SurfaceHit>]) {
         #[cfg(target_arch = "x86_64")]
-        if rays.len() >= PACKET_RUN {
-            // One world-space BLAS with triangle packets (a static scene): no top level.
-            let world = match &self.instances[..] {
-                [inst] if inst.identity => match &*self.blases[inst.blas as usize] {
-                    blas @ Blas { tree: Tree::Eight(tree), .. } if !blas.packets.is_empty() => Some((blas, tree)),
-                    _ => None,
-                },
-                _ => None,
-            };
-            let packets = world.is_some() || (self.top_packets && matches!(self.top, Tree::Eight(_)));
-            if packets {
-                let width = match packet_width() {
-                    PacketWidth::Eight => 8,
-                    PacketWidth::Sixteen => 16,
-                };
-                for (chunk, out) in rays.chunks(width).zip(hits.chunks_mut(width)) {
-                    let mut tmax = [0.0; 16];
-                    for (t, ray) in tmax.iter_mut().zip(chunk) {
-                        *t = ray.tmax;
-                    }
-                    let mut best = [None; 16];
-                    let live = (1u32 << chunk.len()) - 1;
-                    let alone = self.closest_packet(world, chunk, live, &mut tmax, &mut best, stack);
-                    for (k, (ray, hit)) in chunk.iter().zip(out).enumerate() {
-                        *hit = if alone & (1 << k) != 0 {
-                            self.intersect(ray, stack)
-                        } else {
-                            self.hit_with_planes(ray.with_tmax(tmax[k]), best[k])
-                        };
-                    }
+        if rays.len() >= PACKET_RUN
+            && let Some(into) = self.camera_packets()
+        {
+            let width = packet_width().lanes();
+            for (chunk, out) in rays.chunks(width).zip(hits.chunks_mut(width)) {
+                let mut found = LaneHits::new(chunk);
+                let live = (1u32 << chunk.len()) - 1;
+                let alone = self.closest_packet(into, chunk, live, &mut found, stack) | found.tied;
+                for (k, (ray, hit)) in chunk.iter().zip(out).enumerate() {
+                    *hit = if alone & (1 << k) != 0 {
+                        self.intersect(ray, stack)
+                    } else {
+                        self.hit_with_planes(ray.with_tmax(found.tmax[k]), found.best[k])
+                    };
                 }
-                return;
             }
+            return;
         }
         for (ray, hit) in rays.iter().zip(hits) {
             *hit = self.intersect(ray, stack);
         }
     }
 
-    /// One packet of [`SceneGeometry::intersect_many`]: into `world`, the static scene's BLAS
-    /// and its tree, or else through the top level (which must be eight-wide). Returns the lanes
-    /// to trace alone.
+    /// Where [`SceneGeometry::intersect_many`] traces packets, if anywhere: straight into the
+    /// one world-space BLAS of triangle packets of a static scene, else through an eight-wide
+    /// top level whose instances are all in world space, with some triangle packets.
+    #[cfg(target_arch = "x86_64")]
+    fn camera_packets(&self) -> Option<CameraPackets<'_>> {
+        if let [inst] = &self.instances[..]
+            && inst.identity
+            && let blas = &*self.blases[inst.blas as usize]
+            && let Tree::Eight(tree) = &blas.tree
+            && !blas.packets.is_empty()
+        {
+            return Some(CameraPackets::World(blas, tree));
+        }
+        match &self.top {
+            Tree::Eight(top) if self.top_packets => Some(CameraPackets::Top(top)),
+            _ => None,
+        }
+    }
+
+    /// One packet of [`SceneGeometry::intersect_many`] traced `into` the scene, offered to
+    /// `hits`. Returns the lanes whose subtree overflowed a packet's stack.
     #[cfg(target_arch = "x86_64")]
     fn closest_packet(
         &self,
-        world: Option<(&Blas, &Bvh8)>,
+        into: CameraPackets,
         rays: &[Ray],
         live: u32,
-        tmax: &mut [f32; 16],
-        best: &mut [Option<(u32, u32, f32, f32)>; 16],
+        hits: &mut LaneHits<ClosestHit>,
         stack: &mut Vec<(u32, f32)>,
     ) -> u32 {
         let sixteen = matches!(packet_width(), PacketWidth::Sixteen);
         // SAFETY: eight-wide trees are built only where AVX was detected, and sixteen-lane
         // packets are chosen only where AVX-512 was.
         unsafe {
-            match (world, &self.top) {
-                (Some((blas, tree)), _) => {
-                    let mut found = [None; 16];
-                    let alone = if sixteen {
-                        blas.closest_lanes_avx512(tree, rays, live, tmax, &mut found)
-                    } else {
-                        blas.closest_lanes_avx(tree, rays, live, tmax, &mut found)
-                    };
-                    for (b, f) in best.iter_mut().zip(found) {
-                        *b = f.map(|(slot, b1, b2)| (0, slot, b1, b2));
-                    }
-                    alone
-                }
-                (None, Tree::Eight(top)) if sixteen => self.closest_top_avx512(top, rays, live, tmax, best, stack),
-                (None, Tree::Eight(top)) => self.closest_top_avx(top, rays, live, tmax, best, stack),
-                (None, Tree::Four(_)) => live,
+            match into {
+                CameraPackets::World(blas, tree) if sixteen => blas.closest_lanes_avx512(tree, rays, live, 0, hits),
+                CameraPackets::World(blas, tree) => blas.closest_lanes_avx(tree, rays, live, 0, hits),
+                CameraPackets::Top(top) if sixteen => self.closest_top_avx512(top, rays, live, hits, stack),
+                CameraPackets::Top(top) => self.closest_top_avx(top, rays, live, hits, stack),
             }
         }
     }
@@ -1430,7 +1413,7 @@ impl SceneGeometry {
     /// The closest hit along `ray` given the closest primitive hit `best` (instance, slot,
     /// barycentrics) at `ray.tmax`: a plane hit before it wins.
     #[inline]
-    fn hit_with_planes(&self, mut ray: Ray, best: Option<(u32, u32, f32, f32)>) -> Option<SurfaceHit> {
+    fn hit_with_planes(&self, mut ray: Ray, best: Option<ClosestHit>) -> Option<SurfaceHit> {
         let mut plane_hit = None;
         for plane in &self.planes {
             if let Some(t) = plane.intersect(&ray) {
@@ -1464,7 +1447,7 @@ impl SceneGeometry {
     /// Front-to-back top-level traversal; shrinks `ray.tmax` (world t) to the closest hit and
     /// returns (instance, primitive slot, b1, b2).
     #[inline]
-    fn closest_instance(&self, ray: &mut Ray, stack: &mut Vec<(u32, f32)>) -> Option<(u32, u32, f32, f32)> {
+    fn closest_instance(&self, ray: &mut Ray, stack: &mut Vec<(u32, f32)>) -> Option<ClosestHit> {
         stack.clear();
         if let [inst] = &self.instances[..]
             && inst.identity
@@ -1482,7 +1465,7 @@ impl SceneGeometry {
         top: &WideBvh<W>,
         ray: &mut Ray,
         stack: &mut Vec<(u32, f32)>,
-    ) -> Option<(u32, u32, f32, f32)>
+    ) -> Option<ClosestHit>
     where
         Node<W>: NodeTest<W>,
     {

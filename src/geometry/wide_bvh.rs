@@ -718,10 +718,11 @@ impl WideBvh<8> {
     }
 
     /// Closest-hit traversal of a packet of rays together: each node is tested against all the
-    /// packet's live rays at once, each against its own `tmax[lane]`, and the children are
-    /// visited nearest first for the packet's first live ray. `leaf(first, count, lanes, tmax)`
-    /// tests a leaf against `lanes` and shrinks their `tmax` to the hits it finds. Returns the
-    /// lanes whose subtree overflowed the packet's stack, which the caller must trace alone.
+    /// packet's live rays at once, each against its own closest distance so far
+    /// (`hits.tmax[lane]`), and the children are visited nearest first for the packet's first
+    /// live ray. `leaf(first, count, lanes, hits)` tests a leaf against `lanes` and offers
+    /// `hits` what it finds. Returns the lanes whose subtree overflowed the packet's stack,
+    /// which the caller must trace alone.
     ///
     /// Every ray reaches every leaf its own [`WideBvh::closest`] could find its hit in (a leaf
     /// whose box it enters before its current `tmax`), so `tmax` ends at each ray's closest hit;
@@ -730,13 +731,13 @@ impl WideBvh<8> {
     /// # Safety
     /// The CPU must have `L`'s instruction set (and AVX, for this eight-wide tree).
     #[inline(always)]
-    pub(crate) unsafe fn closest_packet<L: Lanes>(
+    pub(crate) unsafe fn closest_packet<L: Lanes, T>(
         &self,
         p: &RayPacket<L>,
         first_ray: &Ray,
         live: u32,
-        tmax: &mut [f32; 16],
-        mut leaf: impl FnMut(u32, u32, u32, &mut [f32; 16]),
+        hits: &mut LaneHits<T>,
+        mut leaf: impl FnMut(u32, u32, u32, &mut LaneHits<T>),
     ) -> u32 {
         if self.nodes.is_empty() || live == 0 {
             return 0;
@@ -748,7 +749,7 @@ impl WideBvh<8> {
         todo[0].write((0, live));
         // SAFETY (all blocks below): the caller's CPU has `L`'s instruction set.
         let widened = |tmax: &[f32; 16]| unsafe { L::load(&tmax[..]).mul(L::splat(far_scale())) };
-        let mut tmax_lanes = widened(tmax);
+        let mut tmax_lanes = widened(&hits.tmax);
         while len > 0 {
             len -= 1;
             // SAFETY: every entry below `len` was written before `len` passed it.
@@ -768,8 +769,8 @@ impl WideBvh<8> {
                     continue;
                 }
                 if n.count[c] > 0 {
-                    leaf(n.child[c], n.count[c], entered, tmax);
-                    tmax_lanes = widened(tmax);
+                    leaf(n.child[c], n.count[c], entered, hits);
+                    tmax_lanes = widened(&hits.tmax);
                 } else {
                     let mut j = k;
                     while j > 0 && inner[j - 1].1 < entry[c] {
@@ -790,6 +791,50 @@ impl WideBvh<8> {
             }
         }
         overflow
+    }
+}
+
+/// A packet's closest hits so far, lane by lane, for [`WideBvh::closest_packet`].
+#[cfg(target_arch = "x86_64")]
+pub(crate) struct LaneHits<T> {
+    /// Each lane's closest distance so far (its ray's `tmax` at first).
+    pub tmax: [f32; 16],
+    /// Each lane's closest hit so far.
+    pub best: [Option<T>; 16],
+    /// Lanes offered a second hit at exactly their closest distance so far: which one a
+    /// single-ray traversal keeps depends on its order, so the caller traces them alone.
+    pub tied: u32,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl<T: Copy> LaneHits<T> {
+    /// No hits yet for `rays` (up to sixteen), each lane's closest distance its ray's `tmax`.
+    pub fn new(rays: &[Ray]) -> Self {
+        let mut tmax = [0.0; 16];
+        for (t, ray) in tmax.iter_mut().zip(rays) {
+            *t = ray.tmax;
+        }
+        LaneHits { tmax, best: [None; 16], tied: 0 }
+    }
+
+    /// Lane `k`'s ray from `rays`, reaching one step past its closest distance so far, so that
+    /// a hit at exactly that distance is seen too (and offered as a tie).
+    #[inline(always)]
+    pub fn probe(&self, rays: &[Ray], k: usize) -> Ray {
+        rays[k].with_tmax(self.tmax[k].next_up())
+    }
+
+    /// Offers lane `k` a hit at `t` found by its [`LaneHits::probe`]: kept if closer than its
+    /// closest so far (clearing a tie there), else (exactly as close) a tie.
+    #[inline(always)]
+    pub fn offer(&mut self, k: usize, t: f32, hit: T) {
+        if t < self.tmax[k] {
+            self.tmax[k] = t;
+            self.best[k] = Some(hit);
+            self.tied &= !(1 << k);
+        } else {
+            self.tied |= 1 << k;
+        }
     }
 }
 
