@@ -43,13 +43,14 @@ hemi="$root/target/release/hemi"
 out="$(mktemp -d)"
 json() { python3 -c "import json,sys; d=json.loads(sys.stdin.read().strip().splitlines()[-1]); print($1)"; }
 
-printf '%-13s %5s | %-36s | %-28s | %-28s | %s\n' scene spp "hemi: s, AO Mrays/s (trace, kernel)" "embree: s, AO Mrays/s" "mitsuba: s, AO Mrays/s" "hemi/mitsuba (kernel, trace), hemi/embree (trace)"
+printf '%-13s %5s | %-49s | %-28s | %-28s | %s\n' scene spp "hemi: s, AO Mrays/s (trace, kernel, queries)" "embree: s, AO Mrays/s" "mitsuba: s, AO Mrays/s" "hemi/mitsuba (kernel, trace), hemi/embree (trace)"
 for s in "${scenes[@]}"; do
     "$hemi" render "$peers_src/scenes/$s.json" --spp "$spp" --threads "$threads" --out "$out/$s.png" \
         --stats-json "$out/$s.json" 2>/dev/null
     h_s=$(json "round(d['total']['seconds'],2)" < "$out/$s.json")
     h_ao=$(json "round(d['total']['ao_mrays_per_s'],2)" < "$out/$s.json")
     h_aok=$(json "round(d['total']['ao_kernel_mrays_per_s'],2)" < "$out/$s.json")
+    h_aoq=$(json "round(d['total']['ao_query_mrays_per_s'],2)" < "$out/$s.json")
     e_line=$(cd "$work" && .venv/bin/python embree_ao.py "$peers_src/scenes/$s.json" --spp "$spp" --threads "$threads" --out "$out/$s.embree" 2>/dev/null | tail -1 || true)
     if [ -n "$e_line" ] && e_s=$(echo "$e_line" | json "d['render_s']" 2>/dev/null); then
         e_ao=$(echo "$e_line" | json "d['ao_incl_gen_mrays_s']")
@@ -66,9 +67,10 @@ for s in "${scenes[@]}"; do
         m_s=nan; m_ao=nan
     fi
     ratio=$(python3 -c "print(f'{$h_aok/$m_ao:.2f}x, {$h_ao/$m_ao:.2f}x, {$h_ao/$e_ao:.2f}x')" 2>/dev/null || echo "-")
-    printf '%-13s %5s | %10s s %12s %12s | %10s s %12s       | %10s s %12s       | %s\n' "$s" "$spp" "$h_s" "$h_ao" "$h_aok" "$e_s" "$e_ao" "$m_s" "$m_ao" "$ratio"
+    printf '%-13s %5s | %10s s %12s %12s %12s | %10s s %12s       | %10s s %12s       | %s\n' "$s" "$spp" "$h_s" "$h_ao" "$h_aok" "$h_aoq" "$e_s" "$e_ao" "$m_s" "$m_ao" "$ratio"
 done
 echo "AO Mrays/s: hemi trace = AO rays / trace-system wall time (camera and shadow rays and shading included);"
 echo "hemi kernel = AO rays / the trace time spent in the ambient occluder (its sampling, AO rays and sums:"
-echo "the part Mitsuba's number times), from cycle counts of every sixteenth pixel;"
+echo "the part Mitsuba's number times), from cycle counts of every sixteenth pixel; hemi queries = AO rays / the"
+echo "part of that in the AO rays' BVH queries alone (traversal and triangle tests; no sampling, set-up or sums);"
 echo "embree = ao_incl_gen_mrays_s (numpy ray generation + occlusion); mitsuba = ao_mrays_s (whole AO kernel, warm run)."

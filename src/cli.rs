@@ -538,6 +538,8 @@ struct Totals {
     trace_secs: f64,
     /// The part of `trace_secs` spent in the ambient occluder (see [`crate::stats::TraceSplit`]).
     ao_secs: f64,
+    /// The part of `ao_secs` spent in its rays' scene queries.
+    ao_query_secs: f64,
     frames: u32,
     /// Per-frame JSON records, kept only for `--stats-json`.
     json: Option<Vec<serde_json::Value>>,
@@ -547,6 +549,7 @@ impl Totals {
     /// The `--stats-json` document: every frame, then the totals.
     fn to_json(&self, seconds: f64) -> serde_json::Value {
         let per_s = |rays: u64| if self.trace_secs > 0.0 { rays as f64 / self.trace_secs / 1e6 } else { 0.0 };
+        let ao_per_s = |secs: f64| if secs > 0.0 { self.rays.ao as f64 / secs / 1e6 } else { 0.0 };
         serde_json::json!({
             "frames": self.json.clone().unwrap_or_default(),
             "total": {
@@ -557,7 +560,9 @@ impl Totals {
                 "mrays_per_s": per_s(self.rays.total()),
                 "ao_mrays_per_s": per_s(self.rays.ao),
                 "ao_seconds": self.ao_secs,
-                "ao_kernel_mrays_per_s": if self.ao_secs > 0.0 { self.rays.ao as f64 / self.ao_secs / 1e6 } else { 0.0 },
+                "ao_kernel_mrays_per_s": ao_per_s(self.ao_secs),
+                "ao_query_seconds": self.ao_query_secs,
+                "ao_query_mrays_per_s": ao_per_s(self.ao_query_secs),
             }
         })
     }
@@ -578,6 +583,7 @@ fn render_image(renderer: &mut Renderer, spp: u32, print_stats: bool, totals: &m
         totals.rays.add(&stats.rays);
         totals.trace_secs += stats.time_of("trace").as_secs_f64();
         totals.ao_secs += stats.trace_time_of(crate::light::Term::Ambient).as_secs_f64();
+        totals.ao_query_secs += stats.queries_time_of(crate::light::Term::Ambient).as_secs_f64();
         totals.frames += 1;
         if let Some(records) = &mut totals.json {
             records.push(stats.to_json());

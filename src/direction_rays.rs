@@ -20,6 +20,7 @@ use crate::{
         ray::Ray,
     },
     light::{DirectionRun, DirectionTerms},
+    stats::{cycle_count, cycles_since},
 };
 
 /// The lanes of a group that need a ray, by the quadrant of their direction around the
@@ -49,6 +50,8 @@ pub(crate) struct DirectionRays {
     slots: Vec<u32>,
     #[cfg(target_arch = "x86_64")]
     groups: Vec<QuadrantLanes>,
+    /// Whether [`DirectionRays::add`] times its scene query (in the tracer's timed pixels).
+    pub(crate) timing: bool,
 }
 
 /// The light a clear sample of weight `w` brings (per channel) and the floor a blocked one
@@ -63,7 +66,8 @@ fn clear_and_floor(terms: &DirectionTerms, w: f32) -> (Vec3A, Vec3A) {
 impl DirectionRays {
     /// Adds the light of `run` (samples at one point, rays leaving from `spawn`, under `terms`)
     /// to `arriving` (one element per sample), tracing in `geometry` the shadow rays whose
-    /// answer matters. Returns how many rays it traced.
+    /// answer matters. Returns how many rays it traced, and the cycles its scene query took
+    /// ([`cycle_count`]) when [`DirectionRays::timing`] is set (0 otherwise).
     pub(crate) fn add(
         &mut self,
         geometry: &SceneGeometry,
@@ -72,7 +76,7 @@ impl DirectionRays {
         run: &DirectionRun,
         terms: &DirectionTerms,
         arriving: &mut [Vec3A],
-    ) -> u64 {
+    ) -> (u64, u64) {
         #[cfg(target_arch = "x86_64")]
         match geometry.packet_lanes() {
             // SAFETY: sixteen- and eight-lane packets are used only where AVX-512 and AVX were
@@ -94,7 +98,7 @@ impl DirectionRays {
         run: &DirectionRun,
         terms: &DirectionTerms,
         arriving: &mut [Vec3A],
-    ) -> u64 {
+    ) -> (u64, u64) {
         self.rays.clear();
         self.slots.clear();
         for j in 0..arriving.len() {
@@ -113,20 +117,23 @@ impl DirectionRays {
         for slot in &mut self.slots {
             *slot = (*slot).min(traced as u32);
         }
-        self.trace(geometry, stack, traced, RayOrder::Mixed);
+        let cycles = self.trace(geometry, stack, traced, RayOrder::Mixed);
         for (j, sum) in arriving.iter_mut().enumerate() {
             let (clear, floor) = clear_and_floor(terms, run.weight[j]);
             let dark = run.weight[j] <= 0.0 || self.blocked[self.slots[j] as usize];
             *sum += Vec3A::select(BVec3A::splat(dark), floor, clear);
         }
-        traced as u64
+        (traced as u64, cycles)
     }
 
     /// Traces the first `traced` of `rays` into `blocked`, which gets one more entry, false.
-    fn trace(&mut self, geometry: &SceneGeometry, stack: &mut Vec<(u32, f32)>, traced: usize, order: RayOrder) {
+    /// Returns the cycles the query took when `timing`, else 0.
+    fn trace(&mut self, geometry: &SceneGeometry, stack: &mut Vec<(u32, f32)>, traced: usize, order: RayOrder) -> u64 {
         self.blocked.clear();
         self.blocked.resize(traced + 1, false);
+        let start = self.timing.then(cycle_count);
         geometry.occluded_many(&self.rays[..traced], order, stack, &mut self.blocked[..traced]);
+        start.map_or(0, cycles_since)
     }
 
     /// [`DirectionRays::add`] for sixteen-lane packets.
@@ -143,7 +150,7 @@ impl DirectionRays {
         run: &DirectionRun,
         terms: &DirectionTerms,
         arriving: &mut [Vec3A],
-    ) -> u64 {
+    ) -> (u64, u64) {
         // SAFETY: this function is compiled for AVX-512F, which the caller's CPU has.
         unsafe { self.add_lanes::<Avx512>(geometry, stack, spawn, run, terms, arriving) }
     }
@@ -162,7 +169,7 @@ impl DirectionRays {
         run: &DirectionRun,
         terms: &DirectionTerms,
         arriving: &mut [Vec3A],
-    ) -> u64 {
+    ) -> (u64, u64) {
         // SAFETY: this function is compiled for AVX, which the caller's CPU has.
         unsafe { self.add_lanes::<Avx>(geometry, stack, spawn, run, terms, arriving) }
     }
@@ -191,7 +198,7 @@ impl DirectionRays {
         run: &DirectionRun,
         terms: &DirectionTerms,
         arriving: &mut [Vec3A],
-    ) -> u64 {
+    ) -> (u64, u64) {
         let n = arriving.len();
         let width = L::WIDTH;
         let groups = n.div_ceil(width);
@@ -265,7 +272,7 @@ impl DirectionRays {
             }
             self.slots[g * width..(g + 1) * width].copy_from_slice(&at[..width]);
         }
-        self.trace(geometry, stack, traced, RayOrder::Grouped);
+        let cycles = self.trace(geometry, stack, traced, RayOrder::Grouped);
         for (g, sums) in arriving.chunks_mut(width).enumerate() {
             // Dark lanes get the floor: blocked ones (read without a branch: whether a ray is
             // blocked is as good as random), and those of weight ≤ 0 (no ray).
@@ -291,7 +298,7 @@ impl DirectionRays {
                 }
             }
         }
-        traced as u64
+        (traced as u64, cycles)
     }
 }
 

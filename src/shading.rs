@@ -387,8 +387,11 @@ impl Tracer {
                 // its samples' `DirectionRun::light_sample`s, without making them.
                 if let Some(terms) = light.sample_directions(at, &values, &mut self.directions) {
                     let (geometry, run) = (scene.geometry, &self.directions);
-                    let traced = self.direction_rays.add(geometry, &mut self.stack, spawn, run, &terms, arriving);
+                    self.direction_rays.timing = self.timing;
+                    let (traced, cycles) =
+                        self.direction_rays.add(geometry, &mut self.stack, spawn, run, &terms, arriving);
                     self.rays.count(P::TERM, traced);
+                    self.split.add_queries(P::TERM, cycles);
                     continue;
                 }
                 light.sample_run(at, &values, &mut drawn);
@@ -465,7 +468,11 @@ impl Tracer {
             }
         }
         self.shadow_blocked.resize(rays.len(), false);
+        let start = self.timing.then(cycle_count);
         scene.geometry.occluded_many(rays, RayOrder::Mixed, &mut self.stack, &mut self.shadow_blocked);
+        if let Some(start) = start {
+            self.split.add_queries(term, cycles_since(start));
+        }
         self.rays.count(term, rays.len() as u64);
         let mut blocked = self.shadow_blocked.iter();
         for (sum, s) in arriving.iter_mut().zip(drawn) {

@@ -37,8 +37,9 @@ pub fn timed_pixel(pixel: u32) -> bool {
 }
 
 /// Cycle counts over the pixels [`timed_pixel`] picks: whole pixels (camera rays, shading,
-/// film), and the part spent in lights of each term (their sampling, shadow rays and sums).
-/// Their ratios split the trace system's wall time by stage.
+/// film), the part spent in lights of each term (their sampling, shadow rays and sums), and
+/// of that the part spent in the scene queries of their shadow rays (BVH traversal and
+/// primitive tests). Their ratios split the trace system's wall time by stage.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct TraceSplit {
     /// Cycles of the timed pixels, start to end.
@@ -47,6 +48,10 @@ pub struct TraceSplit {
     pub ambient: u64,
     /// Cycles inside diffuse-term lights (direct light).
     pub diffuse: u64,
+    /// Of `ambient`, the cycles inside its rays' scene queries.
+    pub ambient_queries: u64,
+    /// Of `diffuse`, the cycles inside its rays' scene queries.
+    pub diffuse_queries: u64,
 }
 
 impl TraceSplit {
@@ -59,20 +64,49 @@ impl TraceSplit {
         }
     }
 
+    /// Counts `cycles` spent in the scene queries of a light of term `term`.
+    #[inline]
+    pub fn add_queries(&mut self, term: Term, cycles: u64) {
+        match term {
+            Term::Ambient => self.ambient_queries += cycles,
+            Term::Diffuse => self.diffuse_queries += cycles,
+        }
+    }
+
     /// Adds another split's counts to this one.
     pub fn add(&mut self, other: &TraceSplit) {
         self.pixels += other.pixels;
         self.ambient += other.ambient;
         self.diffuse += other.diffuse;
+        self.ambient_queries += other.ambient_queries;
+        self.diffuse_queries += other.diffuse_queries;
     }
 
     /// The share of `trace` (the trace system's wall time) spent in lights of `term`: its
     /// share of the timed pixels' cycles.
     pub fn time_of(&self, term: Term, trace: Duration) -> Duration {
-        let cycles = match term {
-            Term::Ambient => self.ambient,
-            Term::Diffuse => self.diffuse,
-        };
+        self.share(
+            match term {
+                Term::Ambient => self.ambient,
+                Term::Diffuse => self.diffuse,
+            },
+            trace,
+        )
+    }
+
+    /// The share of `trace` spent in the scene queries of lights of `term`.
+    pub fn queries_time_of(&self, term: Term, trace: Duration) -> Duration {
+        self.share(
+            match term {
+                Term::Ambient => self.ambient_queries,
+                Term::Diffuse => self.diffuse_queries,
+            },
+            trace,
+        )
+    }
+
+    /// `cycles`' share of the timed pixels' cycles, as a part of `trace`.
+    fn share(&self, cycles: u64, trace: Duration) -> Duration {
         if self.pixels == 0 { Duration::ZERO } else { trace.mul_f64((cycles as f64 / self.pixels as f64).min(1.0)) }
     }
 }
@@ -157,10 +191,22 @@ impl FrameStats {
         self.trace_split.time_of(term, self.time_of("trace"))
     }
 
+    /// The trace system's wall time spent in the scene queries of lights of `term`.
+    pub fn queries_time_of(&self, term: Term) -> Duration {
+        self.trace_split.queries_time_of(term, self.time_of("trace"))
+    }
+
     /// AO rays per second of the trace system's time spent in the ambient occluder (sampling,
     /// AO rays and sums, as [`TraceSplit`] measures it), in millions: the AO kernel alone.
     pub fn ao_kernel_mrays_per_second(&self) -> f64 {
         let t = self.trace_time_of(Term::Ambient).as_secs_f64();
+        if t > 0.0 { self.rays.ao as f64 / t / 1e6 } else { 0.0 }
+    }
+
+    /// AO rays per second of the trace system's time spent in their scene queries (BVH
+    /// traversal and primitive tests, without the occluder's sampling and sums), in millions.
+    pub fn ao_query_mrays_per_second(&self) -> f64 {
+        let t = self.trace_split.queries_time_of(Term::Ambient, self.time_of("trace")).as_secs_f64();
         if t > 0.0 { self.rays.ao as f64 / t / 1e6 } else { 0.0 }
     }
 
@@ -181,9 +227,12 @@ impl FrameStats {
             "mrays_per_s": self.mrays_per_second(),
             "ao_mrays_per_s": self.ao_mrays_per_second(),
             "ao_kernel_mrays_per_s": self.ao_kernel_mrays_per_second(),
+            "ao_query_mrays_per_s": self.ao_query_mrays_per_second(),
             "trace_split": {
                 "ao_ms": self.trace_time_of(Term::Ambient).as_secs_f64() * 1e3,
                 "direct_ms": self.trace_time_of(Term::Diffuse).as_secs_f64() * 1e3,
+                "ao_queries_ms": self.queries_time_of(Term::Ambient).as_secs_f64() * 1e3,
+                "direct_queries_ms": self.queries_time_of(Term::Diffuse).as_secs_f64() * 1e3,
             },
             "bvh": {
                 "blas_built": self.bvh_work.blas_built,
@@ -216,12 +265,15 @@ impl FrameStats {
             let _ = writeln!(s, "  {:<12} {:>10.3} ms  {}", sys.name, sys.time.as_secs_f64() * 1e3, sys.note);
             if sys.name == "trace" && self.trace_split.pixels > 0 {
                 let trace = self.time_of("trace").as_secs_f64() * 1e3;
-                let (ao, direct) = (self.trace_time_of(Term::Ambient), self.trace_time_of(Term::Diffuse));
-                let (ao, direct) = (ao.as_secs_f64() * 1e3, direct.as_secs_f64() * 1e3);
+                let ms = |d: Duration| d.as_secs_f64() * 1e3;
+                let (ao, direct) = (ms(self.trace_time_of(Term::Ambient)), ms(self.trace_time_of(Term::Diffuse)));
                 let _ = writeln!(
                     s,
-                    "    of which     AO {ao:.1} ms ({:.2} Mrays/s), direct light {direct:.1} ms, camera rays and the rest {:.1} ms",
+                    "    of which     AO {ao:.1} ms ({:.2} Mrays/s; its rays' queries {:.1} ms, {:.2} Mrays/s), direct light {direct:.1} ms (queries {:.1} ms), camera rays and the rest {:.1} ms",
                     self.ao_kernel_mrays_per_second(),
+                    ms(self.queries_time_of(Term::Ambient)),
+                    self.ao_query_mrays_per_second(),
+                    ms(self.queries_time_of(Term::Diffuse)),
                     trace - ao - direct
                 );
             }
@@ -268,10 +320,13 @@ mod tests {
 
     #[test]
     fn terms_get_their_share_of_the_trace_time() {
-        let split = TraceSplit { pixels: 400, ambient: 300, diffuse: 40 };
+        let split = TraceSplit { pixels: 400, ambient: 300, diffuse: 40, ambient_queries: 200, diffuse_queries: 8 };
         let trace = Duration::from_millis(200);
         assert_eq!(split.time_of(Term::Ambient, trace), Duration::from_millis(150));
         assert_eq!(split.time_of(Term::Diffuse, trace), Duration::from_millis(20));
+        assert_eq!(split.queries_time_of(Term::Ambient, trace), Duration::from_millis(100));
+        assert_eq!(split.queries_time_of(Term::Diffuse, trace), Duration::from_millis(4));
         assert_eq!(TraceSplit::default().time_of(Term::Ambient, trace), Duration::ZERO);
+        assert_eq!(TraceSplit::default().queries_time_of(Term::Ambient, trace), Duration::ZERO);
     }
 }

@@ -49,7 +49,7 @@ fn stats_prints_a_table_per_frame() {
 }
 
 #[test]
-fn stats_json_holds_the_ao_rate_of_the_trace_and_of_the_ao_kernel() {
+fn stats_json_holds_the_ao_rate_of_the_trace_the_ao_kernel_and_its_queries() {
     let (png, json) = (temp("stats_json.png"), temp("stats.json"));
     let args = ["render", "--out", png.to_str().unwrap(), "--size", "32x32", "--spp", "4", "--stats-json"];
     let (code, _, err) = hemi(&[&args[..], &[json.to_str().unwrap()]].concat());
@@ -61,8 +61,16 @@ fn stats_json_holds_the_ao_rate_of_the_trace_and_of_the_ao_kernel() {
     assert!(trace > 0.0 && kernel > trace, "trace {trace}, kernel {kernel}");
     let ao_seconds = total["ao_seconds"].as_f64().unwrap();
     assert!(ao_seconds > 0.0 && ao_seconds < total["trace_seconds"].as_f64().unwrap());
+    // The AO rays' scene queries are part of the AO kernel's time.
+    let (query_seconds, query) =
+        (total["ao_query_seconds"].as_f64().unwrap(), total["ao_query_mrays_per_s"].as_f64().unwrap());
+    assert!(query_seconds > 0.0 && query_seconds < ao_seconds, "queries {query_seconds} s of {ao_seconds} s");
+    assert!(query > kernel, "queries {query}, kernel {kernel}");
     let frame = &doc["frames"][0];
-    assert!(frame["trace_split"]["ao_ms"].as_f64().unwrap() > 0.0, "{frame}");
+    let split = &frame["trace_split"];
+    let (ao_ms, queries_ms) = (split["ao_ms"].as_f64().unwrap(), split["ao_queries_ms"].as_f64().unwrap());
+    assert!(ao_ms > 0.0 && queries_ms > 0.0 && queries_ms < ao_ms, "{frame}");
+    assert!(frame["ao_query_mrays_per_s"].as_f64().unwrap() > frame["ao_kernel_mrays_per_s"].as_f64().unwrap());
 }
 
 #[test]

@@ -203,10 +203,15 @@ fn the_trace_split_times_only_the_lights_a_scene_has() {
     let both = split(1, light());
     assert!(both.ambient > 0 && both.diffuse > 0, "{both:?}");
     assert!(both.ambient + both.diffuse < both.pixels, "{both:?}");
+    // Each term's scene queries are a part of its time.
+    assert!(0 < both.ambient_queries && both.ambient_queries < both.ambient, "{both:?}");
+    assert!(0 < both.diffuse_queries && both.diffuse_queries < both.diffuse, "{both:?}");
     let direct_only = split(0, light());
-    assert!(direct_only.ambient == 0 && direct_only.diffuse > 0, "{direct_only:?}");
+    assert!(direct_only.ambient == 0 && direct_only.ambient_queries == 0, "{direct_only:?}");
+    assert!(direct_only.diffuse > 0 && direct_only.diffuse_queries > 0, "{direct_only:?}");
     let ao_only = split(2, None);
-    assert!(ao_only.ambient > 0 && ao_only.diffuse == 0, "{ao_only:?}");
+    assert!(ao_only.ambient > 0 && ao_only.ambient_queries > 0, "{ao_only:?}");
+    assert!(ao_only.diffuse == 0 && ao_only.diffuse_queries == 0, "{ao_only:?}");
 }
 
 #[test]
