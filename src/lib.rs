@@ -18,6 +18,7 @@ pub mod camera;
 pub mod cli;
 pub mod components;
 pub mod convergence;
+mod cpu;
 mod direction_rays;
 pub mod error;
 pub mod film;

@@ -334,8 +334,8 @@ fn by_packets<L: Lanes>(rays: &[Ray], blocked: &mut [bool], mut trace: impl FnMu
     }
 }
 
-/// Rays per packet: sixteen where the CPU has AVX-512, eight with AVX only (or when the
-/// environment variable `HEMI_PACKET_LANES` is `8`).
+/// Rays per packet: sixteen where the CPU has AVX-512 (and `HEMI_NO_AVX512` is not `1`, see
+/// [`crate::cpu`]), eight with AVX only.
 #[cfg(target_arch = "x86_64")]
 #[derive(Clone, Copy)]
 enum PacketWidth {
@@ -367,14 +367,10 @@ enum CameraPackets<'a> {
     Top(&'a Bvh8),
 }
 
-/// The packet width this CPU and environment get (checked once).
+/// The packet width this CPU and environment get.
 #[cfg(target_arch = "x86_64")]
 fn packet_width() -> PacketWidth {
-    static LANES: std::sync::OnceLock<PacketWidth> = std::sync::OnceLock::new();
-    *LANES.get_or_init(|| {
-        let eight = std::env::var("HEMI_PACKET_LANES").is_ok_and(|w| w.trim() == "8");
-        if !eight && std::arch::is_x86_feature_detected!("avx512f") { PacketWidth::Sixteen } else { PacketWidth::Eight }
-    })
+    if crate::cpu::avx512() { PacketWidth::Sixteen } else { PacketWidth::Eight }
 }
 
 /// Defines, for one lane type and the instruction set it needs, the packet kernels: for

@@ -110,7 +110,7 @@ impl PlacedLight for PlacedOccluder {
 fn cosine_directions_wide(frame: &Onb, values: &[Vec2], run: &mut DirectionRun) -> bool {
     #[cfg(target_arch = "x86_64")]
     {
-        if std::arch::is_x86_feature_detected!("avx512f") {
+        if crate::cpu::avx512() {
             // SAFETY: the CPU has AVX-512F, checked just above.
             unsafe { cosine_directions_avx512(frame, values, run) };
             return true;

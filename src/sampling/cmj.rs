@@ -87,7 +87,7 @@ impl Cmj {
     pub fn fill(&self, first: u32, p: u32, out: &mut [Vec2]) {
         debug_assert!(first as u64 + out.len() as u64 <= self.n.get() as u64);
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx512f") {
+        if crate::cpu::avx512() {
             // SAFETY: the CPU has AVX-512F, checked just above.
             return unsafe { self.fill_avx512(first, p, out) };
         }
