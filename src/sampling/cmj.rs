@@ -3,6 +3,8 @@
 
 use glam::Vec2;
 
+#[cfg(target_arch = "x86_64")]
+use super::hash::{U32Lanes, permute_pow2_lanes};
 use super::{
     ONE_MINUS_EPSILON,
     generators::grid_shape,
@@ -25,6 +27,29 @@ fn randfloat(mut i: u32, p: u32) -> f32 {
     (i as f32 * (1.0 / 4_294_967_808.0)).min(ONE_MINUS_EPSILON)
 }
 
+/// The integer part of [`randfloat`] in each lane, with its operations.
+///
+/// # Safety
+/// The CPU must have `V`'s instruction set.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn randfloat_bits<V: U32Lanes>(i: V, p: u32) -> V {
+    // SAFETY: the caller's CPU has `V`'s instruction set.
+    unsafe {
+        let u = |x: u32| V::splat(x);
+        let mut i = i.xor(u(p));
+        i = i.xor(i.shr(u(17)));
+        i = i.xor(i.shr(u(10)));
+        i = i.mul(u(0xb365_34e5));
+        i = i.xor(i.shr(u(12)));
+        i = i.xor(i.shr(u(21)));
+        i = i.mul(u(0x93fc_4795));
+        i = i.xor(u(0xdf6e_307f));
+        i = i.xor(i.shr(u(17)));
+        i.mul(u(1 | p >> 18))
+    }
+}
+
 /// [`randfloat`] of each of sixteen lanes (AVX-512F), with its operations, so each lane gets its
 /// value.
 #[cfg(target_arch = "x86_64")]
@@ -32,20 +57,25 @@ fn randfloat(mut i: u32, p: u32) -> f32 {
 #[inline]
 fn randfloat_lanes(i: std::arch::x86_64::__m512i, p: u32) -> std::arch::x86_64::__m512 {
     use std::arch::x86_64::*;
-    let u = |x: u32| _mm512_set1_epi32(x as i32);
-    let xor = _mm512_xor_si512;
-    let mut i = xor(i, u(p));
-    i = xor(i, _mm512_srli_epi32::<17>(i));
-    i = xor(i, _mm512_srli_epi32::<10>(i));
-    i = _mm512_mullo_epi32(i, u(0xb365_34e5));
-    i = xor(i, _mm512_srli_epi32::<12>(i));
-    i = xor(i, _mm512_srli_epi32::<21>(i));
-    i = _mm512_mullo_epi32(i, u(0x93fc_4795));
-    i = xor(i, u(0xdf6e_307f));
-    i = xor(i, _mm512_srli_epi32::<17>(i));
-    i = _mm512_mullo_epi32(i, u(1 | p >> 18));
+    // SAFETY: this function is compiled for AVX-512F.
+    let i = unsafe { randfloat_bits(i, p) };
     let f = _mm512_mul_ps(_mm512_cvtepu32_ps(i), _mm512_set1_ps(1.0 / 4_294_967_808.0));
     _mm512_min_ps(f, _mm512_set1_ps(ONE_MINUS_EPSILON))
+}
+
+/// [`randfloat`] of each of eight lanes (AVX2). AVX2 has no unsigned conversion: the high and
+/// low halves convert exactly and their sum rounds once, which is the conversion's rounding.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn randfloat_lanes8(i: std::arch::x86_64::__m256i, p: u32) -> std::arch::x86_64::__m256 {
+    use std::arch::x86_64::*;
+    // SAFETY: this function is compiled for AVX2.
+    let i = unsafe { randfloat_bits(i, p) };
+    let high = _mm256_mul_ps(_mm256_cvtepi32_ps(_mm256_srli_epi32::<16>(i)), _mm256_set1_ps(65_536.0));
+    let low = _mm256_cvtepi32_ps(_mm256_and_si256(i, _mm256_set1_epi32(0xffff)));
+    let f = _mm256_mul_ps(_mm256_add_ps(high, low), _mm256_set1_ps(1.0 / 4_294_967_808.0));
+    _mm256_min_ps(f, _mm256_set1_ps(ONE_MINUS_EPSILON))
 }
 
 /// The `n`-point correlated multi-jittered patterns, with the grid shape worked out once. Each
@@ -101,10 +131,60 @@ impl Cmj {
 
     /// [`Cmj::fill`] compiled for AVX2: eight lanes of 32-bit multiplies (SSE2 has no 32-bit
     /// lane multiply, so the portable loop vectorises poorly). Same operations, same values.
+    /// Where n is a power of two and the grid at most 8 × 8 (n ≤ 64), the column and row
+    /// shuffles are worked out once per call and looked up by a lane permute, as
+    /// [`Cmj::fill_small_grid_avx512`] does sixteen-wide.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn fill_avx2(&self, first: u32, p: u32, out: &mut [Vec2]) {
+        if self.n.is_power_of_two() && self.m.get() <= 8 && self.k.get() <= 8 {
+            return self.fill_small_grid_avx2(first, p, out);
+        }
         self.fill_portable(first, p, out);
+    }
+
+    /// [`Cmj::fill_small_grid_avx512`] eight samples at a time in AVX2 lanes, for grids of at
+    /// most 8 × 8. Each lane does the scalar code's operations in its order.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn fill_small_grid_avx2(&self, first: u32, p: u32, out: &mut [Vec2]) {
+        use std::arch::x86_64::*;
+
+        let sc = Scrambles::new(p);
+        let (wn, wm, wk) = (self.n.mask(), self.m.mask(), self.k.mask());
+        let shift = self.m.get().trailing_zeros();
+        let u = |x: u32| _mm256_set1_epi32(x as i32);
+        let iota = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+        // SAFETY (all blocks below): this function is compiled for AVX2.
+        // Column c's shuffled sub-column in lane c (lanes past m hold values never looked up).
+        let by_col = unsafe { permute_pow2_lanes(_mm256_and_si256(iota, u(wm)), wm, sc.x) };
+        let by_row = unsafe { permute_pow2_lanes(_mm256_and_si256(iota, u(wk)), wk, sc.y) };
+        let [inv_m, inv_k] = self.inv.map(|v| _mm256_set1_ps(v));
+        let below_one = _mm256_set1_ps(ONE_MINUS_EPSILON);
+        for (i, chunk) in out.chunks_mut(8).enumerate() {
+            let s = _mm256_add_epi32(u(first + 8 * i as u32), iota);
+            let s = unsafe { permute_pow2_lanes(s, wn, sc.order) };
+            let (col, row) = (_mm256_and_si256(s, u(wm)), _mm256_srlv_epi32(s, u(shift)));
+            let sx = _mm256_permutevar8x32_epi32(by_col, col);
+            let sy = _mm256_permutevar8x32_epi32(by_row, row);
+            let (jx, jy) = (randfloat_lanes8(s, sc.jx), randfloat_lanes8(s, sc.jy));
+            // Grid indices are small: the signed conversion is exact.
+            let f = |v| _mm256_cvtepi32_ps(v);
+            let x = _mm256_mul_ps(_mm256_add_ps(f(col), _mm256_mul_ps(_mm256_add_ps(f(sy), jx), inv_k)), inv_m);
+            let y = _mm256_mul_ps(_mm256_add_ps(f(row), _mm256_mul_ps(_mm256_add_ps(f(sx), jy), inv_m)), inv_k);
+            let (x, y) = (_mm256_min_ps(x, below_one), _mm256_min_ps(y, below_one));
+            // (x, y) pairs as `Vec2`s lie in memory: samples 0–3, then 4–7.
+            let (low, high) = (_mm256_unpacklo_ps(x, y), _mm256_unpackhi_ps(x, y));
+            let pairs = [_mm256_permute2f128_ps::<0x20>(low, high), _mm256_permute2f128_ps::<0x31>(low, high)];
+            let floats = chunk.as_mut_ptr().cast::<f32>();
+            for (h, pair) in pairs.into_iter().enumerate() {
+                // The floats of this half that the chunk holds (a chunk may be short).
+                let n = (2 * chunk.len()).saturating_sub(8 * h).min(8) as i32;
+                let keep = _mm256_cmpgt_epi32(_mm256_set1_epi32(n), iota);
+                // SAFETY: the masked store writes only the chunk's first 2·len floats.
+                unsafe { _mm256_maskstore_ps(floats.add(8 * h), keep, pair) };
+            }
+        }
     }
 
     /// [`Cmj::fill`] compiled for AVX-512F: sixteen lanes. Same operations, same values. Where
@@ -129,15 +209,15 @@ impl Cmj {
     fn fill_small_grid_avx512(&self, first: u32, p: u32, out: &mut [Vec2]) {
         use std::arch::x86_64::*;
 
-        use super::hash::permute_pow2_lanes;
         let sc = Scrambles::new(p);
         let (wn, wm, wk) = (self.n.mask(), self.m.mask(), self.k.mask());
         let shift = self.m.get().trailing_zeros();
         let u = |x: u32| _mm512_set1_epi32(x as i32);
         let iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
         // Column c's shuffled sub-column in lane c (lanes past m hold values never looked up).
-        let by_col = permute_pow2_lanes(_mm512_and_si512(iota, u(wm)), wm, sc.x);
-        let by_row = permute_pow2_lanes(_mm512_and_si512(iota, u(wk)), wk, sc.y);
+        // SAFETY (all three calls): this function is compiled for AVX-512F.
+        let by_col = unsafe { permute_pow2_lanes(_mm512_and_si512(iota, u(wm)), wm, sc.x) };
+        let by_row = unsafe { permute_pow2_lanes(_mm512_and_si512(iota, u(wk)), wk, sc.y) };
         let [inv_m, inv_k] = self.inv.map(|v| _mm512_set1_ps(v));
         let below_one = _mm512_set1_ps(ONE_MINUS_EPSILON);
         // x and y of lanes 0–7, then of lanes 8–15, interleaved as `Vec2`s lie in memory.
@@ -145,7 +225,7 @@ impl Cmj {
         let high = _mm512_add_epi32(low, u(8));
         for (i, chunk) in out.chunks_mut(16).enumerate() {
             let s = _mm512_add_epi32(u(first + 16 * i as u32), iota);
-            let s = permute_pow2_lanes(s, wn, sc.order);
+            let s = unsafe { permute_pow2_lanes(s, wn, sc.order) };
             let (col, row) = (_mm512_and_si512(s, u(wm)), _mm512_srlv_epi32(s, u(shift)));
             let sx = _mm512_permutexvar_epi32(col, by_col);
             let sy = _mm512_permutexvar_epi32(row, by_row);
@@ -246,19 +326,36 @@ mod tests {
         }
     }
 
-    /// Every fill path gives `sample`'s values: with AVX-512, lanes for power-of-two grids up to
-    /// 16 × 16 (n ≤ 256) and the vectorised loop above that (1024 is 32 × 32); one sample at a
-    /// time for other n.
+    /// Every fill path gives `sample`'s values: each vector copy this CPU has (AVX-512 lanes for
+    /// power-of-two grids up to 16 × 16, n ≤ 256; AVX2 lanes up to 8 × 8, n ≤ 64; the
+    /// vectorised loop above that, 1024 being 32 × 32), the portable loop, and the dispatch;
+    /// one sample at a time for other n.
     #[test]
     fn fill_gives_the_samples_of_sample() {
-        for n in [1u32, 2, 8, 12, 16, 64, 256, 1024] {
+        type Fill = fn(&Cmj, u32, u32, &mut [Vec2]);
+        let mut fills: Vec<(&str, Fill)> =
+            vec![("fill", Cmj::fill), ("portable", |c, f, p, o| c.fill_portable(f, p, o))];
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the CPU has AVX2, checked just above.
+                fills.push(("avx2", |c, f, p, o| unsafe { c.fill_avx2(f, p, o) }));
+            }
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                // SAFETY: the CPU has AVX-512F, checked just above.
+                fills.push(("avx512", |c, f, p, o| unsafe { c.fill_avx512(f, p, o) }));
+            }
+        }
+        for n in [1u32, 2, 8, 12, 16, 32, 64, 128, 256, 1024] {
             let cmj = Cmj::new(n);
             for p in [0u32, 1, 99, 0xdead_beef] {
                 for first in [0, n / 3, n - 1] {
-                    let mut out = vec![Vec2::NAN; (n - first) as usize];
-                    cmj.fill(first, p, &mut out);
-                    for (s, v) in (first..).zip(&out) {
-                        assert_eq!(v.to_array(), cmj.sample(s, p), "n {n}, p {p}, s {s}");
+                    for (name, fill) in &fills {
+                        let mut out = vec![Vec2::NAN; (n - first) as usize];
+                        fill(&cmj, first, p, &mut out);
+                        for (s, v) in (first..).zip(&out) {
+                            assert_eq!(v.to_array(), cmj.sample(s, p), "{name}: n {n}, p {p}, s {s}");
+                        }
                     }
                 }
             }

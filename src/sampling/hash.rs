@@ -129,37 +129,120 @@ fn permute_round(mut i: u32, w: u32, p: u32) -> u32 {
     i ^ (i >> 5)
 }
 
-/// [`permute_pow2`] of each of sixteen lanes (AVX-512F), with the scalar function's
-/// operations, so each lane gets its value.
+/// Vectors of u32 lanes with the operations Kensler's hashes need (wrapping like the scalar
+/// code): sixteen lanes with AVX-512F (`__m512i`), eight with AVX2 (`__m256i`). Every method is
+/// compiled for its type's instruction set, which the CPU must have; callers are generic code
+/// inlined into functions compiled for it.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-#[inline]
-pub(super) fn permute_pow2_lanes(i: std::arch::x86_64::__m512i, mask: u32, seed: u32) -> std::arch::x86_64::__m512i {
-    use std::arch::x86_64::*;
-    let u = |x: u32| _mm512_set1_epi32(x as i32);
-    let w = u(mask);
-    let masked_shift = |i: __m512i, n: u32| _mm512_srlv_epi32(_mm512_and_si512(i, w), u(n));
-    let xor = _mm512_xor_si512;
-    let mul = |i: __m512i, k: u32| _mm512_mullo_epi32(i, u(k));
-    let mut i = xor(i, u(seed));
-    i = mul(i, 0xe170_893d);
-    i = xor(i, u(seed >> 16));
-    i = xor(i, masked_shift(i, 4));
-    i = xor(i, u(seed >> 8));
-    i = mul(i, 0x0929_eb3f);
-    i = xor(i, u(seed >> 23));
-    i = xor(i, masked_shift(i, 1));
-    i = mul(i, 1 | seed >> 27);
-    i = mul(i, 0x6935_fa69);
-    i = xor(i, masked_shift(i, 11));
-    i = mul(i, 0x74dc_b303);
-    i = xor(i, masked_shift(i, 2));
-    i = mul(i, 0x9e50_1cc3);
-    i = xor(i, masked_shift(i, 2));
-    i = mul(i, 0xc860_a3df);
-    i = _mm512_and_si512(i, w);
-    i = xor(i, _mm512_srli_epi32::<5>(i));
-    _mm512_and_si512(_mm512_add_epi32(i, u(seed)), w)
+pub(super) trait U32Lanes: Copy {
+    /// `x` in every lane.
+    unsafe fn splat(x: u32) -> Self;
+    /// `self ^ b`.
+    unsafe fn xor(self, b: Self) -> Self;
+    /// `self & b`.
+    unsafe fn and(self, b: Self) -> Self;
+    /// `self + b` (wrapping).
+    unsafe fn add(self, b: Self) -> Self;
+    /// `self · b` (wrapping: the low 32 bits).
+    unsafe fn mul(self, b: Self) -> Self;
+    /// `self >> n`, lane by lane.
+    unsafe fn shr(self, n: Self) -> Self;
+}
+
+#[cfg(target_arch = "x86_64")]
+macro_rules! u32_lanes {
+    ($ty:ty, $feature:literal, $set1:ident, $xor:ident, $and:ident, $add:ident, $mul:ident, $shr:ident) => {
+        impl U32Lanes for $ty {
+            #[target_feature(enable = $feature)]
+            #[inline]
+            unsafe fn splat(x: u32) -> Self {
+                std::arch::x86_64::$set1(x as i32)
+            }
+            #[target_feature(enable = $feature)]
+            #[inline]
+            unsafe fn xor(self, b: Self) -> Self {
+                std::arch::x86_64::$xor(self, b)
+            }
+            #[target_feature(enable = $feature)]
+            #[inline]
+            unsafe fn and(self, b: Self) -> Self {
+                std::arch::x86_64::$and(self, b)
+            }
+            #[target_feature(enable = $feature)]
+            #[inline]
+            unsafe fn add(self, b: Self) -> Self {
+                std::arch::x86_64::$add(self, b)
+            }
+            #[target_feature(enable = $feature)]
+            #[inline]
+            unsafe fn mul(self, b: Self) -> Self {
+                std::arch::x86_64::$mul(self, b)
+            }
+            #[target_feature(enable = $feature)]
+            #[inline]
+            unsafe fn shr(self, n: Self) -> Self {
+                std::arch::x86_64::$shr(self, n)
+            }
+        }
+    };
+}
+
+#[cfg(target_arch = "x86_64")]
+u32_lanes!(
+    std::arch::x86_64::__m512i,
+    "avx512f",
+    _mm512_set1_epi32,
+    _mm512_xor_si512,
+    _mm512_and_si512,
+    _mm512_add_epi32,
+    _mm512_mullo_epi32,
+    _mm512_srlv_epi32
+);
+#[cfg(target_arch = "x86_64")]
+u32_lanes!(
+    std::arch::x86_64::__m256i,
+    "avx2",
+    _mm256_set1_epi32,
+    _mm256_xor_si256,
+    _mm256_and_si256,
+    _mm256_add_epi32,
+    _mm256_mullo_epi32,
+    _mm256_srlv_epi32
+);
+
+/// [`permute_pow2`] of each lane, with the scalar function's operations, so each lane gets its
+/// value.
+///
+/// # Safety
+/// The CPU must have `V`'s instruction set.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub(super) unsafe fn permute_pow2_lanes<V: U32Lanes>(i: V, mask: u32, seed: u32) -> V {
+    // SAFETY: the caller's CPU has `V`'s instruction set.
+    unsafe {
+        let u = |x: u32| V::splat(x);
+        let w = u(mask);
+        let masked_shift = |i: V, n: u32| i.and(w).shr(u(n));
+        let mut i = i.xor(u(seed));
+        i = i.mul(u(0xe170_893d));
+        i = i.xor(u(seed >> 16));
+        i = i.xor(masked_shift(i, 4));
+        i = i.xor(u(seed >> 8));
+        i = i.mul(u(0x0929_eb3f));
+        i = i.xor(u(seed >> 23));
+        i = i.xor(masked_shift(i, 1));
+        i = i.mul(u(1 | seed >> 27));
+        i = i.mul(u(0x6935_fa69));
+        i = i.xor(masked_shift(i, 11));
+        i = i.mul(u(0x74dc_b303));
+        i = i.xor(masked_shift(i, 2));
+        i = i.mul(u(0x9e50_1cc3));
+        i = i.xor(masked_shift(i, 2));
+        i = i.mul(u(0xc860_a3df));
+        i = i.and(w);
+        i = i.xor(i.shr(u(5)));
+        i.add(u(seed)).and(w)
+    }
 }
 
 /// A small deterministic generator (SplitMix64) for building sample sets from a seed.
