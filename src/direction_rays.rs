@@ -129,8 +129,10 @@ impl DirectionRays {
     /// Traces the first `traced` of `rays` into `blocked`, which gets one more entry, false.
     /// Returns the cycles the query took when `timing`, else 0.
     fn trace(&mut self, geometry: &SceneGeometry, stack: &mut Vec<(u32, f32)>, traced: usize, order: RayOrder) -> u64 {
-        self.blocked.clear();
+        // The query writes every ray's entry, so only the one past them is set here (no
+        // clearing pass over the others first).
         self.blocked.resize(traced + 1, false);
+        self.blocked[traced] = false;
         let start = self.timing.then(cycle_count);
         geometry.occluded_many(&self.rays[..traced], order, stack, &mut self.blocked[..traced]);
         start.map_or(0, cycles_since)

@@ -1493,7 +1493,8 @@ impl SceneGeometry {
         blocked[0]
     }
 
-    /// [`SceneGeometry::occluded`] for each of `rays` into `blocked` (same length), in one call:
+    /// [`SceneGeometry::occluded`] for each of `rays` into `blocked` (same length; every entry is
+    /// written, whatever it held), in one call:
     /// the dispatch to the tree's width and the traversal's set-up outside the loop over rays;
     /// `order` says how the rays are cut into packets.
     pub fn occluded_many(&self, rays: &[Ray], order: RayOrder, stack: &mut Vec<(u32, f32)>, blocked: &mut [bool]) {
