@@ -102,7 +102,8 @@ fn sin_cos_2pi(u: Vec4) -> (Vec4, Vec4) {
     (Vec4::select(sin_negative, -s, s), Vec4::select(cos_negative, -c, c))
 }
 
-/// [`sin_cos_2pi`] of one value.
+/// [`sin_cos_2pi`] of one value. The quarter turn is applied by masks on the bits, not by
+/// branches: which of the two it takes is as good as random from one sample to the next.
 #[inline(always)]
 fn sin_cos_2pi_one(u: f32) -> (f32, f32) {
     let round = |x: f32| (x + ROUNDER) - ROUNDER;
@@ -112,10 +113,13 @@ fn sin_cos_2pi_one(u: f32) -> (f32, f32) {
     let sin = ((SIN[0] * z + SIN[1]) * z + SIN[2]) * z * x + x;
     let cos = ((COS[0] * z + COS[1]) * z + COS[2]) * z * z - z * 0.5 + 1.0;
     let half = q * 0.5;
-    let (s, c) = if half != round(half) { (cos, sin) } else { (sin, cos) };
-    let sin_negative = (2.0..4.0).contains(&q);
-    let cos_negative = (1.0..3.0).contains(&q);
-    (if sin_negative { -s } else { s }, if cos_negative { -c } else { c })
+    // All ones where q is odd (sin and cos swap), and the sign bit where each is negative.
+    let odd = u32::from(half != round(half)).wrapping_neg();
+    let (sin, cos) = (sin.to_bits(), cos.to_bits());
+    let (s, c) = ((cos & odd) | (sin & !odd), (sin & odd) | (cos & !odd));
+    let sin_negative = u32::from((2.0..4.0).contains(&q)) << 31;
+    let cos_negative = u32::from((1.0..3.0).contains(&q)) << 31;
+    (f32::from_bits(s ^ sin_negative), f32::from_bits(c ^ cos_negative))
 }
 
 #[cfg(test)]
