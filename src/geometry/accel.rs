@@ -1185,6 +1185,10 @@ pub struct SceneGeometry {
     /// Whether runs of camera rays go through the top level in packets: every instance is in
     /// world space (no transform) and some BLAS holds triangle packets.
     top_packets: bool,
+    /// The BLAS of a scene that is one world-space instance (a baked static scene), which
+    /// queries take directly, with no top level: held here so that a query reaches it in one
+    /// load rather than through the instance list.
+    world_blas: Option<Arc<Blas>>,
     planes: Vec<PlanePrim>,
     /// Objects, indexed by `SurfaceHit::object`.
     pub objects: Vec<Object>,
@@ -1236,8 +1240,13 @@ impl SceneGeometry {
         let degenerate_triangles = blases.iter().map(|b| b.degenerate_triangles).sum();
         let bounds = tlas.first().map(|n| (n.aabb().min, n.aabb().max));
         let depth = subtree_depth(&tlas) + blases.iter().map(|b| b.depth).max().unwrap_or(0);
+        let world_blas = match &instances[..] {
+            [inst] if inst.identity => Some(blases[inst.blas as usize].clone()),
+            _ => None,
+        };
         SceneGeometry {
             top_packets: instances.iter().all(|i| i.identity) && blases.iter().any(|b| !b.packets.is_empty()),
+            world_blas,
             blases,
             instances,
             top: Tree::from_bvh2(&tlas),
@@ -1368,9 +1377,7 @@ impl SceneGeometry {
     /// top level whose instances are all in world space, with some triangle packets.
     #[cfg(target_arch = "x86_64")]
     fn camera_packets(&self) -> Option<CameraPackets<'_>> {
-        if let [inst] = &self.instances[..]
-            && inst.identity
-            && let blas = &*self.blases[inst.blas as usize]
+        if let Some(blas) = &self.world_blas
             && let Tree::Eight(tree) = &blas.tree
             && !blas.packets.is_empty()
         {
@@ -1445,11 +1452,9 @@ impl SceneGeometry {
     #[inline]
     fn closest_instance(&self, ray: &mut Ray, stack: &mut Vec<(u32, f32)>) -> Option<ClosestHit> {
         stack.clear();
-        if let [inst] = &self.instances[..]
-            && inst.identity
-        {
+        if let Some(blas) = &self.world_blas {
             // One world-space BLAS (a static scene): no top level to traverse.
-            return self.blases[inst.blas as usize].closest(ray, stack).map(|(slot, b1, b2)| (0, slot, b1, b2));
+            return blas.closest(ray, stack).map(|(slot, b1, b2)| (0, slot, b1, b2));
         }
         self.top.query(TopClosest { scene: self, ray, stack })
     }
@@ -1502,11 +1507,9 @@ impl SceneGeometry {
             *b = self.planes.iter().any(|p| p.intersect(ray).is_some());
         }
         stack.clear();
-        if let [inst] = &self.instances[..]
-            && inst.identity
-        {
+        if let Some(blas) = &self.world_blas {
             // One world-space BLAS (a static scene): no top level to traverse.
-            self.blases[inst.blas as usize].occluded_many(rays, order, stack, blocked);
+            blas.occluded_many(rays, order, stack, blocked);
         } else {
             #[cfg(target_arch = "x86_64")]
             if let Tree::Eight(top) = &self.top
