@@ -13,6 +13,7 @@ use crate::{
     sampling::SamplerKind,
     scene::{gltf::SpawnOptions, peer_scene::PeerScene},
     shading::RayCounts,
+    stats::mrays_per_second,
 };
 
 /// hemi: ambient occlusion + direct lighting by CPU ray tracing on bevy_ecs.
@@ -548,8 +549,8 @@ struct Totals {
 impl Totals {
     /// The `--stats-json` document: every frame, then the totals.
     fn to_json(&self, seconds: f64) -> serde_json::Value {
-        let per_s = |rays: u64| if self.trace_secs > 0.0 { rays as f64 / self.trace_secs / 1e6 } else { 0.0 };
-        let ao_per_s = |secs: f64| if secs > 0.0 { self.rays.ao as f64 / secs / 1e6 } else { 0.0 };
+        let per_s = |rays: u64| mrays_per_second(rays, self.trace_secs);
+        let ao_per_s = |secs: f64| mrays_per_second(self.rays.ao, secs);
         serde_json::json!({
             "frames": self.json.clone().unwrap_or_default(),
             "total": {

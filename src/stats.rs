@@ -29,6 +29,11 @@ pub fn cycles_since(start: u64) -> u64 {
     cycle_count().saturating_sub(start)
 }
 
+/// `rays` per `seconds`, in millions (0 for no time).
+pub(crate) fn mrays_per_second(rays: u64, seconds: f64) -> f64 {
+    if seconds > 0.0 { rays as f64 / seconds / 1e6 } else { 0.0 }
+}
+
 /// Whether the trace system times pixel `pixel` for [`TraceSplit`]: a fixed, evenly spread
 /// sixteenth of the pixels (Fibonacci hashing), so reading the counter costs next to nothing.
 #[inline(always)]
@@ -175,15 +180,13 @@ impl FrameStats {
 
     /// Rays per second of the trace system, in millions.
     pub fn mrays_per_second(&self) -> f64 {
-        let t = self.time_of("trace").as_secs_f64();
-        if t > 0.0 { self.rays.total() as f64 / t / 1e6 } else { 0.0 }
+        mrays_per_second(self.rays.total(), self.time_of("trace").as_secs_f64())
     }
 
     /// AO rays per second of the trace system's wall time, in millions: a conservative AO
     /// throughput (the trace time also holds primary and shadow rays and shading).
     pub fn ao_mrays_per_second(&self) -> f64 {
-        let t = self.time_of("trace").as_secs_f64();
-        if t > 0.0 { self.rays.ao as f64 / t / 1e6 } else { 0.0 }
+        mrays_per_second(self.rays.ao, self.time_of("trace").as_secs_f64())
     }
 
     /// The trace system's wall time spent in lights of `term` (see [`TraceSplit`]).
@@ -199,15 +202,13 @@ impl FrameStats {
     /// AO rays per second of the trace system's time spent in the ambient occluder (sampling,
     /// AO rays and sums, as [`TraceSplit`] measures it), in millions: the AO kernel alone.
     pub fn ao_kernel_mrays_per_second(&self) -> f64 {
-        let t = self.trace_time_of(Term::Ambient).as_secs_f64();
-        if t > 0.0 { self.rays.ao as f64 / t / 1e6 } else { 0.0 }
+        mrays_per_second(self.rays.ao, self.trace_time_of(Term::Ambient).as_secs_f64())
     }
 
     /// AO rays per second of the trace system's time spent in their scene queries (BVH
     /// traversal and primitive tests, without the occluder's sampling and sums), in millions.
     pub fn ao_query_mrays_per_second(&self) -> f64 {
-        let t = self.trace_split.queries_time_of(Term::Ambient, self.time_of("trace")).as_secs_f64();
-        if t > 0.0 { self.rays.ao as f64 / t / 1e6 } else { 0.0 }
+        mrays_per_second(self.rays.ao, self.queries_time_of(Term::Ambient).as_secs_f64())
     }
 
     /// This frame as JSON (the `--stats-json` record of one frame).
