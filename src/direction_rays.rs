@@ -2,16 +2,19 @@
 //! vector of samples at a time, laid out quadrant by quadrant around the surface normal so
 //! that consecutive rays make coherent packets, traced in one call, and their answers added
 //! back to each sample's arriving light. Every sample gets exactly what
-//! [`DirectionTerms::light_sample`] and its own shadow ray give it.
+//! [`DirectionTerms::light_sample`] and its own shadow ray give it. A cosine run
+//! ([`PlacedLight::cosine_run`]) can go from sample points to packets in one pass instead
+//! ([`DirectionRays::add_cosine`]).
 //!
 //! [`PlacedLight::sample_directions`]: crate::light::PlacedLight::sample_directions
+//! [`PlacedLight::cosine_run`]: crate::light::PlacedLight::cosine_run
 
 use glam::{BVec3A, Vec3A};
 
 #[cfg(target_arch = "x86_64")]
 use crate::{
     geometry::lanes::{Avx, Avx512, Lanes, RayLanes},
-    math::Onb,
+    sampling::warp::cosine_hemisphere16,
 };
 use crate::{
     geometry::{
@@ -20,6 +23,8 @@ use crate::{
         ray::Ray,
     },
     light::{DirectionRun, DirectionTerms},
+    math::Onb,
+    sampling::SampleSets,
     stats::{cycle_count, cycles_since},
 };
 
@@ -50,6 +55,18 @@ pub(crate) struct DirectionRays {
     slots: Vec<u32>,
     #[cfg(target_arch = "x86_64")]
     groups: Vec<QuadrantLanes>,
+    /// A cosine run's sample points (x, y) and world directions (x, y, z), sample by sample.
+    #[cfg(target_arch = "x86_64")]
+    samples: [Vec<f32>; 5],
+    /// A cosine run's ray directions (x, y, z) in tracing order.
+    #[cfg(target_arch = "x86_64")]
+    ray_dirs: [Vec<f32>; 3],
+    /// Each of those rays' sample.
+    #[cfg(target_arch = "x86_64")]
+    ray_samples: Vec<u32>,
+    /// A cosine run's blocked samples, bit k of entry g for sample 16g + k.
+    #[cfg(target_arch = "x86_64")]
+    dark: Vec<u32>,
     /// Whether [`DirectionRays::add`] times its scene query (in the tracer's timed pixels).
     pub(crate) timing: bool,
 }
@@ -86,6 +103,202 @@ impl DirectionRays {
             _ => {}
         }
         self.add_each(geometry, stack, spawn, run, terms, arriving)
+    }
+
+    /// [`DirectionRays::add`] for a light whose samples are cosine directions around
+    /// `frame`'s normal ([`PlacedLight::cosine_run`](crate::light::PlacedLight::cosine_run)),
+    /// drawn from `sets` for samples `first, first + 1, …` of `pixel` in dimension `dim`: the
+    /// same rays, answers and sums, in one pass from sample points to packets, where the
+    /// scene's packets are sixteen wide and the sets are computed in lanes
+    /// ([`SampleSets::fill_columns`]). `None`, having done nothing, elsewhere.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn add_cosine(
+        &mut self,
+        geometry: &SceneGeometry,
+        stack: &mut Vec<(u32, f32)>,
+        spawn: &SpawnOrigins,
+        frame: &Onb,
+        sets: &SampleSets,
+        (pixel, first, dim): (u32, u32, u32),
+        terms: &DirectionTerms,
+        arriving: &mut [Vec3A],
+    ) -> Option<(u64, u64)> {
+        #[cfg(target_arch = "x86_64")]
+        if geometry.packet_lanes() == 16 {
+            let n = arriving.len().next_multiple_of(16);
+            let [xs, ys, ..] = &mut self.samples;
+            xs.resize(n, 0.5);
+            ys.resize(n, 0.5);
+            let len = arriving.len();
+            if sets.fill_columns(pixel, first, dim, &mut xs[..len], &mut ys[..len]) {
+                // SAFETY: sixteen-lane packets are used only where AVX-512 was detected.
+                return Some(unsafe { self.add_cosine_avx512(geometry, stack, spawn, frame, terms, arriving) });
+            }
+        }
+        let _ = (geometry, stack, spawn, frame, sets, pixel, first, dim, terms, arriving);
+        None
+    }
+
+    /// [`DirectionRays::add_cosine`] in AVX-512 lanes, the sample points already in
+    /// `samples[0]` and `samples[1]`. Each group of sixteen samples is mapped to directions
+    /// ([`cosine_hemisphere16`]) and sorted into the quadrants of [`DirectionRays::add_lanes`]
+    /// by lane compression; packets load their lanes straight from those columns.
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512F.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn add_cosine_avx512(
+        &mut self,
+        geometry: &SceneGeometry,
+        stack: &mut Vec<(u32, f32)>,
+        spawn: &SpawnOrigins,
+        frame: &Onb,
+        terms: &DirectionTerms,
+        arriving: &mut [Vec3A],
+    ) -> (u64, u64) {
+        use std::arch::x86_64::*;
+
+        let n = arriving.len();
+        let groups = n.div_ceil(16);
+        // Every sample has weight 1: one clear value and one floor for all.
+        let (clear, floor) = clear_and_floor(terms, 1.0);
+        self.dark.clear();
+        self.dark.resize(groups, 0);
+        let mut traced = 0;
+        let mut cycles = 0;
+        if clear.cmpne(floor).any() {
+            let [xs, ys, dx, dy, dz] = &mut self.samples;
+            for column in [&mut *dx, &mut *dy, &mut *dz] {
+                column.resize(groups * 16, 0.0);
+            }
+            let normal = spawn.normal();
+            let tangents = Onb::from_normal(normal.into());
+            let (tu, tv) = (Vec3A::from(tangents.u), Vec3A::from(tangents.v));
+            let (u, v, w) = (frame.u, frame.v, frame.w);
+            let k = |x: f32| Avx512(_mm512_set1_ps(x));
+            // Directions, quadrants and their counts.
+            self.groups.clear();
+            let mut count = [0u32; 4];
+            for g in 0..groups {
+                let at = g * 16;
+                // SAFETY (this block): the CPU has AVX-512F; the loads and stores are of
+                // sixteen floats within the columns, which hold whole groups.
+                let masks = unsafe {
+                    let [sx, sy, sz] = cosine_hemisphere16(
+                        _mm512_loadu_ps(xs[at..at + 16].as_ptr()),
+                        _mm512_loadu_ps(ys[at..at + 16].as_ptr()),
+                    );
+                    let (sx, sy, sz) = (Avx512(sx), Avx512(sy), Avx512(sz));
+                    // The frame's to_world, component by component: u·x + v·y + w·z.
+                    let world = |a: usize| k(u[a]).mul(sx).add(k(v[a]).mul(sy)).add(k(w[a]).mul(sz));
+                    let d = [world(0), world(1), world(2)];
+                    for (column, lanes) in [&mut *dx, &mut *dy, &mut *dz].into_iter().zip(d) {
+                        _mm512_storeu_ps(column[at..at + 16].as_mut_ptr(), lanes.0);
+                    }
+                    let valid = (1u32 << (n - at).min(16)) - 1;
+                    let negative = [Avx512::bits(along(&d, tu).lt(k(0.0))), Avx512::bits(along(&d, tv).lt(k(0.0)))];
+                    quadrant_lanes(valid, negative)
+                };
+                for (count, lanes) in count.iter_mut().zip(masks) {
+                    *count += lanes.count_ones();
+                }
+                self.groups.push(masks);
+            }
+            // Each quadrant's rays start where the previous quadrant's end.
+            let mut cursor = [0u32; 4];
+            for (cursor, count) in cursor.iter_mut().zip(count) {
+                (*cursor, traced) = (traced as u32, traced + count as usize);
+            }
+            for column in &mut self.ray_dirs {
+                column.resize(traced, 0.0);
+            }
+            self.ray_samples.resize(traced, 0);
+            let iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+            for (g, masks) in self.groups.iter().enumerate() {
+                let at = g * 16;
+                for (cursor, &lanes) in cursor.iter_mut().zip(masks) {
+                    if lanes == 0 {
+                        continue;
+                    }
+                    let (m, to) = (lanes as __mmask16, *cursor as usize);
+                    let keep = ((1u32 << lanes.count_ones()) - 1) as __mmask16;
+                    // SAFETY (this block): the CPU has AVX-512F; the loads read one group of
+                    // the sample columns and the masked stores write the quadrant's next
+                    // `lanes.count_ones()` entries, within the `traced` of each ray column.
+                    unsafe {
+                        for (from, to_column) in [&*dx, &*dy, &*dz].into_iter().zip(&mut self.ray_dirs) {
+                            let lanes = _mm512_maskz_compress_ps(m, _mm512_loadu_ps(from[at..at + 16].as_ptr()));
+                            _mm512_mask_storeu_ps(to_column[to..].as_mut_ptr(), keep, lanes);
+                        }
+                        let index =
+                            _mm512_maskz_compress_epi32(m, _mm512_add_epi32(iota, _mm512_set1_epi32(at as i32)));
+                        _mm512_mask_storeu_epi32(self.ray_samples[to..].as_mut_ptr().cast(), keep, index);
+                    }
+                    *cursor += lanes.count_ones();
+                }
+            }
+            // Packets of sixteen consecutive rays, as `RayOrder::Grouped` cuts them, each
+            // query timed (when timing) as `DirectionRays::trace` times the whole call.
+            let (front, back) = spawn.sides();
+            stack.clear();
+            for p in (0..traced).step_by(16) {
+                let live = (1u32 << (traced - p).min(16)) - 1;
+                // SAFETY (this block): the CPU has AVX-512F; the masked loads read the
+                // packet's `live` rays within the ray columns.
+                let hit = unsafe {
+                    let load = |c: &Vec<f32>| Avx512(_mm512_maskz_loadu_ps(live as __mmask16, c[p..].as_ptr()));
+                    let d = [load(&self.ray_dirs[0]), load(&self.ray_dirs[1]), load(&self.ray_dirs[2])];
+                    // Behind the surface: the same products and sums as `SpawnOrigins::towards`.
+                    let behind = along(&d, normal).lt(k(0.0));
+                    let one = k(1.0);
+                    let lanes = RayLanes {
+                        origin: [
+                            k(front.x).select(behind, k(back.x)),
+                            k(front.y).select(behind, k(back.y)),
+                            k(front.z).select(behind, k(back.z)),
+                        ],
+                        dir: d,
+                        inv_dir: [one.div(d[0]), one.div(d[1]), one.div(d[2])],
+                        tmax: k(terms.max_distance),
+                    };
+                    // Rays that go on alone, and leaves and instances that take them one by
+                    // one, read them from memory.
+                    let mut rays = [Ray::new(front, Vec3A::X, 0.0); 16];
+                    Avx512::write_rays(&lanes, &mut rays, &ORDER);
+                    let start = self.timing.then(cycle_count);
+                    let hit = geometry.occluded_lanes16(&lanes, &rays, live, stack);
+                    cycles += start.map_or(0, cycles_since);
+                    hit
+                };
+                let mut each = hit;
+                while each != 0 {
+                    let j = self.ray_samples[p + each.trailing_zeros() as usize] as usize;
+                    each &= each - 1;
+                    self.dark[j / 16] |= 1 << (j % 16);
+                }
+            }
+        }
+        for (sums, &dark) in arriving.chunks_mut(16).zip(&self.dark) {
+            // SAFETY (this block): the CPU has AVX-512F.
+            unsafe {
+                let pick = |c: f32, f: f32| {
+                    Avx512(_mm512_mask_blend_ps(dark as __mmask16, _mm512_set1_ps(c), _mm512_set1_ps(f)))
+                };
+                let (x, y, z) = (pick(clear.x, floor.x), pick(clear.y, floor.y), pick(clear.z, floor.z));
+                if sums.len() == 16 {
+                    Avx512::add_to(x, y, z, sums);
+                } else {
+                    // −0 + v is v, bit for bit, for every v.
+                    let mut full = [Vec3A::splat(-0.0); 16];
+                    Avx512::add_to(x, y, z, &mut full);
+                    for (sum, add) in sums.iter_mut().zip(full) {
+                        *sum += add;
+                    }
+                }
+            }
+        }
+        (traced as u64, cycles)
     }
 
     /// [`DirectionRays::add`] one sample at a time, in sample order: for trees traversed
@@ -303,6 +516,10 @@ impl DirectionRays {
         (traced as u64, cycles)
     }
 }
+
+/// Lane k's place in a packet of sixteen: k.
+#[cfg(target_arch = "x86_64")]
+const ORDER: [u32; 16] = [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15];
 
 /// Group `g`'s weights, and the light each lane brings when clear, per channel: the lanes of
 /// [`clear_and_floor`].

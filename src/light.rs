@@ -284,6 +284,17 @@ pub trait PlacedLight: Send + Sync + 'static {
         None
     }
 
+    /// `Some(terms)` when every sample is a cosine-distributed direction around the shading
+    /// normal (density cos θ / π, weight 1) under `terms`, drawn from the light's first sample
+    /// dimension as [`cosine_power_hemisphere`](crate::sampling::warp::cosine_power_hemisphere)
+    /// with e = 1 maps it, exactly what [`PlacedLight::sample_directions`] gives: the core then
+    /// draws, sets up and traces a run in one pass where the CPU and sampler allow. `None`
+    /// (the default) otherwise.
+    #[inline]
+    fn cosine_run(&self) -> Option<DirectionTerms> {
+        None
+    }
+
     /// [`PlacedLight::sample`] for each sample of a run at one shading point: `out[j]` for the
     /// sample values whose dimension `k` is `values[k * out.len() + j]`. An implementation may
     /// compute several samples at once, but must give the same values as `sample`.

@@ -372,14 +372,35 @@ impl Tracer {
         arriving: &mut [Vec3A],
     ) {
         let n = arriving.len();
-        // Each light's sample values for the whole run, dimension after dimension.
+        // Each light's sample values for the whole run, dimension after dimension, and its
+        // drawn samples: each resized only where used (a cosine run uses neither, a direction
+        // run no `drawn`), every entry written before it is read.
         let mut values = std::mem::take(&mut self.samples);
-        values.resize(n * P::DIMS as usize, Vec2::ZERO);
         let mut drawn = std::mem::take(&mut self.drawn);
-        drawn.resize(n, None);
         for (l, light) in lights.iter().enumerate() {
             let dim = first_dim + l as u32 * P::DIMS;
             if P::DIMS > 0 {
+                // A cosine run in one pass, where the CPU and sampler allow.
+                if let Some(terms) = light.cosine_run() {
+                    let (geometry, rays) = (scene.geometry, &mut self.direction_rays);
+                    rays.timing = self.timing;
+                    let sample = (pixel, first, dim);
+                    if let Some((traced, cycles)) = rays.add_cosine(
+                        geometry,
+                        &mut self.stack,
+                        spawn,
+                        &at.frame,
+                        scene.sets,
+                        sample,
+                        &terms,
+                        arriving,
+                    ) {
+                        self.rays.count(P::TERM, traced);
+                        self.split.add_queries(P::TERM, cycles);
+                        continue;
+                    }
+                }
+                values.resize(n * P::DIMS as usize, Vec2::ZERO);
                 for (k, column) in (0..P::DIMS).zip(values.chunks_exact_mut(n.max(1))) {
                     scene.sets.fill(pixel, first, dim + k, column);
                 }
@@ -394,8 +415,10 @@ impl Tracer {
                     self.split.add_queries(P::TERM, cycles);
                     continue;
                 }
+                drawn.resize(n, None);
                 light.sample_run(at, &values, &mut drawn);
             } else {
+                drawn.resize(n, None);
                 for (j, d) in drawn.iter_mut().enumerate() {
                     *d = light
                         .sample(at, &LightSamples::from_sets(scene.sets, pixel, first.wrapping_add(j as u32), dim, 0));

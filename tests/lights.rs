@@ -461,47 +461,80 @@ impl PlacedLight for PlacedPerSample {
     }
 }
 
+/// What stands on the plane in [`the_occluder_s_bulk_path_gives_the_bits_of_the_per_sample_path`]:
+/// an analytic sphere, one triangle mesh (a world-space tree of triangle packets), or three
+/// instances of one mesh (traced through the top level).
+#[derive(Clone, Copy, Debug)]
+enum Blockers {
+    Sphere,
+    Mesh,
+    Instances,
+}
+
 #[test]
 fn the_occluder_s_bulk_path_gives_the_bits_of_the_per_sample_path() {
     let occluders = [
         AmbientOccluder { min_amount: 0.3, max_distance: 0.7, color: Vec3::new(1.0, 0.5, 0.25), ..Default::default() },
         AmbientOccluder { exponent: 0.0, ls: 3.0, ..Default::default() },
         AmbientOccluder { exponent: 3.0, min_amount: 1.0, ..Default::default() },
+        AmbientOccluder { min_amount: 1.0, ..Default::default() },
     ];
-    for (k, occluder) in occluders.into_iter().enumerate() {
-        // 37 samples: full groups of four, eight and sixteen lanes, and a partial one of each.
-        // Shared and jittered hits, with and without AOVs (the beauty image alone takes its
-        // own path).
-        let mut shared = Vec::new();
-        for (jitter, aovs) in [(false, false), (false, true), (true, false)] {
-            let render = |per_sample: bool| {
-                let settings = RenderSettings { jitter, aovs, ..settings(12, 10, 37, SamplerKind::MultiJittered) };
-                let mut r = Renderer::new(settings);
-                r.add_light::<PerSampleOccluder>();
-                let w = r.world_mut();
-                w.spawn((Plane::default(), white()));
-                w.spawn((Sphere { radius: 0.5 }, Transform::from_xyz(0.0, 0.5, 0.0), white()));
-                w.spawn((PointLight::default(), Transform::from_xyz(1.0, 2.0, 1.0)));
-                if per_sample {
-                    w.spawn(PerSampleOccluder(occluder));
-                } else {
-                    w.spawn(occluder);
+    let mesh = std::sync::Arc::new(hemi::scene::mesh_gen::uv_sphere(0.3, 12, 24));
+    // 37 samples: full groups of four, eight and sixteen lanes, and a partial one of each. With
+    // correlated multi-jittered sets of 16 (the occluder's one-pass path for cosine runs where
+    // the CPU has AVX-512) a run spans three passes, the first and last partial.
+    let samplers = [(SamplerKind::MultiJittered, 37), (SamplerKind::CorrelatedMultiJittered, 16)];
+    for (sampler, set) in samplers {
+        for blockers in [Blockers::Sphere, Blockers::Mesh, Blockers::Instances] {
+            for (k, occluder) in occluders.into_iter().enumerate() {
+                // Shared and jittered hits, with and without AOVs (the beauty image alone takes
+                // its own path).
+                let mut shared = Vec::new();
+                for (jitter, aovs) in [(false, false), (false, true), (true, false)] {
+                    let render = |per_sample: bool| {
+                        let base = settings(12, 10, 37, sampler);
+                        let settings = RenderSettings { jitter, aovs, samples_per_set: set, ..base };
+                        let mut r = Renderer::new(settings);
+                        r.add_light::<PerSampleOccluder>();
+                        let w = r.world_mut();
+                        w.spawn((Plane::default(), white()));
+                        match blockers {
+                            Blockers::Sphere => {
+                                w.spawn((Sphere { radius: 0.5 }, Transform::from_xyz(0.0, 0.5, 0.0), white()));
+                            }
+                            Blockers::Mesh => {
+                                w.spawn((TriangleMesh(mesh.clone()), Transform::from_xyz(0.0, 0.3, 0.0), white()));
+                            }
+                            Blockers::Instances => {
+                                for x in [-0.5, 0.0, 0.5] {
+                                    w.spawn((TriangleMesh(mesh.clone()), Transform::from_xyz(x, 0.3, 0.0), white()));
+                                }
+                            }
+                        }
+                        w.spawn((PointLight::default(), Transform::from_xyz(1.0, 2.0, 1.0)));
+                        if per_sample {
+                            w.spawn(PerSampleOccluder(occluder));
+                        } else {
+                            w.spawn(occluder);
+                        }
+                        w.spawn(Camera::look_at(Vec3::new(0.0, 1.5, 2.5), Vec3::new(0.0, 0.3, 0.0), 60.0));
+                        let rays = r.run_frame().unwrap().rays;
+                        (r.image().linear.clone(), rays)
+                    };
+                    let (bulk, per_sample) = (render(false), render(true));
+                    let case = format!("{sampler:?}, {blockers:?}, occluder {k}, jitter {jitter}, aovs {aovs}");
+                    assert_eq!(bulk.1, per_sample.1, "{case}: ray counts");
+                    assert!(bulk.0 == per_sample.0, "{case}: images differ");
+                    if k == 0 {
+                        assert!(bulk.1.ao > 0, "{case}: AO rays traced");
+                    }
+                    if !jitter {
+                        shared.push(bulk.0);
+                    }
                 }
-                w.spawn(Camera::look_at(Vec3::new(0.0, 1.5, 2.5), Vec3::new(0.0, 0.3, 0.0), 60.0));
-                let rays = r.run_frame().unwrap().rays;
-                (r.image().linear.clone(), rays)
-            };
-            let (bulk, per_sample) = (render(false), render(true));
-            assert_eq!(bulk.1, per_sample.1, "occluder {k}, jitter {jitter}, aovs {aovs}: ray counts");
-            assert!(bulk.0 == per_sample.0, "occluder {k}, jitter {jitter}, aovs {aovs}: images differ");
-            if k == 0 {
-                assert!(bulk.1.ao > 0, "AO rays traced");
-            }
-            if !jitter {
-                shared.push(bulk.0);
+                assert!(shared[0] == shared[1], "occluder {k}: the beauty image depends on whether AOVs are kept");
             }
         }
-        assert!(shared[0] == shared[1], "occluder {k}: the beauty image depends on whether AOVs are kept");
     }
 }
 

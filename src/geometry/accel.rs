@@ -34,7 +34,7 @@ use super::{
 };
 #[cfg(target_arch = "x86_64")]
 use super::{
-    lanes::{Avx, Avx512, Lanes},
+    lanes::{Avx, Avx512, Lanes, RayLanes},
     tri4::RayTriPacket,
     wide_bvh::{Bvh8, LaneHits, RayPacket},
 };
@@ -387,7 +387,9 @@ macro_rules! packet_kernels {
         $feature:literal,
         $packets:ident,
         $lanes:ident,
+        $lanes_of:ident,
         $scene:ident,
+        $scene_packet:ident,
         $instance:ident,
         $closest:ident,
         $closest_top:ident
@@ -462,10 +464,26 @@ macro_rules! packet_kernels {
                 if live == 0 {
                     return 0;
                 }
+                // SAFETY: this function is compiled for the lane type's instruction set and
+                // AVX, which the caller's CPU has.
+                let in_lanes = unsafe { <$lanes_type>::rays(rays) };
+                self.$lanes_of(tree, &in_lanes, rays, live, stack)
+            }
+
+            /// The lanes of `live` whose ray in `rays` anything in this BLAS blocks, as above,
+            /// for a packet already in lanes as well (`in_lanes`, the lanes of `rays`).
+            #[target_feature(enable = $feature)]
+            fn $lanes_of(
+                &self,
+                tree: &Bvh8,
+                in_lanes: &RayLanes<$lanes_type>,
+                rays: &[Ray],
+                live: u32,
+                stack: &mut Vec<(u32, f32)>,
+            ) -> u32 {
                 // SAFETY (all blocks below): this function is compiled for the lane type's
                 // instruction set and AVX, which the caller's CPU has.
-                let in_lanes = unsafe { <$lanes_type>::rays(rays) };
-                let packet = unsafe { RayPacket::new(&in_lanes) };
+                let packet = unsafe { RayPacket::new(in_lanes) };
                 // The edge tests' constants, made when the packet first reaches a leaf.
                 let mut edges = None;
                 let leaf = |first, count, lanes: u32, _: &mut Vec<(u32, f32)>| {
@@ -474,7 +492,7 @@ macro_rules! packet_kernels {
                         return if self.packets_block::<8>(first, count, &rays[lane]) { lanes } else { 0 };
                     }
                     if edges.is_none() {
-                        edges = Some(unsafe { RayTriPacket::new(&in_lanes) });
+                        edges = Some(unsafe { RayTriPacket::new(in_lanes) });
                     }
                     let r = edges.as_ref().expect("made above");
                     unsafe { self.packets_block_lanes(first, count, rays, r, lanes) }
@@ -550,28 +568,33 @@ macro_rules! packet_kernels {
                 blocked: &mut [bool],
             ) {
                 in_packets::<$lanes_type>(rays, order, blocked, |chunk, live| {
-                    let leaf = |first: u32, count: u32, lanes: u32, stack: &mut Vec<(u32, f32)>| {
-                        let mut open = lanes;
-                        for inst in &self.instances[first as usize..(first + count) as usize] {
-                            open &= !self.$instance(inst, chunk, open, stack);
-                            if open == 0 {
-                                break;
-                            }
-                        }
-                        lanes & !open
-                    };
-                    let single = |node, lane: usize, stack: &mut Vec<(u32, f32)>| {
-                        let ray = &chunk[lane];
-                        top.occluded_from(node, ray, stack, |first, count, stack| {
-                            self.instances_block(first, count, ray, stack)
-                        })
-                    };
-                    // SAFETY: this function is compiled for the lane type's instruction set and
-                    // AVX, which the caller's CPU has.
-                    unsafe {
-                        top.occluded_packet(&RayPacket::new(&<$lanes_type>::rays(chunk)), live, stack, leaf, single)
-                    }
+                    self.$scene_packet(top, chunk, live, stack)
                 });
+            }
+
+            /// The lanes of `live` whose ray in `chunk` (one packet, world space) anything
+            /// blocks, traced together through the top-level tree `top`.
+            #[target_feature(enable = $feature)]
+            fn $scene_packet(&self, top: &Bvh8, chunk: &[Ray], live: u32, stack: &mut Vec<(u32, f32)>) -> u32 {
+                let leaf = |first: u32, count: u32, lanes: u32, stack: &mut Vec<(u32, f32)>| {
+                    let mut open = lanes;
+                    for inst in &self.instances[first as usize..(first + count) as usize] {
+                        open &= !self.$instance(inst, chunk, open, stack);
+                        if open == 0 {
+                            break;
+                        }
+                    }
+                    lanes & !open
+                };
+                let single = |node, lane: usize, stack: &mut Vec<(u32, f32)>| {
+                    let ray = &chunk[lane];
+                    top.occluded_from(node, ray, stack, |first, count, stack| {
+                        self.instances_block(first, count, ray, stack)
+                    })
+                };
+                // SAFETY: this function is compiled for the lane type's instruction set and
+                // AVX, which the caller's CPU has.
+                unsafe { top.occluded_packet(&RayPacket::new(&<$lanes_type>::rays(chunk)), live, stack, leaf, single) }
             }
 
             /// The lanes of `lanes` whose ray in `rays` (world space) instance `inst` blocks:
@@ -618,7 +641,9 @@ packet_kernels!(
     "avx",
     occluded_packets_avx,
     occluded_lanes_avx,
+    occluded_lanes_of_avx,
     occluded_packets_avx,
+    occluded_packet_avx,
     instance_blocks_avx,
     closest_lanes_avx,
     closest_top_avx
@@ -629,11 +654,28 @@ packet_kernels!(
     "avx512f",
     occluded_packets_avx512,
     occluded_lanes_avx512,
+    occluded_lanes_of_avx512,
     occluded_packets_avx512,
+    occluded_packet_avx512,
     instance_blocks_avx512,
     closest_lanes_avx512,
     closest_top_avx512
 );
+
+/// The lanes of `lanes` whose ray in `rays` `blocks`, asked one ray at a time.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+fn lanes_where(lanes: u32, rays: &[Ray], mut blocks: impl FnMut(&Ray) -> bool) -> u32 {
+    let (mut todo, mut hit) = (lanes, 0);
+    while todo != 0 {
+        let k = todo.trailing_zeros() as usize;
+        todo &= todo - 1;
+        if blocks(&rays[k]) {
+            hit |= 1 << k;
+        }
+    }
+    hit
+}
 
 /// Fewest rays in one [`Blas::occluded_many`] call for packet traversal (a point light's
 /// single shadow ray goes on its own).
@@ -1527,6 +1569,51 @@ impl SceneGeometry {
             let _ = order;
             self.top.query(OccludedEach { target: self, rays, stack, blocked });
         }
+    }
+
+    /// The lanes of `live` whose ray in `rays` (one packet of sixteen, world space) anything
+    /// blocks, the packet already in lanes as well (`lanes`, the lanes of `rays`): each lane
+    /// gets exactly the answer [`SceneGeometry::occluded_many`] gives its ray, and the packet
+    /// is traced as that call traces a packet. Uses `stack` above its length.
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512F.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    pub(crate) unsafe fn occluded_lanes16(
+        &self,
+        lanes: &RayLanes<Avx512>,
+        rays: &[Ray; 16],
+        live: u32,
+        stack: &mut Vec<(u32, f32)>,
+    ) -> u32 {
+        let on_planes = if self.planes.is_empty() {
+            0
+        } else {
+            lanes_where(live, rays, |r| self.planes.iter().any(|p| p.intersect(r).is_some()))
+        };
+        let live = live & !on_planes;
+        if live == 0 {
+            return on_planes;
+        }
+        let traced = if let Some(blas) = &self.world_blas {
+            match &blas.tree {
+                Tree::Eight(tree) if !blas.packets.is_empty() => {
+                    blas.occluded_lanes_of_avx512(tree, lanes, rays, live, stack)
+                }
+                _ => lanes_where(live, rays, |r| blas.occluded(r, stack)),
+            }
+        } else if let Tree::Eight(top) = &self.top {
+            self.occluded_packet_avx512(top, rays, live, stack)
+        } else {
+            lanes_where(live, rays, |r| {
+                let mut blocked = [false];
+                let rays = std::slice::from_ref(r);
+                self.top.query(OccludedEach { target: self, rays, stack: &mut *stack, blocked: &mut blocked });
+                blocked[0]
+            })
+        };
+        on_planes | traced
     }
 
     /// Whether anything in instances `first..first + count` (a top-level leaf) blocks `ray`.

@@ -170,7 +170,7 @@ fn transpose16(row: &[__m512; 16]) -> [__m512; 16] {
 
 /// Sixteen lanes in an AVX-512 register.
 #[derive(Clone, Copy)]
-pub(crate) struct Avx512(__m512);
+pub(crate) struct Avx512(pub(crate) __m512);
 
 impl Lanes for Avx {
     const WIDTH: usize = 8;

@@ -92,6 +92,12 @@ impl PlacedLight for PlacedOccluder {
         Some(self.terms().light_sample(s.weight, at.frame.to_world(s.dir).into()))
     }
 
+    /// Cosine sampling (e = 1) draws exactly such runs.
+    #[inline]
+    fn cosine_run(&self) -> Option<DirectionTerms> {
+        (self.exponent == 1.0).then(|| self.terms())
+    }
+
     /// Cosine-sampled runs (e = 1) sixteen or eight lanes at a time where the CPU has AVX-512
     /// or AVX2; other exponents four at a time. Same values as `sample`.
     #[inline]

@@ -194,46 +194,25 @@ impl Cmj {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f")]
     fn fill_avx512(&self, first: u32, p: u32, out: &mut [Vec2]) {
-        if self.n.is_power_of_two() && self.m.get() <= 16 && self.k.get() <= 16 {
+        if self.has_small_grid16() {
             return self.fill_small_grid_avx512(first, p, out);
         }
         self.fill_portable(first, p, out);
     }
 
     /// [`Cmj::fill`] for a power-of-two n on a grid of at most 16 × 16, sixteen samples at a
-    /// time: the sample order's permutation and the two jitters per sample (three of the five
-    /// hashes), the column and row shuffles from tables of sixteen lanes. Each lane does the
-    /// scalar code's operations in its order, so every value is [`Cmj::sample`]'s.
+    /// time ([`SmallGrid16::points`]), stored as the `Vec2`s they are.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f")]
     fn fill_small_grid_avx512(&self, first: u32, p: u32, out: &mut [Vec2]) {
         use std::arch::x86_64::*;
 
-        let sc = Scrambles::new(p);
-        let (wn, wm, wk) = (self.n.mask(), self.m.mask(), self.k.mask());
-        let shift = self.m.get().trailing_zeros();
-        let u = |x: u32| _mm512_set1_epi32(x as i32);
-        let iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
-        // Column c's shuffled sub-column in lane c (lanes past m hold values never looked up).
-        // SAFETY (all three calls): this function is compiled for AVX-512F.
-        let by_col = unsafe { permute_pow2_lanes(_mm512_and_si512(iota, u(wm)), wm, sc.x) };
-        let by_row = unsafe { permute_pow2_lanes(_mm512_and_si512(iota, u(wk)), wk, sc.y) };
-        let [inv_m, inv_k] = self.inv.map(|v| _mm512_set1_ps(v));
-        let below_one = _mm512_set1_ps(ONE_MINUS_EPSILON);
+        let grid = SmallGrid16::new(self, p);
         // x and y of lanes 0–7, then of lanes 8–15, interleaved as `Vec2`s lie in memory.
         let low = _mm512_setr_epi32(0, 16, 1, 17, 2, 18, 3, 19, 4, 20, 5, 21, 6, 22, 7, 23);
-        let high = _mm512_add_epi32(low, u(8));
+        let high = _mm512_add_epi32(low, _mm512_set1_epi32(8));
         for (i, chunk) in out.chunks_mut(16).enumerate() {
-            let s = _mm512_add_epi32(u(first + 16 * i as u32), iota);
-            let s = unsafe { permute_pow2_lanes(s, wn, sc.order) };
-            let (col, row) = (_mm512_and_si512(s, u(wm)), _mm512_srlv_epi32(s, u(shift)));
-            let sx = _mm512_permutexvar_epi32(col, by_col);
-            let sy = _mm512_permutexvar_epi32(row, by_row);
-            let (jx, jy) = (randfloat_lanes(s, sc.jx), randfloat_lanes(s, sc.jy));
-            let f = |v| _mm512_cvtepu32_ps(v);
-            let x = _mm512_mul_ps(_mm512_add_ps(f(col), _mm512_mul_ps(_mm512_add_ps(f(sy), jx), inv_k)), inv_m);
-            let y = _mm512_mul_ps(_mm512_add_ps(f(row), _mm512_mul_ps(_mm512_add_ps(f(sx), jy), inv_m)), inv_k);
-            let (x, y) = (_mm512_min_ps(x, below_one), _mm512_min_ps(y, below_one));
+            let (x, y) = grid.points(first + 16 * i as u32);
             let pairs = [_mm512_permutex2var_ps(x, low, y), _mm512_permutex2var_ps(x, high, y)];
             let floats = chunk.as_mut_ptr().cast::<f32>();
             for (h, pair) in pairs.into_iter().enumerate() {
@@ -241,6 +220,45 @@ impl Cmj {
                 let n = (2 * chunk.len()).saturating_sub(16 * h).min(16);
                 // SAFETY: the masked store writes only the chunk's first 2·len floats.
                 unsafe { _mm512_mask_storeu_ps(floats.add(16 * h), ((1u32 << n) - 1) as __mmask16, pair) };
+            }
+        }
+    }
+
+    /// Samples `first..first + xs.len()` (all < n) of pattern `p` as two columns, x into `xs`
+    /// and y into `ys` (same length): [`Cmj::fill`]'s values. Returns false, writing nothing,
+    /// unless this CPU has AVX-512 (see [`crate::cpu`]) and n is a power of two on a grid of at
+    /// most 16 × 16, where sixteen samples at a time go straight from lanes to the columns.
+    pub(crate) fn fill_columns(&self, first: u32, p: u32, xs: &mut [f32], ys: &mut [f32]) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if self.has_small_grid16() && crate::cpu::avx512() {
+            // SAFETY: the CPU has AVX-512F, checked just above.
+            unsafe { self.fill_columns_avx512(first, p, xs, ys) };
+            return true;
+        }
+        let _ = (first, p, xs, ys);
+        false
+    }
+
+    /// Whether n is a power of two on a grid of at most 16 × 16 ([`SmallGrid16`]'s patterns).
+    fn has_small_grid16(&self) -> bool {
+        self.n.is_power_of_two() && self.m.get() <= 16 && self.k.get() <= 16
+    }
+
+    /// [`Cmj::fill_columns`] in AVX-512 lanes.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    fn fill_columns_avx512(&self, first: u32, p: u32, xs: &mut [f32], ys: &mut [f32]) {
+        use std::arch::x86_64::*;
+
+        assert_eq!(xs.len(), ys.len(), "one column per coordinate");
+        let grid = SmallGrid16::new(self, p);
+        for (i, (xs, ys)) in xs.chunks_mut(16).zip(ys.chunks_mut(16)).enumerate() {
+            let (x, y) = grid.points(first + 16 * i as u32);
+            let keep = ((1u32 << xs.len()) - 1) as __mmask16;
+            // SAFETY: the masked stores write only the chunks' floats.
+            unsafe {
+                _mm512_mask_storeu_ps(xs.as_mut_ptr(), keep, x);
+                _mm512_mask_storeu_ps(ys.as_mut_ptr(), keep, y);
             }
         }
     }
@@ -274,6 +292,73 @@ impl Cmj {
         let y = (row as f32 + (sx as f32 + jy) * inv_m) * inv_k;
         let below_one = |v: f32| v.min(ONE_MINUS_EPSILON);
         [below_one(x), below_one(y)]
+    }
+}
+
+/// One pattern of a [`Cmj`] whose n is a power of two on a grid of at most 16 × 16, set up
+/// for sixteen samples at a time in AVX-512 lanes: the sample order's permutation and the two
+/// jitters per sample (three of the five hashes) computed in lanes, the column and row
+/// shuffles looked up from tables of sixteen lanes worked out once. Each lane does the scalar
+/// code's operations in its order, so every value is [`Cmj::sample`]'s.
+#[cfg(target_arch = "x86_64")]
+struct SmallGrid16 {
+    sc: Scrambles,
+    masks: [u32; 3],
+    shift: u32,
+    inv: [f32; 2],
+    /// Column c's shuffled sub-column in lane c (lanes past m hold values never looked up).
+    by_col: std::arch::x86_64::__m512i,
+    /// Row r's shuffled sub-row in lane r.
+    by_row: std::arch::x86_64::__m512i,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl SmallGrid16 {
+    /// Pattern `p` of `cmj`, which must have a small grid ([`Cmj::has_small_grid16`]).
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    fn new(cmj: &Cmj, p: u32) -> Self {
+        use std::arch::x86_64::*;
+
+        debug_assert!(cmj.has_small_grid16());
+        let sc = Scrambles::new(p);
+        let (wm, wk) = (cmj.m.mask(), cmj.k.mask());
+        let iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+        // SAFETY (both calls): this function is compiled for AVX-512F.
+        let by_col = unsafe { permute_pow2_lanes(_mm512_and_si512(iota, _mm512_set1_epi32(wm as i32)), wm, sc.x) };
+        let by_row = unsafe { permute_pow2_lanes(_mm512_and_si512(iota, _mm512_set1_epi32(wk as i32)), wk, sc.y) };
+        SmallGrid16 {
+            sc,
+            masks: [cmj.n.mask(), wm, wk],
+            shift: cmj.m.get().trailing_zeros(),
+            inv: cmj.inv,
+            by_col,
+            by_row,
+        }
+    }
+
+    /// Samples `first..first + 16` (x lanes, y lanes); lanes past n hold values of no sample.
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    fn points(&self, first: u32) -> (std::arch::x86_64::__m512, std::arch::x86_64::__m512) {
+        use std::arch::x86_64::*;
+
+        let u = |x: u32| _mm512_set1_epi32(x as i32);
+        let [wn, wm, _] = self.masks;
+        let iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+        let s = _mm512_add_epi32(u(first), iota);
+        // SAFETY: this function is compiled for AVX-512F.
+        let s = unsafe { permute_pow2_lanes(s, wn, self.sc.order) };
+        let (col, row) = (_mm512_and_si512(s, u(wm)), _mm512_srlv_epi32(s, u(self.shift)));
+        let sx = _mm512_permutexvar_epi32(col, self.by_col);
+        let sy = _mm512_permutexvar_epi32(row, self.by_row);
+        let (jx, jy) = (randfloat_lanes(s, self.sc.jx), randfloat_lanes(s, self.sc.jy));
+        let [inv_m, inv_k] = self.inv.map(|v| _mm512_set1_ps(v));
+        let f = |v| _mm512_cvtepu32_ps(v);
+        let x = _mm512_mul_ps(_mm512_add_ps(f(col), _mm512_mul_ps(_mm512_add_ps(f(sy), jx), inv_k)), inv_m);
+        let y = _mm512_mul_ps(_mm512_add_ps(f(row), _mm512_mul_ps(_mm512_add_ps(f(sx), jy), inv_m)), inv_k);
+        let below_one = _mm512_set1_ps(ONE_MINUS_EPSILON);
+        (_mm512_min_ps(x, below_one), _mm512_min_ps(y, below_one))
     }
 }
 
@@ -329,7 +414,7 @@ mod tests {
     /// Every fill path gives `sample`'s values: each vector copy this CPU has (AVX-512 lanes for
     /// power-of-two grids up to 16 × 16, n ≤ 256; AVX2 lanes up to 8 × 8, n ≤ 64; the
     /// vectorised loop above that, 1024 being 32 × 32), the portable loop, and the dispatch;
-    /// one sample at a time for other n.
+    /// one sample at a time for other n. So do the columns, wherever they are computed.
     #[test]
     fn fill_gives_the_samples_of_sample() {
         type Fill = fn(&Cmj, u32, u32, &mut [Vec2]);
@@ -356,6 +441,16 @@ mod tests {
                         for (s, v) in (first..).zip(&out) {
                             assert_eq!(v.to_array(), cmj.sample(s, p), "{name}: n {n}, p {p}, s {s}");
                         }
+                    }
+                    let (mut xs, mut ys) = (vec![f32::NAN; (n - first) as usize], vec![f32::NAN; (n - first) as usize]);
+                    if cmj.fill_columns(first, p, &mut xs, &mut ys) {
+                        for (s, (&x, &y)) in (first..).zip(xs.iter().zip(&ys)) {
+                            assert_eq!([x, y], cmj.sample(s, p), "columns: n {n}, p {p}, s {s}");
+                        }
+                    } else {
+                        #[cfg(target_arch = "x86_64")]
+                        assert!(!(crate::cpu::avx512() && cmj.has_small_grid16()), "n {n}: columns refused");
+                        assert!(xs.iter().chain(&ys).all(|v| v.is_nan()), "refused, yet written");
                     }
                 }
             }
