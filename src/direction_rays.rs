@@ -285,17 +285,7 @@ impl DirectionRays {
                 let pick = |c: f32, f: f32| {
                     Avx512(_mm512_mask_blend_ps(dark as __mmask16, _mm512_set1_ps(c), _mm512_set1_ps(f)))
                 };
-                let (x, y, z) = (pick(clear.x, floor.x), pick(clear.y, floor.y), pick(clear.z, floor.z));
-                if sums.len() == 16 {
-                    Avx512::add_to(x, y, z, sums);
-                } else {
-                    // −0 + v is v, bit for bit, for every v.
-                    let mut full = [Vec3A::splat(-0.0); 16];
-                    Avx512::add_to(x, y, z, &mut full);
-                    for (sum, add) in sums.iter_mut().zip(full) {
-                        *sum += add;
-                    }
-                }
+                add_group(pick(clear.x, floor.x), pick(clear.y, floor.y), pick(clear.z, floor.z), sums);
             }
         }
         (traced as u64, cycles)
@@ -501,19 +491,31 @@ impl DirectionRays {
                 let x = c[0].select(dark, L::splat(floor.x));
                 let y = c[1].select(dark, L::splat(floor.y));
                 let z = c[2].select(dark, L::splat(floor.z));
-                if sums.len() == width {
-                    L::add_to(x, y, z, sums);
-                } else {
-                    // −0 + v is v, bit for bit, for every v.
-                    let mut full = [Vec3A::splat(-0.0); 16];
-                    L::add_to(x, y, z, &mut full);
-                    for (sum, add) in sums.iter_mut().zip(full) {
-                        *sum += add;
-                    }
-                }
+                add_group(x, y, z, sums);
             }
         }
         (traced as u64, cycles)
+    }
+}
+
+/// Adds each lane's x, y and z to its sample's sum in `sums`, one group of at most `L::WIDTH`
+/// samples (lanes past its end are dropped).
+///
+/// # Safety
+/// The CPU must have `L`'s instruction set.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn add_group<L: Lanes>(x: L, y: L, z: L, sums: &mut [Vec3A]) {
+    // SAFETY (both blocks): the caller's CPU has `L`'s instruction set.
+    if sums.len() == L::WIDTH {
+        unsafe { L::add_to(x, y, z, sums) };
+    } else {
+        // −0 + v is v, bit for bit, for every v.
+        let mut full = [Vec3A::splat(-0.0); 16];
+        unsafe { L::add_to(x, y, z, &mut full) };
+        for (sum, add) in sums.iter_mut().zip(full) {
+            *sum += add;
+        }
     }
 }
 
