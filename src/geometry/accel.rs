@@ -467,17 +467,18 @@ macro_rules! packet_kernels {
                 // SAFETY: this function is compiled for the lane type's instruction set and
                 // AVX, which the caller's CPU has.
                 let in_lanes = unsafe { <$lanes_type>::rays(rays) };
-                self.$lanes_of(tree, &in_lanes, rays, live, stack)
+                self.$lanes_of(tree, &in_lanes, |k| rays[k], live, stack)
             }
 
-            /// The lanes of `live` whose ray in `rays` anything in this BLAS blocks, as above,
-            /// for a packet already in lanes as well (`in_lanes`, the lanes of `rays`).
+            /// The lanes of `live` whose ray anything in this BLAS blocks, as above, for a
+            /// packet already in lanes (`in_lanes`); `ray(k)` gives lane k's ray, for rays that
+            /// go on alone and tests that take one ray.
             #[target_feature(enable = $feature)]
             fn $lanes_of(
                 &self,
                 tree: &Bvh8,
                 in_lanes: &RayLanes<$lanes_type>,
-                rays: &[Ray],
+                ray: impl Fn(usize) -> Ray,
                 live: u32,
                 stack: &mut Vec<(u32, f32)>,
             ) -> u32 {
@@ -489,18 +490,20 @@ macro_rules! packet_kernels {
                 let leaf = |first, count, lanes: u32, _: &mut Vec<(u32, f32)>| {
                     if lanes.count_ones() == 1 {
                         let lane = lanes.trailing_zeros() as usize;
-                        return if self.packets_block::<8>(first, count, &rays[lane]) { lanes } else { 0 };
+                        return if self.packets_block::<8>(first, count, &ray(lane)) { lanes } else { 0 };
                     }
                     if edges.is_none() {
                         edges = Some(unsafe { RayTriPacket::new(in_lanes) });
                     }
                     let r = edges.as_ref().expect("made above");
-                    unsafe { self.packets_block_lanes(first, count, rays, r, lanes) }
+                    unsafe { self.packets_block_lanes(first, count, &ray, r, lanes) }
                 };
                 let single = |node, lane: usize, stack: &mut Vec<(u32, f32)>| {
-                    let ray = &rays[lane];
-                    let leaf = |first, count, _: &mut Vec<(u32, f32)>| self.packets_block::<8>(first, count, ray);
-                    tree.occluded_from_touch(node, ray, stack, leaf, |first, count| self.prefetch_packets(first, count))
+                    let ray = ray(lane);
+                    let leaf = |first, count, _: &mut Vec<(u32, f32)>| self.packets_block::<8>(first, count, &ray);
+                    tree.occluded_from_touch(node, &ray, stack, leaf, |first, count| {
+                        self.prefetch_packets(first, count)
+                    })
                 };
                 unsafe { tree.occluded_packet(&packet, live, stack, leaf, single) }
             }
@@ -662,15 +665,15 @@ packet_kernels!(
     closest_top_avx512
 );
 
-/// The lanes of `lanes` whose ray in `rays` `blocks`, asked one ray at a time.
+/// The lanes of `lanes` whose ray (`ray(k)` for lane k) `blocks`, asked one ray at a time.
 #[cfg(target_arch = "x86_64")]
 #[inline]
-fn lanes_where(lanes: u32, rays: &[Ray], mut blocks: impl FnMut(&Ray) -> bool) -> u32 {
+fn lanes_where(lanes: u32, ray: &impl Fn(usize) -> Ray, mut blocks: impl FnMut(&Ray) -> bool) -> u32 {
     let (mut todo, mut hit) = (lanes, 0);
     while todo != 0 {
         let k = todo.trailing_zeros() as usize;
         todo &= todo - 1;
-        if blocks(&rays[k]) {
+        if blocks(&ray(k)) {
             hit |= 1 << k;
         }
     }
@@ -912,8 +915,8 @@ impl Blas {
         self.tree.query(OccludedEach { target: self, rays, stack, blocked });
     }
 
-    /// The lanes of `lanes` whose ray in `rays` a triangle in packets `first..first + count`
-    /// blocks, each triangle tested against all those rays at once.
+    /// The lanes of `lanes` whose ray (`ray(k)` for lane k) a triangle in packets
+    /// `first..first + count` blocks, each triangle tested against all those rays at once.
     ///
     /// # Safety
     /// The CPU must have `L`'s instruction set.
@@ -923,7 +926,7 @@ impl Blas {
         &self,
         first: u32,
         count: u32,
-        rays: &[Ray],
+        ray: &impl Fn(usize) -> Ray,
         r: &RayTriPacket<L>,
         lanes: u32,
     ) -> u32 {
@@ -948,8 +951,8 @@ impl Blas {
                 while exact != 0 {
                     let k = exact.trailing_zeros() as usize;
                     exact &= exact - 1;
-                    let ray = &rays[k];
-                    if tri.intersect(ray, &Shear::new(ray.dir)).is_some() {
+                    let ray = ray(k);
+                    if tri.intersect(&ray, &Shear::new(ray.dir)).is_some() {
                         open &= !(1 << k);
                     }
                 }
@@ -1571,8 +1574,8 @@ impl SceneGeometry {
         }
     }
 
-    /// The lanes of `live` whose ray in `rays` (one packet of sixteen, world space) anything
-    /// blocks, the packet already in lanes as well (`lanes`, the lanes of `rays`): each lane
+    /// The lanes of `live` whose ray anything blocks, for one packet of sixteen world-space
+    /// rays in lanes (`ray(k)` gives lane k's ray, for what takes rays one by one): each lane
     /// gets exactly the answer [`SceneGeometry::occluded_many`] gives its ray, and the packet
     /// is traced as that call traces a packet. Uses `stack` above its length.
     ///
@@ -1583,14 +1586,14 @@ impl SceneGeometry {
     pub(crate) unsafe fn occluded_lanes16(
         &self,
         lanes: &RayLanes<Avx512>,
-        rays: &[Ray; 16],
+        ray: impl Fn(usize) -> Ray,
         live: u32,
         stack: &mut Vec<(u32, f32)>,
     ) -> u32 {
         let on_planes = if self.planes.is_empty() {
             0
         } else {
-            lanes_where(live, rays, |r| self.planes.iter().any(|p| p.intersect(r).is_some()))
+            lanes_where(live, &ray, |r| self.planes.iter().any(|p| p.intersect(r).is_some()))
         };
         let live = live & !on_planes;
         if live == 0 {
@@ -1599,14 +1602,20 @@ impl SceneGeometry {
         let traced = if let Some(blas) = &self.world_blas {
             match &blas.tree {
                 Tree::Eight(tree) if !blas.packets.is_empty() => {
-                    blas.occluded_lanes_of_avx512(tree, lanes, rays, live, stack)
+                    blas.occluded_lanes_of_avx512(tree, lanes, &ray, live, stack)
                 }
-                _ => lanes_where(live, rays, |r| blas.occluded(r, stack)),
+                _ => lanes_where(live, &ray, |r| blas.occluded(r, stack)),
             }
         } else if let Tree::Eight(top) = &self.top {
-            self.occluded_packet_avx512(top, rays, live, stack)
+            // The top level's instances take the rays in memory (each moves them into its own
+            // frame): transposed out of the lanes in place.
+            let mut rays = [Ray::new(Vec3A::ZERO, Vec3A::X, 0.0); 16];
+            let order: [u32; 16] = std::array::from_fn(|k| k as u32);
+            // SAFETY: this function is compiled for AVX-512F.
+            unsafe { Avx512::write_rays(lanes, &mut rays, &order) };
+            self.occluded_packet_avx512(top, &rays, live, stack)
         } else {
-            lanes_where(live, rays, |r| {
+            lanes_where(live, &ray, |r| {
                 let mut blocked = [false];
                 let rays = std::slice::from_ref(r);
                 self.top.query(OccludedEach { target: self, rays, stack: &mut *stack, blocked: &mut blocked });
