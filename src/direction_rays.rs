@@ -96,8 +96,8 @@ impl DirectionRays {
     ) -> (u64, u64) {
         #[cfg(target_arch = "x86_64")]
         match geometry.packet_lanes() {
-            // SAFETY: sixteen- and eight-lane packets are used only where AVX-512 and AVX were
-            // detected.
+            // SAFETY: sixteen- and eight-lane packets are used only where AVX-512 (with POPCNT)
+            // and AVX were detected.
             16 => return unsafe { self.add_avx512(geometry, stack, spawn, run, terms, arriving) },
             8 => return unsafe { self.add_avx(geometry, stack, spawn, run, terms, arriving) },
             _ => {}
@@ -131,7 +131,7 @@ impl DirectionRays {
             ys.resize(n, 0.5);
             let len = arriving.len();
             if sets.fill_columns(pixel, first, dim, &mut xs[..len], &mut ys[..len]) {
-                // SAFETY: sixteen-lane packets are used only where AVX-512 was detected.
+                // SAFETY: sixteen-lane packets are used only where AVX-512 (and POPCNT) was detected.
                 return Some(unsafe { self.add_cosine_avx512(geometry, stack, spawn, frame, terms, arriving) });
             }
         }
@@ -145,9 +145,9 @@ impl DirectionRays {
     /// by lane compression; packets load their lanes straight from those columns.
     ///
     /// # Safety
-    /// The CPU must have AVX-512F.
+    /// The CPU must have AVX-512F and POPCNT ([`crate::cpu::avx512`]).
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f")]
+    #[target_feature(enable = "avx512f,popcnt")]
     unsafe fn add_cosine_avx512(
         &mut self,
         geometry: &SceneGeometry,
@@ -351,9 +351,9 @@ impl DirectionRays {
     /// [`DirectionRays::add`] for sixteen-lane packets.
     ///
     /// # Safety
-    /// The CPU must have AVX-512F.
+    /// The CPU must have AVX-512F and POPCNT ([`crate::cpu::avx512`]).
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f")]
+    #[target_feature(enable = "avx512f,popcnt")]
     unsafe fn add_avx512(
         &mut self,
         geometry: &SceneGeometry,

@@ -375,11 +375,14 @@ fn packet_width() -> PacketWidth {
 
 /// Defines, for one lane type and the instruction set it needs, the packet kernels: for
 /// occlusion, `Blas::$packets` and `SceneGeometry::$scene` (a run of rays by packets, within one
-/// BLAS or through the top level) and the per-packet `Blas::$lanes` and `SceneGeometry::$instance`
-/// they use; for closest hits, the per-packet `Blas::$closest`. Each is compiled for that instruction set, and the closures they hand to the
-/// generic traversal are written inside them so that they are compiled for it too (a closure
-/// gets the instruction set of the function it is written in, not of the one it is inlined
-/// into). Callers must make sure the CPU has the instruction set.
+/// BLAS or through the top level) and the per-packet `Blas::$lanes` (with `$lanes_of`, for a
+/// packet already in lanes), `SceneGeometry::$scene_packet` and `SceneGeometry::$instance` they
+/// use; for closest hits, the per-packet `Blas::$closest`. Each is compiled for that
+/// instruction set, and the closures they hand to the generic traversal are written inside them
+/// so that they are compiled for it too (a closure gets the instruction set of the function it
+/// is written in, and cannot be inlined into a function compiled for less: the sixteen-lane
+/// kernels and the one-pass cosine runs, whose closures they call per lone ray, all take
+/// POPCNT as well). Callers must make sure the CPU has the instruction set.
 #[cfg(target_arch = "x86_64")]
 macro_rules! packet_kernels {
     (
@@ -654,7 +657,7 @@ packet_kernels!(
 #[cfg(target_arch = "x86_64")]
 packet_kernels!(
     Avx512,
-    "avx512f",
+    "avx512f,popcnt",
     occluded_packets_avx512,
     occluded_lanes_avx512,
     occluded_lanes_of_avx512,
@@ -902,7 +905,7 @@ impl Blas {
             && rays.len() >= PACKET_RUN
         {
             // SAFETY: an eight-wide tree is built only where AVX was detected, and sixteen-lane
-            // packets are chosen only where AVX-512 was.
+            // packets are chosen only where AVX-512 (with POPCNT) was.
             return unsafe {
                 match packet_width() {
                     PacketWidth::Sixteen => self.occluded_packets_avx512(tree, rays, order, stack, blocked),
@@ -1447,7 +1450,7 @@ impl SceneGeometry {
     ) -> u32 {
         let sixteen = matches!(packet_width(), PacketWidth::Sixteen);
         // SAFETY: eight-wide trees are built only where AVX was detected, and sixteen-lane
-        // packets are chosen only where AVX-512 was.
+        // packets are chosen only where AVX-512 (with POPCNT) was.
         unsafe {
             match into {
                 CameraPackets::World(blas, tree) if sixteen => blas.closest_lanes_avx512(tree, rays, live, 0, hits),
@@ -1561,7 +1564,7 @@ impl SceneGeometry {
                 && rays.len() >= PACKET_RUN
             {
                 // SAFETY: an eight-wide tree is built only where AVX was detected, and
-                // sixteen-lane packets are chosen only where AVX-512 was.
+                // sixteen-lane packets are chosen only where AVX-512 (with POPCNT) was.
                 return unsafe {
                     match packet_width() {
                         PacketWidth::Sixteen => self.occluded_packets_avx512(top, rays, order, stack, blocked),
@@ -1580,9 +1583,9 @@ impl SceneGeometry {
     /// is traced as that call traces a packet. Uses `stack` above its length.
     ///
     /// # Safety
-    /// The CPU must have AVX-512F.
+    /// The CPU must have AVX-512F and POPCNT ([`crate::cpu::avx512`]).
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f")]
+    #[target_feature(enable = "avx512f,popcnt")]
     pub(crate) unsafe fn occluded_lanes16(
         &self,
         lanes: &RayLanes<Avx512>,
