@@ -240,6 +240,7 @@ impl Cmj {
     }
 
     /// Whether n is a power of two on a grid of at most 16 × 16 ([`SmallGrid16`]'s patterns).
+    #[cfg(target_arch = "x86_64")]
     fn has_small_grid16(&self) -> bool {
         self.n.is_power_of_two() && self.m.get() <= 16 && self.k.get() <= 16
     }
