@@ -36,6 +36,19 @@ use crate::{
 #[cfg(target_arch = "x86_64")]
 type QuadrantLanes = [u32; 4];
 
+/// Where each quadrant's rays start, given how many each has (each where the previous one's
+/// end), and how many there are in all.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn quadrant_starts(count: [u32; 4]) -> ([u32; 4], usize) {
+    let mut start = [0u32; 4];
+    let mut at = 0;
+    for (start, count) in start.iter_mut().zip(count) {
+        (*start, at) = (at, at + count);
+    }
+    (start, at as usize)
+}
+
 /// [`QuadrantLanes`] from the lanes that need a ray and those negative along each tangent.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
@@ -205,11 +218,8 @@ impl DirectionRays {
                 }
                 self.groups.push(masks);
             }
-            // Each quadrant's rays start where the previous quadrant's end.
-            let mut cursor = [0u32; 4];
-            for (cursor, count) in cursor.iter_mut().zip(count) {
-                (*cursor, traced) = (traced as u32, traced + count as usize);
-            }
+            let mut cursor;
+            (cursor, traced) = quadrant_starts(count);
             for column in &mut self.ray_dirs {
                 column.resize(traced, 0.0);
             }
@@ -440,13 +450,7 @@ impl DirectionRays {
             }
             self.groups.push(masks);
         }
-        // Each quadrant's rays start where the previous quadrant's end.
-        let mut cursor = [0u32; 4];
-        let mut at = 0;
-        for (cursor, count) in cursor.iter_mut().zip(count) {
-            (*cursor, at) = (at, at + count);
-        }
-        let traced = at as usize;
+        let (mut cursor, traced) = quadrant_starts(count);
         let (front, back) = spawn.sides();
         // Room for the rays and one more, where lanes without a ray write theirs. Every ray
         // below is written before it is read, so the buffer is never cleared.

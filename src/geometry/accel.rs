@@ -1618,12 +1618,7 @@ impl SceneGeometry {
             unsafe { Avx512::write_rays(lanes, &mut rays, &order) };
             self.occluded_packet_avx512(top, &rays, live, stack)
         } else {
-            lanes_where(live, &ray, |r| {
-                let mut blocked = [false];
-                let rays = std::slice::from_ref(r);
-                self.top.query(OccludedEach { target: self, rays, stack: &mut *stack, blocked: &mut blocked });
-                blocked[0]
-            })
+            lanes_where(live, &ray, |r| self.occluded(r, stack))
         };
         on_planes | traced
     }

@@ -15,6 +15,8 @@ pub mod hash;
 pub mod sobol;
 pub mod warp;
 
+use std::ops::Range;
+
 use bevy_ecs::prelude::Resource;
 
 use crate::resources::RenderSettings;
@@ -144,15 +146,8 @@ impl SampleSets {
             *one = self.sample(pixel, first, dim);
             return;
         }
-        let mut index = first;
-        let mut rest = out;
-        while !rest.is_empty() {
-            let (pass, i) = (self.modulus.quotient(index), self.modulus.remainder(index));
-            let len = ((self.n - i) as usize).min(rest.len());
-            let (run, tail) = rest.split_at_mut(len);
-            self.fill_pass(pixel, pass, i, dim, run);
-            index = index.wrapping_add(len as u32);
-            rest = tail;
+        for (pass, i, run) in self.passes(first, out.len()) {
+            self.fill_pass(pixel, pass, i, dim, &mut out[run]);
         }
     }
 
@@ -163,20 +158,32 @@ impl SampleSets {
         if self.kind != SamplerKind::CorrelatedMultiJittered || xs.len() != ys.len() {
             return false;
         }
-        let (mut index, mut at) = (first, 0);
-        while at < xs.len() {
-            let (pass, i) = (self.modulus.quotient(index), self.modulus.remainder(index));
-            let len = ((self.n - i) as usize).min(xs.len() - at);
+        for (pass, i, run) in self.passes(first, xs.len()) {
             let p = hash_sample(pixel, pass, dim, self.key) as u32;
-            if !self.cmj.fill_columns(i, p, &mut xs[at..at + len], &mut ys[at..at + len]) {
+            if !self.cmj.fill_columns(i, p, &mut xs[run.clone()], &mut ys[run.clone()]) {
                 // The first call decides for all (the pattern size is the same).
-                debug_assert_eq!(at, 0);
+                debug_assert_eq!(run.start, 0);
                 return false;
             }
-            index = index.wrapping_add(len as u32);
-            at += len;
         }
         true
+    }
+
+    /// The passes of samples `first, first + 1, …` (`len` of them): each pass, the index in
+    /// it of the run's first sample there, and which of the run's samples it holds.
+    #[inline(always)]
+    fn passes(&self, first: u32, len: usize) -> impl Iterator<Item = (u32, u32, Range<usize>)> + '_ {
+        let (mut index, mut at) = (first, 0);
+        std::iter::from_fn(move || {
+            (at < len).then(|| {
+                let (pass, i) = (self.modulus.quotient(index), self.modulus.remainder(index));
+                let count = ((self.n - i) as usize).min(len - at);
+                let run = at..at + count;
+                index = index.wrapping_add(count as u32);
+                at += count;
+                (pass, i, run)
+            })
+        })
     }
 
     /// Samples `first..first + out.len()` (all < n) of one pass.
