@@ -2,7 +2,10 @@
 # Runs hemi, Embree 4 (embreex) and Mitsuba 3 (llvm_ad_rgb) on the same peer scenes, one after
 # the other in one session, and prints AO-ray throughput, render time and the ratios.
 #
-#   scripts/compare-peers.sh [--spp N] [--threads N] [SCENE ...]     (default: all five scenes)
+#   scripts/compare-peers.sh [--spp N] [--threads N] [--rounds N] [SCENE ...]   (default: all five)
+#
+# --rounds N runs every scene N times, round by round (so a slow spell of a shared machine hits
+# all three renderers alike), prints each run, then per scene the median ratios and their range.
 #
 # SCENE is a name from ../shared/peers/scenes (cornell, sphere_plane, many_spheres, dragon,
 # sponza). The peers run from a writable copy in $HEMI_PEERS_DIR (default /tmp/hemi-peers) with
@@ -14,16 +17,19 @@ peers_src="$root/../shared/peers"
 work="${HEMI_PEERS_DIR:-/tmp/hemi-peers}"
 spp=256
 threads=2
+rounds=1
 scenes=()
 while [ $# -gt 0 ]; do
     case "$1" in
         --spp) spp="$2"; shift 2 ;;
         --threads) threads="$2"; shift 2 ;;
-        -h|--help) sed -n '2,11p' "$0"; exit 0 ;;
+        --rounds) rounds="$2"; shift 2 ;;
+        -h|--help) sed -n '2,14p' "$0"; exit 0 ;;
         *) scenes+=("$1"); shift ;;
     esac
 done
 [ ${#scenes[@]} -gt 0 ] || scenes=(sphere_plane cornell many_spheres dragon sponza)
+[[ "$rounds" =~ ^[1-9][0-9]*$ ]] || { echo "compare-peers: --rounds wants a positive whole number, not '$rounds'" >&2; exit 2; }
 [ -d "$peers_src" ] || { echo "compare-peers: $peers_src not found (../shared must sit beside the repo)" >&2; exit 1; }
 
 if [ ! -x "$work/.venv/bin/python" ]; then
@@ -44,6 +50,7 @@ out="$(mktemp -d)"
 json() { python3 -c "import json,sys; d=json.loads(sys.stdin.read().strip().splitlines()[-1]); print($1)"; }
 
 printf '%-13s %5s | %-49s | %-28s | %-28s | %s\n' scene spp "hemi: s, AO Mrays/s (trace, kernel, queries)" "embree: s, AO Mrays/s" "mitsuba: s, AO Mrays/s" "hemi/mitsuba (kernel, trace), hemi/embree (trace)"
+for _ in $(seq "$rounds"); do
 for s in "${scenes[@]}"; do
     "$hemi" render "$peers_src/scenes/$s.json" --spp "$spp" --threads "$threads" --out "$out/$s.png" \
         --stats-json "$out/$s.json" 2>/dev/null
@@ -68,7 +75,30 @@ for s in "${scenes[@]}"; do
     fi
     ratio=$(python3 -c "print(f'{$h_aok/$m_ao:.2f}x, {$h_ao/$m_ao:.2f}x, {$h_ao/$e_ao:.2f}x')" 2>/dev/null || echo "-")
     printf '%-13s %5s | %10s s %12s %12s %12s | %10s s %12s       | %10s s %12s       | %s\n' "$s" "$spp" "$h_s" "$h_ao" "$h_aok" "$h_aoq" "$e_s" "$e_ao" "$m_s" "$m_ao" "$ratio"
+    echo "$s $h_s $h_ao $h_aok $h_aoq $e_s $e_ao $m_s $m_ao" >> "$out/runs.txt"
 done
+done
+if [ "$rounds" -gt 1 ]; then
+    echo "Over $rounds runs per scene: median (lowest-highest); 'runs >= 1': runs where hemi's AO kernel reached Mitsuba's."
+    python3 - "$out/runs.txt" <<'PY'
+import math, statistics, sys
+runs = {}
+for line in open(sys.argv[1]):
+    name, *v = line.split()
+    runs.setdefault(name, []).append([float(x) for x in v])
+def spread(xs):
+    xs = [x for x in xs if math.isfinite(x)]
+    return f"{statistics.median(xs):.2f}x ({min(xs):.2f}-{max(xs):.2f})" if xs else "-"
+print(f"{'scene':13s} | {'kernel / mitsuba':18s} | runs >= 1 | {'trace / mitsuba':18s} | {'queries / mitsuba':18s} | "
+      f"{'hemi s / mitsuba s':18s} | {'trace / embree':18s}")
+for name, rows in runs.items():
+    h_s, h_ao, h_aok, h_aoq, e_s, e_ao, m_s, m_ao = zip(*rows)
+    kernel = [k / m for k, m in zip(h_aok, m_ao)]
+    print(f"{name:13s} | {spread(kernel):18s} | {sum(k >= 1 for k in kernel):2d} of {len(rows):<3d} | "
+          f"{spread([t / m for t, m in zip(h_ao, m_ao)]):18s} | {spread([q / m for q, m in zip(h_aoq, m_ao)]):18s} | "
+          f"{spread([h / m for h, m in zip(h_s, m_s)]):18s} | {spread([t / e for t, e in zip(h_ao, e_ao)]):18s}")
+PY
+fi
 echo "AO Mrays/s: hemi trace = AO rays / trace-system wall time (camera and shadow rays and shading included);"
 echo "hemi kernel = AO rays / the trace time spent in the ambient occluder (its sampling, AO rays and sums:"
 echo "the part Mitsuba's number times), from cycle counts of every sixteenth pixel; hemi queries = AO rays / the"
