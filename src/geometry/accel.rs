@@ -36,7 +36,7 @@ use super::{
 use super::{
     lanes::{Avx, Avx512, Lanes, RayLanes},
     tri4::RayTriPacket,
-    wide_bvh::{Bvh8, LaneHits, RayPacket},
+    wide_bvh::{Bvh8, FusedPacket, LaneHits, RayPacket},
 };
 use crate::{
     components::{Matte, Mesh},
@@ -388,6 +388,7 @@ macro_rules! packet_kernels {
     (
         $lanes_type:ty,
         $feature:literal,
+        $occlusion_test:ident,
         $packets:ident,
         $lanes:ident,
         $lanes_of:ident,
@@ -487,7 +488,7 @@ macro_rules! packet_kernels {
             ) -> u32 {
                 // SAFETY (all blocks below): this function is compiled for the lane type's
                 // instruction set and AVX, which the caller's CPU has.
-                let packet = unsafe { RayPacket::new(in_lanes) };
+                let packet = unsafe { $occlusion_test(in_lanes, live) };
                 // The edge tests' constants, made when the packet first reaches a leaf.
                 let mut edges = None;
                 let leaf = |first, count, lanes: u32, _: &mut Vec<(u32, f32)>| {
@@ -645,6 +646,7 @@ macro_rules! packet_kernels {
 packet_kernels!(
     Avx,
     "avx",
+    occlusion_test_avx,
     occluded_packets_avx,
     occluded_lanes_avx,
     occluded_lanes_of_avx,
@@ -658,6 +660,7 @@ packet_kernels!(
 packet_kernels!(
     Avx512,
     "avx512f,popcnt",
+    occlusion_test_avx512,
     occluded_packets_avx512,
     occluded_lanes_avx512,
     occluded_lanes_of_avx512,
@@ -667,6 +670,23 @@ packet_kernels!(
     closest_lanes_avx512,
     closest_top_avx512
 );
+
+/// The node test of an eight-lane occlusion packet: each lane exactly its ray's own test (AVX
+/// has no fused multiply-add).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn occlusion_test_avx(rays: &RayLanes<Avx>, _live: u32) -> RayPacket<Avx> {
+    // SAFETY: the caller's CPU has AVX.
+    unsafe { RayPacket::new(rays) }
+}
+
+/// The node test of a sixteen-lane occlusion packet: by fused multiply-adds ([`FusedPacket`]).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn occlusion_test_avx512(rays: &RayLanes<Avx512>, live: u32) -> FusedPacket<Avx512> {
+    // SAFETY: the caller's CPU has AVX-512F.
+    unsafe { FusedPacket::new(rays, live) }
+}
 
 /// The lanes of `lanes` whose ray (`ray(k)` for lane k) `blocks`, asked one ray at a time.
 #[cfg(target_arch = "x86_64")]

@@ -105,6 +105,22 @@ pub(crate) trait Lanes: Copy {
     unsafe fn plane_hits(n: DVec3, a: DVec3, o: &[Self; 3], d: &[Self; 3], tmax: Self) -> u32;
 }
 
+/// Lanes with a fused multiply-add (one rounding), for [`FusedPacket`]'s node test.
+///
+/// [`FusedPacket`]: super::wide_bvh::FusedPacket
+pub(crate) trait FusedLanes: Lanes {
+    /// `self · b + c`, rounded once.
+    unsafe fn mul_add(self, b: Self, c: Self) -> Self;
+}
+
+impl FusedLanes for Avx512 {
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn mul_add(self, b: Self, c: Self) -> Self {
+        Avx512(_mm512_fmadd_ps(self.0, b.0, c.0))
+    }
+}
+
 /// Eight lanes in an AVX register.
 #[derive(Clone, Copy)]
 pub(crate) struct Avx(__m256);

@@ -15,7 +15,7 @@ use glam::Vec4;
 use obvhs::{aabb::Aabb, bvh2::node::Bvh2Node};
 
 #[cfg(target_arch = "x86_64")]
-use super::lanes::{Lanes, RayLanes};
+use super::lanes::{FusedLanes, Lanes, RayLanes};
 use super::ray::Ray;
 use crate::math::gamma;
 
@@ -590,6 +590,139 @@ impl<L: Lanes> RayPacket<L> {
     }
 }
 
+/// The node test of a packet traversal: which of the packet's lanes enter each of a node's
+/// eight children (bit i for lane i).
+#[cfg(target_arch = "x86_64")]
+pub(crate) trait PacketNodeTest {
+    /// The lanes that enter each child of `n`.
+    ///
+    /// # Safety
+    /// The CPU must have the packet's lane instruction set.
+    unsafe fn enter(&self, n: &Node<8>) -> [u32; 8];
+}
+
+#[cfg(target_arch = "x86_64")]
+impl<L: Lanes> PacketNodeTest for RayPacket<L> {
+    #[inline(always)]
+    unsafe fn enter(&self, n: &Node<8>) -> [u32; 8] {
+        // Every child's test first, with no branch between them: each is a chain of dependent
+        // operations ending in a lane mask, and eight independent chains overlap where a branch
+        // on each mask would stall on it (an empty slot is an inverted box, which no ray enters).
+        // (Loops, not closures: a closure is compiled without the caller's instruction set.)
+        let mut entered = [0u32; 8];
+        for (c, e) in entered.iter_mut().enumerate() {
+            // SAFETY: the caller's CPU has `L`'s instruction set.
+            *e = unsafe { n.test_packet(c, self, self.tmax) };
+        }
+        entered
+    }
+}
+
+/// An occlusion packet's node test by fused multiply-adds: a plane's distance
+/// `(p − o)·inv` is `fma(p, inv, −o·inv)`, one operation where [`RayPacket`] takes a
+/// subtraction and a multiplication. Its constant `−o·inv`, worked out once per packet, is
+/// moved by `4u·|o·inv|` (u = 2⁻²⁴) down for near planes and up for far ones, more than its two
+/// roundings can move it, so the computed near plane is never past the exact one nor the far
+/// plane before it, up to one rounding relative to the distance, which the exit's widening by
+/// `1 + 2γ₃` covers. So every box a ray truly enters is entered, and occlusion answers, which
+/// come from the leaves, are unchanged; but the boxes grow by about `4u·|o|` in world units
+/// (2.4e-4 at 1,000 from the world's origin), so a packet may visit leaves its rays' own tests
+/// would skip, more of them the farther from the origin the scene lies. A direction component
+/// of exactly 0 makes that axis's distances NaN, which the tests ignore (the box is not culled
+/// on that axis). Where the live rays share an octant, each plane is read straight from the
+/// node, without a blend. This moves work from the floating-point adders, which the node test
+/// keeps busiest (its maxima, minima and compares run there), to the multipliers.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+pub(crate) struct FusedPacket<L: Lanes> {
+    inv_dir: [L; 3],
+    /// `−o·inv`, moved down (for near planes) and up (for far planes).
+    near_offset: [L; 3],
+    far_offset: [L; 3],
+    negative: [L::Mask; 3],
+    /// The rows of every live ray's near and far planes, where they all share an octant.
+    octant: Option<([usize; 3], [usize; 3])>,
+    tmax: L,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl<L: FusedLanes> FusedPacket<L> {
+    /// The node-test constants of the packet `rays`, whose live lanes are `live`.
+    ///
+    /// # Safety
+    /// The CPU must have `L`'s instruction set.
+    #[inline(always)]
+    pub(crate) unsafe fn new(rays: &RayLanes<L>, live: u32) -> Self {
+        // SAFETY: the caller's CPU has `L`'s instruction set.
+        unsafe {
+            let zero = L::splat(0.0);
+            // 4u = 2⁻²²: scaling by a power of two is exact (short of underflow, where the
+            // offsets' roundings are exact too).
+            let margin = L::splat(f32::EPSILON * 2.0);
+            let mut near_offset = [zero; 3];
+            let mut far_offset = [zero; 3];
+            let mut negative = [L::mask(0); 3];
+            let mut bits = [0u32; 3];
+            for a in 0..3 {
+                let od = rays.origin[a].mul(rays.inv_dir[a]);
+                let moved = od.abs().mul(margin);
+                near_offset[a] = od.neg().sub(moved);
+                far_offset[a] = od.neg().add(moved);
+                negative[a] = rays.inv_dir[a].lt(zero);
+                bits[a] = L::bits(negative[a]) & live;
+            }
+            let octant = bits.iter().all(|&b| b == 0 || b == live).then(|| {
+                let neg = bits.map(|b| (b != 0) as usize);
+                ([3 * neg[0], 1 + 3 * neg[1], 2 + 3 * neg[2]], [3 - 3 * neg[0], 4 - 3 * neg[1], 5 - 3 * neg[2]])
+            });
+            FusedPacket { inv_dir: rays.inv_dir, near_offset, far_offset, negative, octant, tmax: rays.tmax }
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl<L: FusedLanes> PacketNodeTest for FusedPacket<L> {
+    #[inline(always)]
+    unsafe fn enter(&self, n: &Node<8>) -> [u32; 8] {
+        let mut entered = [0u32; 8];
+        // SAFETY (both loops): the caller's CPU has `L`'s instruction set.
+        if let Some((near_row, far_row)) = self.octant {
+            for (c, e) in entered.iter_mut().enumerate() {
+                unsafe {
+                    let mut near = L::splat(NEAR_START);
+                    let mut far = L::splat(f32::INFINITY);
+                    for a in 0..3 {
+                        let (near_plane, far_plane) =
+                            (L::splat(n.planes[near_row[a]][c]), L::splat(n.planes[far_row[a]][c]));
+                        // maxps / minps return their second operand when either is NaN.
+                        near = near_plane.mul_add(self.inv_dir[a], self.near_offset[a]).max_keep(near);
+                        far = far_plane.mul_add(self.inv_dir[a], self.far_offset[a]).min_keep(far);
+                    }
+                    let far = far.mul(L::splat(far_scale())).min_keep(self.tmax);
+                    *e = L::bits(near.le(far));
+                }
+            }
+        } else {
+            for (c, e) in entered.iter_mut().enumerate() {
+                unsafe {
+                    let mut near = L::splat(NEAR_START);
+                    let mut far = L::splat(f32::INFINITY);
+                    for a in 0..3 {
+                        let (lo, hi) = (L::splat(n.planes[a][c]), L::splat(n.planes[a + 3][c]));
+                        let (near_plane, far_plane) =
+                            (lo.select(self.negative[a], hi), hi.select(self.negative[a], lo));
+                        near = near_plane.mul_add(self.inv_dir[a], self.near_offset[a]).max_keep(near);
+                        far = far_plane.mul_add(self.inv_dir[a], self.far_offset[a]).min_keep(far);
+                    }
+                    let far = far.mul(L::splat(far_scale())).min_keep(self.tmax);
+                    *e = L::bits(near.le(far));
+                }
+            }
+        }
+        entered
+    }
+}
+
 /// Entries of the packet traversal's stack, which lives on the call stack; a subtree that
 /// would overflow it is traversed ray by ray instead. The unit tests use four, so that the
 /// overflow path is taken all the time there and checked like the others.
@@ -642,9 +775,9 @@ impl WideBvh<8> {
     /// # Safety
     /// The CPU must have `L`'s instruction set (and AVX, for this eight-wide tree).
     #[inline(always)]
-    pub(crate) unsafe fn occluded_packet<L: Lanes>(
+    pub(crate) unsafe fn occluded_packet(
         &self,
-        p: &RayPacket<L>,
+        p: &impl PacketNodeTest,
         live: u32,
         stack: &mut Vec<(u32, f32)>,
         mut leaf: impl FnMut(u32, u32, u32, &mut Vec<(u32, f32)>) -> u32,
@@ -684,15 +817,8 @@ impl WideBvh<8> {
                 continue;
             }
             let n = &self.nodes[node as usize];
-            // Every child's test first, with no branch between them: each is a chain of
-            // dependent operations ending in a lane mask, and eight independent chains overlap
-            // where a branch on each mask would stall on it (an empty slot is an inverted box,
-            // which no ray enters).
-            let mut tested = [0u32; 8];
-            for (c, t) in tested.iter_mut().enumerate() {
-                // SAFETY: the caller's CPU has `L`'s instruction set.
-                *t = unsafe { n.test_packet(c, p, p.tmax) };
-            }
+            // SAFETY: the caller's CPU has the packet's instruction set.
+            let tested = unsafe { p.enter(n) };
             for (c, &t) in tested.iter().enumerate() {
                 // Only rays that entered this node, and are not yet blocked, go on to its children.
                 let entered = t & lanes & open;
@@ -921,44 +1047,138 @@ mod tests {
     #[test]
     fn a_packet_visits_exactly_the_leaves_each_ray_enters() {
         use crate::geometry::lanes::{Avx, Avx512};
+        for (offset, size) in [(0.0, 1.0), (3.0e4, 1.0e-2)] {
+            let (bvh2, tree) = packet_test_scene(offset, size);
+            let Some(tree) = tree else {
+                eprintln!("no AVX on this CPU: packets are not used and not tested");
+                return;
+            };
+            // SAFETY: the eight-wide tree exists, so the CPU has AVX; AVX-512 is checked.
+            unsafe {
+                packets_visit_the_leaves_rays_enter::<Avx, _>(
+                    &bvh2,
+                    &tree,
+                    offset,
+                    size,
+                    |r, _| RayPacket::new(r),
+                    true,
+                );
+            }
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                unsafe {
+                    let general = |r: &RayLanes<Avx512>, _| RayPacket::new(r);
+                    packets_visit_the_leaves_rays_enter::<Avx512, _>(&bvh2, &tree, offset, size, general, true);
+                }
+            } else {
+                eprintln!("no AVX-512 on this CPU: sixteen-lane packets are not used and not tested");
+            }
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn a_fused_packet_visits_every_leaf_each_ray_truly_enters() {
+        use crate::geometry::lanes::Avx512;
+        if !std::arch::is_x86_feature_detected!("avx512f") {
+            eprintln!("no AVX-512 on this CPU: fused packets are not used and not tested");
+            return;
+        }
+        for (offset, size) in [(0.0, 1.0), (3.0e4, 1.0e-2)] {
+            let (bvh2, tree) = packet_test_scene(offset, size);
+            let tree = tree.expect("AVX-512 implies AVX");
+            // SAFETY: the CPU has AVX-512F (checked above) and AVX.
+            unsafe {
+                let fused = |r: &RayLanes<Avx512>, live| FusedPacket::new(r, live);
+                packets_visit_the_leaves_rays_enter::<Avx512, _>(&bvh2, &tree, offset, size, fused, false);
+            }
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    /// 3,000 random boxes of up to 1.5·`size` in a cube of 20·`size` around (`offset`, 0, 0),
+    /// plus eight flat ones on y = 0, as a BVH2 and its eight-wide tree (`None` without AVX).
+    fn packet_test_scene(offset: f32, size: f32) -> (Vec<Bvh2Node>, Option<Bvh8>) {
         let mut rng = SplitMix64::new(17);
-        let mut point = |scale: f32| Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * scale;
+        let base = Vec3::new(offset, 0.0, 0.0);
+        let mut point = |scale: f32| Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * scale * size;
         let mut boxes: Vec<Aabb> = (0..3_000)
             .map(|_| {
-                let min = point(20.0) - 10.0;
+                let min = base + point(20.0) - 10.0 * size;
                 Aabb::new(min.into(), (min + point(1.5)).into())
             })
             .collect();
         // Flat boxes some packets start on.
-        boxes.extend((0..8).map(|i| Aabb::new(Vec3A::new(i as f32, 0.0, 0.0), Vec3A::new(i as f32 + 1.0, 0.0, 1.0))));
+        boxes.extend((0..8).map(|i| {
+            let x = offset + i as f32 * size;
+            Aabb::new(Vec3A::new(x, 0.0, 0.0), Vec3A::new(x + size, 0.0, size))
+        }));
         let bvh2 = build_bvh2(&boxes, BvhBuildParams::medium_build(), &mut Duration::default()).nodes;
-        let Some(tree) = Bvh8::from_bvh2(&bvh2) else {
-            eprintln!("no AVX on this CPU: packets are not used and not tested");
-            return;
-        };
-        // SAFETY: the eight-wide tree exists, so the CPU has AVX; AVX-512 is checked.
-        unsafe { packets_visit_the_leaves_rays_enter::<Avx>(&bvh2, &tree) };
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            unsafe { packets_visit_the_leaves_rays_enter::<Avx512>(&bvh2, &tree) };
-        } else {
-            eprintln!("no AVX-512 on this CPU: sixteen-lane packets are not used and not tested");
-        }
+        let tree = Bvh8::from_bvh2(&bvh2);
+        (bvh2, tree)
     }
 
-    /// [`a_packet_visits_exactly_the_leaves_each_ray_enters`] for packets of `L::WIDTH` rays.
+    #[cfg(target_arch = "x86_64")]
+    /// The leaves whose box the ray truly enters, in f64 from its origin and direction (not its
+    /// rounded reciprocal), with strict comparisons: boxes the ray only touches are left out.
+    fn truly_entered(bvh2: &[Bvh2Node], ray: &Ray) -> Leaves {
+        let (o, d) = (ray.origin.as_dvec3(), ray.dir.as_dvec3());
+        let mut leaves = Leaves::new();
+        'nodes: for node in bvh2.iter().filter(|n| n.prim_count > 0) {
+            let (lo, hi) = (node.aabb().min.as_dvec3(), node.aabb().max.as_dvec3());
+            let (mut near, mut far) = (0.0f64, f64::from(ray.tmax));
+            for a in 0..3 {
+                if d[a] == 0.0 {
+                    if o[a] <= lo[a] || o[a] >= hi[a] {
+                        continue 'nodes;
+                    }
+                    continue;
+                }
+                let (t0, t1) = ((lo[a] - o[a]) / d[a], (hi[a] - o[a]) / d[a]);
+                near = near.max(t0.min(t1));
+                far = far.min(t0.max(t1));
+            }
+            if near < far {
+                leaves.insert((node.first_index, node.prim_count));
+            }
+        }
+        leaves
+    }
+
+    /// [`a_packet_visits_exactly_the_leaves_each_ray_enters`] for packets of `L::WIDTH` rays
+    /// tested by `test(rays, live)`: with `exact`, each lane visits exactly the leaves of its
+    /// own ray's node test ([`brute_force`]); else every leaf it truly enters
+    /// ([`truly_entered`]) and only leaves whose box, grown by a thousandth of `size`, its own
+    /// node test enters.
     ///
     /// # Safety
     /// The CPU must have `L`'s instruction set and AVX.
     #[cfg(target_arch = "x86_64")]
-    unsafe fn packets_visit_the_leaves_rays_enter<L: crate::geometry::lanes::Lanes>(bvh2: &[Bvh2Node], tree: &Bvh8) {
+    unsafe fn packets_visit_the_leaves_rays_enter<L: crate::geometry::lanes::Lanes, P: PacketNodeTest>(
+        bvh2: &[Bvh2Node],
+        tree: &Bvh8,
+        offset: f32,
+        size: f32,
+        test: impl Fn(&RayLanes<L>, u32) -> P,
+        exact: bool,
+    ) {
         let mut rng = SplitMix64::new(18);
         let (packet_leaves, single_leaves) = (Cell::new(0), Cell::new(0));
         let all = (1u32 << L::WIDTH) - 1;
+        let grown: Vec<Bvh2Node> = bvh2
+            .iter()
+            .map(|n| {
+                // The fused test's boxes grow by about 4u·|o| (twice that, to be safe).
+                let grow = 1e-3 * size + 8.0 * f32::EPSILON * offset.abs();
+                let (min, max) = (n.aabb().min - grow, n.aabb().max + grow);
+                Bvh2Node::new(Aabb::new(min, max), n.prim_count, n.first_index)
+            })
+            .collect();
+        let base = Vec3A::new(offset, 0.0, 0.0);
         for p in 0..300 {
             let origin = if p % 5 == 0 {
-                Vec3A::new(rng.next_f32() * 8.0, 0.0, rng.next_f32())
+                base + Vec3A::new(rng.next_f32() * 8.0, 0.0, rng.next_f32()) * size
             } else {
-                Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 24.0 - 12.0
+                base + (Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 24.0 - 12.0) * size
             };
             let rays: Vec<Ray> = (0..L::WIDTH)
                 .map(|i| {
@@ -966,7 +1186,7 @@ mod tests {
                     if i % 3 == 0 {
                         dir[(i + p) % 3] = 0.0;
                     }
-                    let tmax = if i % 2 == 0 { f32::INFINITY } else { rng.next_f32() * 20.0 };
+                    let tmax = if i % 2 == 0 { f32::INFINITY } else { rng.next_f32() * 20.0 * size };
                     Ray::new(origin, dir.normalize_or(Vec3A::Y), tmax)
                 })
                 .collect();
@@ -980,7 +1200,7 @@ mod tests {
             // SAFETY: the caller's CPU has `L`'s instruction set and AVX.
             let blocked = unsafe {
                 tree.occluded_packet(
-                    &RayPacket::<L>::new(&L::rays(&rays)),
+                    &test(&L::rays(&rays), live),
                     live,
                     &mut stack,
                     |first, count, lanes, _| {
@@ -999,8 +1219,21 @@ mod tests {
             };
             assert_eq!(blocked, 0);
             for (lane, ray) in rays.iter().enumerate() {
-                let expected = if live & (1 << lane) != 0 { brute_force(bvh2, ray) } else { Leaves::new() };
-                assert_eq!(seen.borrow()[lane], expected, "{} lanes, packet {p}, lane {lane}", L::WIDTH);
+                let seen = &seen.borrow()[lane];
+                let at = format!("{} lanes, offset {offset}, packet {p}, lane {lane}", L::WIDTH);
+                if live & (1 << lane) == 0 {
+                    assert!(seen.is_empty(), "{at}");
+                } else if exact {
+                    assert_eq!(*seen, brute_force(bvh2, ray), "{at}");
+                } else {
+                    let truly = truly_entered(bvh2, ray);
+                    assert!(seen.is_superset(&truly), "{at}: misses {:?}", truly.difference(seen).collect::<Vec<_>>());
+                    // (A direction component of 0 leaves its axis unculled: any leaf may come.)
+                    if ray.dir.cmpne(Vec3A::ZERO).all() {
+                        let near = brute_force(&grown, ray);
+                        assert!(seen.is_subset(&near), "{at}: visits {:?}", seen.difference(&near).collect::<Vec<_>>());
+                    }
+                }
             }
         }
         let (packet_leaves, single_leaves) = (packet_leaves.get(), single_leaves.get());
