@@ -765,15 +765,15 @@ impl Node<8> {
 #[cfg(target_arch = "x86_64")]
 impl WideBvh<8> {
     /// Any-hit traversal of a packet of rays together (Wald et al. 2001; Embree's hybrid
-    /// traversal): each node is tested against all the packet's live rays at once, and rays
-    /// go on one at a time from a node fewer than [`PACKET_MIN_LANES`] of them enter.
+    /// traversal): each node is tested against all the packet's live rays at once (by `p`),
+    /// and rays go on one at a time from a node fewer than [`PACKET_MIN_LANES`] of them enter.
     ///
     /// `live` holds the lanes to answer. `leaf(first, count, lanes, stack)` tests a leaf
     /// against `lanes` and returns those it blocks; `single(node, lane, stack)` answers one ray
     /// from node `node`. Both may use `stack` above its length. Returns the blocked lanes.
     ///
     /// # Safety
-    /// The CPU must have `L`'s instruction set (and AVX, for this eight-wide tree).
+    /// The CPU must have the packet's instruction set (and AVX, for this eight-wide tree).
     #[inline(always)]
     pub(crate) unsafe fn occluded_packet(
         &self,
