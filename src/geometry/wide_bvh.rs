@@ -62,17 +62,19 @@ impl RayBox {
     #[inline(always)]
     pub fn new(ray: &Ray) -> Self {
         let inv = ray.inv_dir;
-        // inv_dir is never ±0 or NaN for a finite direction; its sign picks the near plane:
-        // row a (the minimum) for a positive one, row a + 3 (the maximum) for a negative one.
-        let neg = inv.cmplt(glam::Vec3A::ZERO).bitmask() as usize;
-        let (x, y, z) = (neg & 1, (neg >> 1) & 1, neg >> 2);
-        RayBox {
-            origin: ray.origin.to_array(),
-            inv_dir: inv.to_array(),
-            near: [3 * x, 1 + 3 * y, 2 + 3 * z],
-            far: [3 - 3 * x, 4 - 3 * y, 5 - 3 * z],
-        }
+        // inv_dir is never ±0 or NaN for a finite direction; its sign picks the near plane.
+        let (near, far) = plane_rows(inv.cmplt(glam::Vec3A::ZERO).bitmask());
+        RayBox { origin: ray.origin.to_array(), inv_dir: inv.to_array(), near, far }
     }
+}
+
+/// The rows of a node's planes that are the near and far planes on each axis for a direction
+/// negative on the axes of `negative` (bit a for axis a): row a (the minimum) is the near plane
+/// where the direction is positive, row a + 3 (the maximum) where it is negative.
+#[inline(always)]
+fn plane_rows(negative: u32) -> ([usize; 3], [usize; 3]) {
+    let neg = |a: usize| ((negative >> a) & 1) as usize;
+    (std::array::from_fn(|a| a + 3 * neg(a)), std::array::from_fn(|a| a + 3 - 3 * neg(a)))
 }
 
 /// The ray–children test of a node of width `W`.
@@ -671,11 +673,32 @@ impl<L: FusedLanes> FusedPacket<L> {
                 negative[a] = rays.inv_dir[a].lt(zero);
                 bits[a] = L::bits(negative[a]) & live;
             }
-            let octant = bits.iter().all(|&b| b == 0 || b == live).then(|| {
-                let neg = bits.map(|b| (b != 0) as usize);
-                ([3 * neg[0], 1 + 3 * neg[1], 2 + 3 * neg[2]], [3 - 3 * neg[0], 4 - 3 * neg[1], 5 - 3 * neg[2]])
-            });
+            let octant = bits
+                .iter()
+                .all(|&b| b == 0 || b == live)
+                .then(|| plane_rows((0..3).fold(0, |m, a| m | ((bits[a] != 0) as u32) << a)));
             FusedPacket { inv_dir: rays.inv_dir, near_offset, far_offset, negative, octant, tmax: rays.tmax }
+        }
+    }
+
+    /// The lanes that enter a child whose (near, far) planes on each axis are `planes`, in each
+    /// lane's own choice of rows.
+    ///
+    /// # Safety
+    /// The CPU must have `L`'s instruction set.
+    #[inline(always)]
+    unsafe fn lanes_entering(&self, planes: [(L, L); 3]) -> u32 {
+        // SAFETY: the caller's CPU has `L`'s instruction set.
+        unsafe {
+            let mut near = L::splat(NEAR_START);
+            let mut far = L::splat(f32::INFINITY);
+            for (a, (near_plane, far_plane)) in planes.into_iter().enumerate() {
+                // maxps / minps return their second operand when either is NaN.
+                near = near_plane.mul_add(self.inv_dir[a], self.near_offset[a]).max_keep(near);
+                far = far_plane.mul_add(self.inv_dir[a], self.far_offset[a]).min_keep(far);
+            }
+            let far = far.mul(L::splat(far_scale())).min_keep(self.tmax);
+            L::bits(near.le(far))
         }
     }
 }
@@ -685,38 +708,23 @@ impl<L: FusedLanes> PacketNodeTest for FusedPacket<L> {
     #[inline(always)]
     unsafe fn enter(&self, n: &Node<8>) -> [u32; 8] {
         let mut entered = [0u32; 8];
-        // SAFETY (both loops): the caller's CPU has `L`'s instruction set.
+        // (Loops, not closures: a closure is compiled without the caller's instruction set.)
+        // SAFETY (all blocks): the caller's CPU has `L`'s instruction set.
+        let mut planes = unsafe { [(L::splat(0.0), L::splat(0.0)); 3] };
         if let Some((near_row, far_row)) = self.octant {
             for (c, e) in entered.iter_mut().enumerate() {
-                unsafe {
-                    let mut near = L::splat(NEAR_START);
-                    let mut far = L::splat(f32::INFINITY);
-                    for a in 0..3 {
-                        let (near_plane, far_plane) =
-                            (L::splat(n.planes[near_row[a]][c]), L::splat(n.planes[far_row[a]][c]));
-                        // maxps / minps return their second operand when either is NaN.
-                        near = near_plane.mul_add(self.inv_dir[a], self.near_offset[a]).max_keep(near);
-                        far = far_plane.mul_add(self.inv_dir[a], self.far_offset[a]).min_keep(far);
-                    }
-                    let far = far.mul(L::splat(far_scale())).min_keep(self.tmax);
-                    *e = L::bits(near.le(far));
+                for (a, plane) in planes.iter_mut().enumerate() {
+                    *plane = unsafe { (L::splat(n.planes[near_row[a]][c]), L::splat(n.planes[far_row[a]][c])) };
                 }
+                *e = unsafe { self.lanes_entering(planes) };
             }
         } else {
             for (c, e) in entered.iter_mut().enumerate() {
-                unsafe {
-                    let mut near = L::splat(NEAR_START);
-                    let mut far = L::splat(f32::INFINITY);
-                    for a in 0..3 {
-                        let (lo, hi) = (L::splat(n.planes[a][c]), L::splat(n.planes[a + 3][c]));
-                        let (near_plane, far_plane) =
-                            (lo.select(self.negative[a], hi), hi.select(self.negative[a], lo));
-                        near = near_plane.mul_add(self.inv_dir[a], self.near_offset[a]).max_keep(near);
-                        far = far_plane.mul_add(self.inv_dir[a], self.far_offset[a]).min_keep(far);
-                    }
-                    let far = far.mul(L::splat(far_scale())).min_keep(self.tmax);
-                    *e = L::bits(near.le(far));
+                for (a, plane) in planes.iter_mut().enumerate() {
+                    let (lo, hi) = unsafe { (L::splat(n.planes[a][c]), L::splat(n.planes[a + 3][c])) };
+                    *plane = unsafe { (lo.select(self.negative[a], hi), hi.select(self.negative[a], lo)) };
                 }
+                *e = unsafe { self.lanes_entering(planes) };
             }
         }
         entered
