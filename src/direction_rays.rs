@@ -4,7 +4,9 @@
 //! back to each sample's arriving light. Every sample gets exactly what
 //! [`DirectionTerms::light_sample`] and its own shadow ray give it. A cosine run
 //! ([`PlacedLight::cosine_run`]) can go from sample points to packets in one pass instead
-//! ([`DirectionRays::add_cosine`]).
+//! ([`DirectionRays::add_cosine`]), and where its samples are whole correlated multi-jittered
+//! patterns it needs no sort: the patterns' columns give each sample's quadrant of azimuth
+//! ([`QuadrantPattern`]).
 //!
 //! [`PlacedLight::sample_directions`]: crate::light::PlacedLight::sample_directions
 //! [`PlacedLight::cosine_run`]: crate::light::PlacedLight::cosine_run
@@ -14,7 +16,10 @@ use glam::{BVec3A, Vec3A};
 #[cfg(target_arch = "x86_64")]
 use crate::{
     geometry::lanes::{Avx, Avx512, Lanes, RayLanes},
-    sampling::warp::cosine_hemisphere16,
+    sampling::{
+        cmj::{Cmj, QuadrantPattern},
+        warp::cosine_hemisphere16,
+    },
 };
 use crate::{
     geometry::{
@@ -138,6 +143,14 @@ impl DirectionRays {
     ) -> Option<(u64, u64)> {
         #[cfg(target_arch = "x86_64")]
         if geometry.packet_lanes() == 16 {
+            if let Some((cmj, passes)) = sets.quadrant_passes(pixel, first, dim, arriving.len()) {
+                let n = sets.set_size() as usize;
+                // SAFETY: sixteen-lane packets and quadrant patterns are used only where
+                // AVX-512 (and POPCNT) was detected.
+                return Some(unsafe {
+                    self.add_cosine_quadrants(geometry, stack, spawn, frame, (cmj, n, passes), terms, arriving)
+                });
+            }
             let n = arriving.len().next_multiple_of(16);
             let [xs, ys, ..] = &mut self.samples;
             xs.resize(n, 0.5);
@@ -188,7 +201,6 @@ impl DirectionRays {
             let normal = spawn.normal();
             let tangents = Onb::from_normal(normal.into());
             let (tu, tv) = (Vec3A::from(tangents.u), Vec3A::from(tangents.v));
-            let (u, v, w) = (frame.u, frame.v, frame.w);
             let k = |x: f32| Avx512(_mm512_set1_ps(x));
             // Directions, quadrants and their counts.
             self.groups.clear();
@@ -202,10 +214,7 @@ impl DirectionRays {
                         _mm512_loadu_ps(xs[at..at + 16].as_ptr()),
                         _mm512_loadu_ps(ys[at..at + 16].as_ptr()),
                     );
-                    let (sx, sy, sz) = (Avx512(sx), Avx512(sy), Avx512(sz));
-                    // The frame's to_world, component by component: u·x + v·y + w·z.
-                    let world = |a: usize| k(u[a]).mul(sx).add(k(v[a]).mul(sy)).add(k(w[a]).mul(sz));
-                    let d = [world(0), world(1), world(2)];
+                    let d = to_world(frame, [sx, sy, sz]);
                     for (column, lanes) in [&mut *dx, &mut *dy, &mut *dz].into_iter().zip(d) {
                         _mm512_storeu_ps(column[at..at + 16].as_mut_ptr(), lanes.0);
                     }
@@ -250,44 +259,18 @@ impl DirectionRays {
             }
             // Packets of sixteen consecutive rays, as `RayOrder::Grouped` cuts them, each
             // query timed (when timing) as `DirectionRays::trace` times the whole call.
-            let (front, back) = spawn.sides();
             stack.clear();
             for p in (0..traced).step_by(16) {
                 let live = (1u32 << (traced - p).min(16)) - 1;
-                // SAFETY (this block): the CPU has AVX-512F; the masked loads read the
-                // packet's `live` rays within the ray columns.
-                let hit = unsafe {
+                // SAFETY: the CPU has AVX-512F; the masked loads read the packet's `live` rays
+                // within the ray columns.
+                let (hit, took) = unsafe {
                     let load = |c: &Vec<f32>| Avx512(_mm512_maskz_loadu_ps(live as __mmask16, c[p..].as_ptr()));
                     let d = [load(&self.ray_dirs[0]), load(&self.ray_dirs[1]), load(&self.ray_dirs[2])];
-                    // Behind the surface: the same products and sums as `SpawnOrigins::towards`.
-                    let behind = along(&d, normal).lt(k(0.0));
-                    let one = k(1.0);
-                    let lanes = RayLanes {
-                        origin: [
-                            k(front.x).select(behind, k(back.x)),
-                            k(front.y).select(behind, k(back.y)),
-                            k(front.z).select(behind, k(back.z)),
-                        ],
-                        dir: d,
-                        inv_dir: [one.div(d[0]), one.div(d[1]), one.div(d[2])],
-                        tmax: k(terms.max_distance),
-                    };
-                    // A lane's ray, for rays that go on alone and tests that take one ray,
-                    // read from the lanes stored as rows: writing all sixteen rays out by a
-                    // transpose (as the general path does) took back all that this path saves
-                    // on cornell (counter cycles, eight rounds).
-                    let rows = lanes_as_rows(&lanes);
-                    let ray = |j: usize| Ray {
-                        origin: Vec3A::new(rows[0][j], rows[1][j], rows[2][j]),
-                        dir: Vec3A::new(rows[3][j], rows[4][j], rows[5][j]),
-                        inv_dir: Vec3A::new(rows[6][j], rows[7][j], rows[8][j]),
-                        tmax: rows[9][j],
-                    };
-                    let start = self.timing.then(cycle_count);
-                    let hit = geometry.occluded_lanes16(&lanes, ray, live, stack);
-                    cycles += start.map_or(0, cycles_since);
-                    hit
+                    let lanes = spawned_lanes(d, spawn, terms.max_distance);
+                    occluded16(geometry, stack, &lanes, live, self.timing)
                 };
+                cycles += took;
                 let mut each = hit;
                 while each != 0 {
                     let j = self.ray_samples[p + each.trailing_zeros() as usize] as usize;
@@ -297,12 +280,61 @@ impl DirectionRays {
             }
         }
         for (sums, &dark) in arriving.chunks_mut(16).zip(&self.dark) {
-            // SAFETY (this block): the CPU has AVX-512F.
-            unsafe {
-                let pick = |c: f32, f: f32| {
-                    Avx512(_mm512_mask_blend_ps(dark as __mmask16, _mm512_set1_ps(c), _mm512_set1_ps(f)))
-                };
-                add_group(pick(clear.x, floor.x), pick(clear.y, floor.y), pick(clear.z, floor.z), sums);
+            add_clear_or_floor(clear, floor, dark, sums);
+        }
+        (traced as u64, cycles)
+    }
+
+    /// [`DirectionRays::add_cosine`] for runs of whole passes of quadrant patterns (`passes`:
+    /// the sets' patterns, their size n, and each pass's pattern number): each pass's n
+    /// samples made and traced sixteen slots at a time in the pattern's quadrant order
+    /// ([`QuadrantPattern`]), so every packet is rays into one quarter of the hemisphere around
+    /// the shading normal, straight from the pattern to the query, with no columns written and
+    /// no sort; then each sample's answer is read back by its slot, in sample order. Each
+    /// sample gets the same ray, answer and sum as in [`DirectionRays::add_cosine_avx512`].
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512F and POPCNT ([`crate::cpu::avx512`]).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,popcnt")]
+    #[allow(clippy::too_many_arguments)]
+    unsafe fn add_cosine_quadrants(
+        &mut self,
+        geometry: &SceneGeometry,
+        stack: &mut Vec<(u32, f32)>,
+        spawn: &SpawnOrigins,
+        frame: &Onb,
+        (cmj, n, passes): (&Cmj, usize, impl Iterator<Item = u32>),
+        terms: &DirectionTerms,
+        arriving: &mut [Vec3A],
+    ) -> (u64, u64) {
+        use std::arch::x86_64::*;
+
+        // Every sample has weight 1: one clear value and one floor for all.
+        let (clear, floor) = clear_and_floor(terms, 1.0);
+        let tracing = clear.cmpne(floor).any();
+        let (mut traced, mut cycles) = (0, 0);
+        stack.clear();
+        for (sums, p) in arriving.chunks_mut(n).zip(passes) {
+            let pattern = QuadrantPattern::new(cmj, p);
+            // Bit k of entry i: slot 16i + k is blocked.
+            let mut blocked = [0u32; 16];
+            if tracing {
+                for (packet, blocked) in blocked[..pattern.packets()].iter_mut().enumerate() {
+                    let (x, y) = pattern.points(packet);
+                    // SAFETY: the CPU has AVX-512F.
+                    let local = unsafe { cosine_hemisphere16(x, y) };
+                    let lanes = spawned_lanes(to_world(frame, local), spawn, terms.max_distance);
+                    let took;
+                    (*blocked, took) = occluded16(geometry, stack, &lanes, 0xffff, self.timing);
+                    cycles += took;
+                }
+                traced += n;
+            }
+            // SAFETY: the load reads the sixteen entries of `blocked`.
+            let blocked = unsafe { _mm512_loadu_si512(blocked.as_ptr().cast()) };
+            for (group, sums) in sums.chunks_mut(16).enumerate() {
+                add_clear_or_floor(clear, floor, pattern.marked(group, blocked).into(), sums);
             }
         }
         (traced as u64, cycles)
@@ -530,6 +562,18 @@ unsafe fn add_group<L: Lanes>(x: L, y: L, z: L, sums: &mut [Vec3A]) {
     }
 }
 
+/// Adds `clear` to each sample of `sums` (at most sixteen) whose bit in `dark` is clear, and
+/// `floor` to the others.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+fn add_clear_or_floor(clear: Vec3A, floor: Vec3A, dark: u32, sums: &mut [Vec3A]) {
+    use std::arch::x86_64::*;
+    let pick = |c: f32, f: f32| Avx512(_mm512_mask_blend_ps(dark as __mmask16, _mm512_set1_ps(c), _mm512_set1_ps(f)));
+    // SAFETY: this function is compiled for AVX-512F.
+    unsafe { add_group(pick(clear.x, floor.x), pick(clear.y, floor.y), pick(clear.z, floor.z), sums) };
+}
+
 /// A packet's lanes stored as rows of sixteen floats: origin x, y, z, direction x, y, z,
 /// reciprocal direction x, y, z, and `tmax`, so that one lane's ray can be read back.
 ///
@@ -548,6 +592,75 @@ unsafe fn lanes_as_rows(lanes: &RayLanes<Avx512>) -> [[f32; 16]; 10] {
         unsafe { std::arch::x86_64::_mm512_storeu_ps(row.as_mut_ptr(), lanes.0) };
     }
     rows
+}
+
+/// Local directions (x, y and z lanes) in `frame`, in world space: `u·x + v·y + w·z`,
+/// component by component (the frame's `to_world`).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+fn to_world(frame: &Onb, [x, y, z]: [std::arch::x86_64::__m512; 3]) -> [Avx512; 3] {
+    let k = |x: f32| Avx512(std::arch::x86_64::_mm512_set1_ps(x));
+    let (x, y, z) = (Avx512(x), Avx512(y), Avx512(z));
+    let (u, v, w) = (frame.u, frame.v, frame.w);
+    // SAFETY: this function is compiled for AVX-512F.
+    let world = |a: usize| unsafe { k(u[a]).mul(x).add(k(v[a]).mul(y)).add(k(w[a]).mul(z)) };
+    [world(0), world(1), world(2)]
+}
+
+/// Sixteen shadow rays along `d` (x, y and z lanes) leaving `spawn`, each from the side of the
+/// surface its direction points to (the same products and sums as `SpawnOrigins::towards`),
+/// up to `tmax`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+fn spawned_lanes(d: [Avx512; 3], spawn: &SpawnOrigins, tmax: f32) -> RayLanes<Avx512> {
+    let k = |x: f32| Avx512(std::arch::x86_64::_mm512_set1_ps(x));
+    let (front, back) = spawn.sides();
+    // SAFETY: this function is compiled for AVX-512F.
+    unsafe {
+        let behind = along(&d, spawn.normal()).lt(k(0.0));
+        let one = k(1.0);
+        RayLanes {
+            origin: [
+                k(front.x).select(behind, k(back.x)),
+                k(front.y).select(behind, k(back.y)),
+                k(front.z).select(behind, k(back.z)),
+            ],
+            dir: d,
+            inv_dir: [one.div(d[0]), one.div(d[1]), one.div(d[2])],
+            tmax: k(tmax),
+        }
+    }
+}
+
+/// The lanes of `live` whose ray in `lanes` something in `geometry` blocks, and the cycles
+/// the query took ([`cycle_count`]) when `timing` (0 otherwise).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,popcnt")]
+#[inline]
+fn occluded16(
+    geometry: &SceneGeometry,
+    stack: &mut Vec<(u32, f32)>,
+    lanes: &RayLanes<Avx512>,
+    live: u32,
+    timing: bool,
+) -> (u32, u64) {
+    // A lane's ray, for rays that go on alone and tests that take one ray, read from the lanes
+    // stored as rows: writing all sixteen rays out by a transpose (as the general path does)
+    // took back all that this path saves on cornell (counter cycles, eight rounds).
+    // SAFETY: this function is compiled for AVX-512F.
+    let rows = unsafe { lanes_as_rows(lanes) };
+    let ray = |j: usize| Ray {
+        origin: Vec3A::new(rows[0][j], rows[1][j], rows[2][j]),
+        dir: Vec3A::new(rows[3][j], rows[4][j], rows[5][j]),
+        inv_dir: Vec3A::new(rows[6][j], rows[7][j], rows[8][j]),
+        tmax: rows[9][j],
+    };
+    let start = timing.then(cycle_count);
+    // SAFETY: this function is compiled for AVX-512F and POPCNT.
+    let hit = unsafe { geometry.occluded_lanes16(lanes, ray, live, stack) };
+    (hit, start.map_or(0, cycles_since))
 }
 
 /// Group `g`'s weights, and the light each lane brings when clear, per channel: the lanes of

@@ -480,11 +480,20 @@ fn the_occluder_s_bulk_path_gives_the_bits_of_the_per_sample_path() {
         AmbientOccluder { min_amount: 1.0, ..Default::default() },
     ];
     let mesh = std::sync::Arc::new(hemi::scene::mesh_gen::uv_sphere(0.3, 12, 24));
-    // 37 samples: full groups of four, eight and sixteen lanes, and a partial one of each. With
-    // correlated multi-jittered sets of 16 (the occluder's one-pass path for cosine runs where
-    // the CPU has AVX-512) a run spans three passes, the first and last partial.
-    let samplers = [(SamplerKind::MultiJittered, 37), (SamplerKind::CorrelatedMultiJittered, 16)];
-    for (sampler, set) in samplers {
+    // (sampler, set size, samples per pixel). 37 samples: full groups of four, eight and
+    // sixteen lanes, and a partial one of each. Correlated multi-jittered sets take the
+    // occluder's one-pass paths for cosine runs where the CPU has AVX-512: with sets of 16 and
+    // 37 samples a run spans three passes, the first and last partial (rays sorted into
+    // quadrants); with 32 it is two whole passes and with sets of 64 one (rays made in the
+    // patterns' quadrant order, a packet spanning the quadrants of a set of 16 and holding
+    // one quadrant of a set of 64).
+    let samplers = [
+        (SamplerKind::MultiJittered, 37, 37),
+        (SamplerKind::CorrelatedMultiJittered, 16, 37),
+        (SamplerKind::CorrelatedMultiJittered, 16, 32),
+        (SamplerKind::CorrelatedMultiJittered, 64, 64),
+    ];
+    for (sampler, set, spp) in samplers {
         for blockers in [Blockers::Sphere, Blockers::Mesh, Blockers::Instances] {
             for (k, occluder) in occluders.into_iter().enumerate() {
                 // Shared and jittered hits, with and without AOVs (the beauty image alone takes
@@ -492,7 +501,7 @@ fn the_occluder_s_bulk_path_gives_the_bits_of_the_per_sample_path() {
                 let mut shared = Vec::new();
                 for (jitter, aovs) in [(false, false), (false, true), (true, false)] {
                     let render = |per_sample: bool| {
-                        let base = settings(12, 10, 37, sampler);
+                        let base = settings(12, 10, spp, sampler);
                         let settings = RenderSettings { jitter, aovs, samples_per_set: set, ..base };
                         let mut r = Renderer::new(settings);
                         r.add_light::<PerSampleOccluder>();
@@ -522,7 +531,9 @@ fn the_occluder_s_bulk_path_gives_the_bits_of_the_per_sample_path() {
                         (r.image().linear.clone(), rays)
                     };
                     let (bulk, per_sample) = (render(false), render(true));
-                    let case = format!("{sampler:?}, {blockers:?}, occluder {k}, jitter {jitter}, aovs {aovs}");
+                    let case = format!(
+                        "{sampler:?} ({spp} of sets of {set}), {blockers:?}, occluder {k}, jitter {jitter}, aovs {aovs}"
+                    );
                     assert_eq!(bulk.1, per_sample.1, "{case}: ray counts");
                     assert!(bulk.0 == per_sample.0, "{case}: images differ");
                     if k == 0 {

@@ -239,6 +239,16 @@ impl Cmj {
         false
     }
 
+    /// Whether this CPU has AVX-512 and the patterns are [`QuadrantPattern`]s: n a power of
+    /// two on a grid of at most 16 × 16 whose m columns split into quarters (n = 16 … 256).
+    pub(crate) fn has_quadrants(&self) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if self.has_small_grid16() && self.m.get().is_multiple_of(4) {
+            return crate::cpu::avx512();
+        }
+        false
+    }
+
     /// Whether n is a power of two on a grid of at most 16 × 16 ([`SmallGrid16`]'s patterns).
     #[cfg(target_arch = "x86_64")]
     fn has_small_grid16(&self) -> bool {
@@ -345,11 +355,22 @@ impl SmallGrid16 {
         use std::arch::x86_64::*;
 
         let u = |x: u32| _mm512_set1_epi32(x as i32);
-        let [wn, wm, _] = self.masks;
+        let wn = self.masks[0];
         let iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
         let s = _mm512_add_epi32(u(first), iota);
         // SAFETY: this function is compiled for AVX-512F.
-        let s = unsafe { permute_pow2_lanes(s, wn, self.sc.order) };
+        self.points_of(unsafe { permute_pow2_lanes(s, wn, self.sc.order) })
+    }
+
+    /// The points of the shuffled samples `s` (each lane a sample's place in the pattern,
+    /// after the sample order's permutation): x lanes, y lanes.
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    fn points_of(&self, s: std::arch::x86_64::__m512i) -> (std::arch::x86_64::__m512, std::arch::x86_64::__m512) {
+        use std::arch::x86_64::*;
+
+        let u = |x: u32| _mm512_set1_epi32(x as i32);
+        let wm = self.masks[1];
         let (col, row) = (_mm512_and_si512(s, u(wm)), _mm512_srlv_epi32(s, u(self.shift)));
         let sx = _mm512_permutexvar_epi32(col, self.by_col);
         let sy = _mm512_permutexvar_epi32(row, self.by_row);
@@ -360,6 +381,82 @@ impl SmallGrid16 {
         let y = _mm512_mul_ps(_mm512_add_ps(f(row), _mm512_mul_ps(_mm512_add_ps(f(sx), jy), inv_m)), inv_k);
         let below_one = _mm512_set1_ps(ONE_MINUS_EPSILON);
         (_mm512_min_ps(x, below_one), _mm512_min_ps(y, below_one))
+    }
+}
+
+/// A pattern of a [`Cmj`] whose columns fall into quarters of [0, 1) ([`Cmj::has_quadrants`]),
+/// its samples taken quadrant by quadrant: slots `q·n/4 … (q + 1)·n/4 − 1` hold the n/4
+/// samples whose x lies in [q/4, (q + 1)/4) (their coarse columns are the m/4 columns of that
+/// quarter). A cosine direction's azimuth is 2πx, so sixteen consecutive slots make rays into
+/// one quarter of the hemisphere (for n ≥ 64; for n = 16 or 32 one packet spans the quarters
+/// in azimuth order), with no sort. Each sample keeps the point [`Cmj::sample`] gives it:
+/// only the order in which they are made changes.
+///
+/// A slot's bits are (low to high) its column within the quarter, its row, its quarter; a
+/// shuffled sample number's are its column within the quarter, its quarter, its row, so one
+/// is a swap of bit fields of the other.
+#[cfg(target_arch = "x86_64")]
+pub(crate) struct QuadrantPattern {
+    grid: SmallGrid16,
+    /// Bits of the column within a quarter (log₂ m − 2) and of the row (log₂ k).
+    bits: [u32; 2],
+    n: u32,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl QuadrantPattern {
+    /// Pattern `p` of `cmj`, which must have quadrants ([`Cmj::has_quadrants`]).
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    pub(crate) fn new(cmj: &Cmj, p: u32) -> Self {
+        debug_assert!(cmj.has_quadrants());
+        let bits = [cmj.m.get().trailing_zeros() - 2, cmj.k.get().trailing_zeros()];
+        QuadrantPattern { grid: SmallGrid16::new(cmj, p), bits, n: cmj.n.get() }
+    }
+
+    /// Packets of sixteen slots: n/16.
+    pub(crate) fn packets(&self) -> usize {
+        self.n as usize / 16
+    }
+
+    /// The points of slots `16·packet … 16·packet + 15`: x lanes, y lanes.
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    pub(crate) fn points(&self, packet: usize) -> (std::arch::x86_64::__m512, std::arch::x86_64::__m512) {
+        use std::arch::x86_64::*;
+
+        let u = |x: u32| _mm512_set1_epi32(x as i32);
+        let [a, b] = self.bits;
+        let iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+        let slot = _mm512_add_epi32(u(16 * packet as u32), iota);
+        let field = |shift: u32, bits: u32| _mm512_and_si512(_mm512_srlv_epi32(slot, u(shift)), u((1 << bits) - 1));
+        let (col, row, quarter) = (field(0, a), field(a, b), field(a + b, 2));
+        let s =
+            _mm512_or_si512(_mm512_or_si512(col, _mm512_sllv_epi32(quarter, u(a))), _mm512_sllv_epi32(row, u(a + 2)));
+        self.grid.points_of(s)
+    }
+
+    /// Which of the samples `16·group … 16·group + 15` (in sample order, as [`Cmj::fill`]
+    /// numbers them) lie in a marked slot, slot `t` being marked where bit `t % 16` of lane
+    /// `t / 16` of `marks` is set.
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    pub(crate) fn marked(&self, group: usize, marks: std::arch::x86_64::__m512i) -> u16 {
+        use std::arch::x86_64::*;
+
+        let u = |x: u32| _mm512_set1_epi32(x as i32);
+        let [a, b] = self.bits;
+        let iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+        let s = _mm512_add_epi32(u(16 * group as u32), iota);
+        // SAFETY: this function is compiled for AVX-512F.
+        let s = unsafe { permute_pow2_lanes(s, self.grid.masks[0], self.grid.sc.order) };
+        let field = |shift: u32, bits: u32| _mm512_and_si512(_mm512_srlv_epi32(s, u(shift)), u((1 << bits) - 1));
+        let (col, quarter, row) = (field(0, a), field(a, 2), field(a + 2, b));
+        let slot =
+            _mm512_or_si512(_mm512_or_si512(col, _mm512_sllv_epi32(row, u(a))), _mm512_sllv_epi32(quarter, u(a + b)));
+        let word = _mm512_permutexvar_epi32(_mm512_srli_epi32::<4>(slot), marks);
+        let bit = _mm512_srlv_epi32(word, _mm512_and_si512(slot, u(15)));
+        _mm512_test_epi32_mask(bit, u(1))
     }
 }
 
@@ -453,6 +550,63 @@ mod tests {
                         assert!(!(crate::cpu::avx512() && cmj.has_small_grid16()), "n {n}: columns refused");
                         assert!(xs.iter().chain(&ys).all(|v| v.is_nan()), "refused, yet written");
                     }
+                }
+            }
+        }
+    }
+
+    /// A quadrant pattern's slots hold every sample of the pattern once, each at
+    /// [`Cmj::sample`]'s point, quarter by quarter of x (so of the azimuth 2πx); and a mark on
+    /// a slot reads back on exactly the sample whose point that slot holds.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn quadrant_patterns_hold_each_sample_once_in_its_quarter() {
+        use std::arch::x86_64::*;
+
+        for n in [4u32, 8, 12, 16, 32, 64, 128, 256, 512] {
+            let cmj = Cmj::new(n);
+            let splits = [16, 32, 64, 128, 256].contains(&n);
+            if !crate::cpu::avx512() {
+                assert!(!cmj.has_quadrants(), "n {n}: quadrants without AVX-512");
+                continue;
+            }
+            assert_eq!(cmj.has_quadrants(), splits, "n {n}");
+            if !splits {
+                continue;
+            }
+            for p in [0u32, 1, 99, 0xdead_beef] {
+                // SAFETY (every block below): the CPU has AVX-512F, checked above.
+                let pattern = unsafe { QuadrantPattern::new(&cmj, p) };
+                assert_eq!(pattern.packets() * 16, n as usize);
+                // Each slot's point, bit for bit.
+                let mut slots = Vec::new();
+                for packet in 0..pattern.packets() {
+                    let (mut x, mut y) = ([0.0f32; 16], [0.0f32; 16]);
+                    unsafe {
+                        let (xs, ys) = pattern.points(packet);
+                        _mm512_storeu_ps(x.as_mut_ptr(), xs);
+                        _mm512_storeu_ps(y.as_mut_ptr(), ys);
+                    }
+                    slots.extend(x.into_iter().zip(y).map(|(x, y)| [x, y]));
+                }
+                let samples: Vec<[f32; 2]> = (0..n).map(|s| cmj.sample(s, p)).collect();
+                let quarter = n as usize / 4;
+                for (t, point) in slots.iter().enumerate() {
+                    let q = (t / quarter) as f32;
+                    assert!((q / 4.0..(q + 1.0) / 4.0).contains(&point[0]), "n {n}, p {p}: slot {t} at x {}", point[0]);
+                    let owners: Vec<usize> = (0..n as usize).filter(|&s| samples[s] == *point).collect();
+                    assert_eq!(owners.len(), 1, "n {n}, p {p}: slot {t} holds no single sample");
+                    // A mark on this slot alone reads back on its sample alone.
+                    let mut marks = [0u32; 16];
+                    marks[t / 16] = 1 << (t % 16);
+                    let marks = unsafe { _mm512_loadu_si512(marks.as_ptr().cast()) };
+                    let marked: Vec<usize> = (0..pattern.packets())
+                        .flat_map(|g| {
+                            let bits = unsafe { pattern.marked(g, marks) };
+                            (0..16).filter(move |k| bits & (1 << k) != 0).map(move |k| 16 * g + k)
+                        })
+                        .collect();
+                    assert_eq!(marked, owners, "n {n}, p {p}: slot {t}");
                 }
             }
         }

@@ -169,6 +169,29 @@ impl SampleSets {
         true
     }
 
+    /// Where samples `first, first + 1, …` (`len` of them) of `pixel` in dimension `dim` are
+    /// whole passes of correlated multi-jittered patterns that split into quadrants
+    /// ([`Cmj::has_quadrants`]): the sets' patterns and each pass's pattern number, in order
+    /// (pass k holds samples `k·n … k·n + n − 1` of the run). `None` elsewhere.
+    pub(crate) fn quadrant_passes(
+        &self,
+        pixel: u32,
+        first: u32,
+        dim: u32,
+        len: usize,
+    ) -> Option<(&Cmj, impl Iterator<Item = u32> + '_)> {
+        let n = self.n as usize;
+        let whole = first.is_multiple_of(self.n) && len.is_multiple_of(n) && len > 0;
+        if self.kind != SamplerKind::CorrelatedMultiJittered || !whole || !self.cmj.has_quadrants() {
+            return None;
+        }
+        let passes = (0..(len / n) as u32).map(move |k| {
+            let pass = self.modulus.quotient(first.wrapping_add(k.wrapping_mul(self.n)));
+            hash_sample(pixel, pass, dim, self.key) as u32
+        });
+        Some((&self.cmj, passes))
+    }
+
     /// The passes of samples `first, first + 1, …` (`len` of them): each pass, the index in
     /// it of the run's first sample there, and which of the run's samples it holds.
     #[inline(always)]
