@@ -425,14 +425,11 @@ impl QuadrantPattern {
     pub(crate) fn points(&self, packet: usize) -> (std::arch::x86_64::__m512, std::arch::x86_64::__m512) {
         use std::arch::x86_64::*;
 
-        let u = |x: u32| _mm512_set1_epi32(x as i32);
         let [a, b] = self.bits;
         let iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
-        let slot = _mm512_add_epi32(u(16 * packet as u32), iota);
-        let field = |shift: u32, bits: u32| _mm512_and_si512(_mm512_srlv_epi32(slot, u(shift)), u((1 << bits) - 1));
-        let (col, row, quarter) = (field(0, a), field(a, b), field(a + b, 2));
-        let s =
-            _mm512_or_si512(_mm512_or_si512(col, _mm512_sllv_epi32(quarter, u(a))), _mm512_sllv_epi32(row, u(a + 2)));
+        let slot = _mm512_add_epi32(_mm512_set1_epi32(16 * packet as i32), iota);
+        let [col, row, quarter] = split_bits(slot, [a, b, 2]);
+        let s = join_bits([col, quarter, row], [a, 2, b]);
         self.grid.points_of(s)
     }
 
@@ -450,14 +447,37 @@ impl QuadrantPattern {
         let s = _mm512_add_epi32(u(16 * group as u32), iota);
         // SAFETY: this function is compiled for AVX-512F.
         let s = unsafe { permute_pow2_lanes(s, self.grid.masks[0], self.grid.sc.order) };
-        let field = |shift: u32, bits: u32| _mm512_and_si512(_mm512_srlv_epi32(s, u(shift)), u((1 << bits) - 1));
-        let (col, quarter, row) = (field(0, a), field(a, 2), field(a + 2, b));
-        let slot =
-            _mm512_or_si512(_mm512_or_si512(col, _mm512_sllv_epi32(row, u(a))), _mm512_sllv_epi32(quarter, u(a + b)));
+        let [col, quarter, row] = split_bits(s, [a, 2, b]);
+        let slot = join_bits([col, row, quarter], [a, b, 2]);
         let word = _mm512_permutexvar_epi32(_mm512_srli_epi32::<4>(slot), marks);
         let bit = _mm512_srlv_epi32(word, _mm512_and_si512(slot, u(15)));
         _mm512_test_epi32_mask(bit, u(1))
     }
+}
+
+/// Each lane of `v` cut into three bit fields of `widths` bits, lowest first.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+fn split_bits(v: std::arch::x86_64::__m512i, widths: [u32; 3]) -> [std::arch::x86_64::__m512i; 3] {
+    use std::arch::x86_64::*;
+    let field = |shift: u32, bits: u32| {
+        _mm512_and_si512(_mm512_srlv_epi32(v, _mm512_set1_epi32(shift as i32)), _mm512_set1_epi32((1 << bits) - 1))
+    };
+    let [a, b, c] = widths;
+    [field(0, a), field(a, b), field(a + b, c)]
+}
+
+/// Three bit fields of `widths` bits joined in each lane, the first lowest: the inverse of
+/// [`split_bits`].
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+fn join_bits(fields: [std::arch::x86_64::__m512i; 3], widths: [u32; 3]) -> std::arch::x86_64::__m512i {
+    use std::arch::x86_64::*;
+    let shifted = |v: __m512i, shift: u32| _mm512_sllv_epi32(v, _mm512_set1_epi32(shift as i32));
+    let [x, y, z] = fields;
+    _mm512_or_si512(_mm512_or_si512(x, shifted(y, widths[0])), shifted(z, widths[0] + widths[1]))
 }
 
 /// The per-pattern seeds of Kensler's five hashes, derived from the pattern number.
