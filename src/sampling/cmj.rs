@@ -241,12 +241,9 @@ impl Cmj {
 
     /// Whether this CPU has AVX-512 and the patterns are [`QuadrantPattern`]s: n a power of
     /// two on a grid of at most 16 × 16 whose m columns split into quarters (n = 16 … 256).
+    #[cfg(target_arch = "x86_64")]
     pub(crate) fn has_quadrants(&self) -> bool {
-        #[cfg(target_arch = "x86_64")]
-        if self.has_small_grid16() && self.m.get().is_multiple_of(4) {
-            return crate::cpu::avx512();
-        }
-        false
+        self.has_small_grid16() && self.m.get().is_multiple_of(4) && crate::cpu::avx512()
     }
 
     /// Whether n is a power of two on a grid of at most 16 × 16 ([`SmallGrid16`]'s patterns).

@@ -173,6 +173,7 @@ impl SampleSets {
     /// whole passes of correlated multi-jittered patterns that split into quadrants
     /// ([`Cmj::has_quadrants`]): the sets' patterns and each pass's pattern number, in order
     /// (pass k holds samples `k·n … k·n + n − 1` of the run). `None` elsewhere.
+    #[cfg(target_arch = "x86_64")]
     pub(crate) fn quadrant_passes(
         &self,
         pixel: u32,
