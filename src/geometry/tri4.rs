@@ -344,4 +344,49 @@ mod tests {
             "{passed} passed, {exact} exact, {hits} hit"
         );
     }
+
+    /// A packet leaving a triangle (every ray's line crosses it just behind the ray, as a
+    /// packet of shadow rays crosses the triangle it leaves) gets no plane hit, as `finish`
+    /// finds none; with one ray turned back towards the triangle, that ray alone is hit.
+    #[test]
+    fn a_packet_leaving_a_triangle_gets_exactly_finish_s_plane_hits() {
+        use crate::geometry::lanes::{Avx, Avx512, both_widths};
+        both_widths(packet_leaving_a_triangle::<Avx>, packet_leaving_a_triangle::<Avx512>);
+    }
+
+    /// [`a_packet_leaving_a_triangle_gets_exactly_finish_s_plane_hits`] for `L::WIDTH` rays.
+    ///
+    /// # Safety
+    /// The CPU must have `L`'s instruction set.
+    unsafe fn packet_leaving_a_triangle<L: Lanes>() {
+        let tri = Triangle { p: [Vec3A::new(-1.0, 0.0, -1.0), Vec3A::new(2.0, 0.0, -1.0), Vec3A::new(-1.0, 0.0, 2.0)] };
+        let packet = Tri4::pack([(0, tri)].into_iter());
+        let origin = Vec3A::new(0.1, 1e-3, 0.1);
+        for back in [None, Some(3)] {
+            let rays: Vec<Ray> = (0..L::WIDTH)
+                .map(|i| {
+                    let tilt = i as f32 / L::WIDTH as f32 - 0.5;
+                    let up = if back == Some(i) { -1.0 } else { 1.0 };
+                    Ray::new(origin, Vec3A::new(tilt, up, 0.3 * tilt).normalize(), f32::INFINITY)
+                })
+                .collect();
+            // SAFETY: the caller's CPU has `L`'s instruction set.
+            let (edges, planes) = unsafe {
+                let r = RayTriPacket::<L>::new(&L::rays(&rays));
+                let edges = packet.edges_packet(0, &r);
+                (edges.pass, r.plane_hits(&tri) & edges.pass)
+            };
+            assert_eq!(edges, (1u32 << L::WIDTH) - 1, "{} lanes: every line crosses the triangle", L::WIDTH);
+            let found: u32 = rays
+                .iter()
+                .enumerate()
+                .map(|(k, ray)| {
+                    let one = packet.edges(&RayTri4::new(ray));
+                    u32::from(tri.finish(ray, one.e[0][0], one.e[1][0], one.e[2][0]).is_some()) << k
+                })
+                .sum();
+            assert_eq!(planes, found, "{} lanes, ray {back:?} turned back", L::WIDTH);
+            assert_eq!(found, back.map_or(0, |k| 1 << k), "{} lanes: finish", L::WIDTH);
+        }
+    }
 }
