@@ -127,7 +127,9 @@ impl DirectionRays {
     /// `frame`'s normal ([`PlacedLight::cosine_run`](crate::light::PlacedLight::cosine_run)),
     /// drawn from `sets` for samples `first, first + 1, …` of `pixel` in dimension `dim`: the
     /// same rays, answers and sums, in one pass from sample points to packets, where the
-    /// scene's packets are sixteen wide and the sets are computed in lanes
+    /// scene's packets are sixteen wide and the sets are computed in lanes: straight from the
+    /// patterns in quadrant order where the run is whole passes that split into quadrants
+    /// ([`SampleSets::quadrant_passes`]), else sorted into quadrants from columns
     /// ([`SampleSets::fill_columns`]). `None`, having done nothing, elsewhere.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn add_cosine(

@@ -721,8 +721,7 @@ impl<L: FusedLanes> PacketNodeTest for FusedPacket<L> {
         } else {
             for (c, e) in entered.iter_mut().enumerate() {
                 for (a, plane) in planes.iter_mut().enumerate() {
-                    let (lo, hi) = unsafe { (L::splat(n.planes[a][c]), L::splat(n.planes[a + 3][c])) };
-                    *plane = unsafe { (lo.select(self.negative[a], hi), hi.select(self.negative[a], lo)) };
+                    *plane = unsafe { n.lane_planes::<L>(c, a, self.negative[a]) };
                 }
                 *e = unsafe { self.lanes_entering(planes) };
             }
@@ -745,6 +744,20 @@ const PACKET_MIN_LANES: u32 = 4;
 
 #[cfg(target_arch = "x86_64")]
 impl Node<8> {
+    /// Child `c`'s near and far planes on axis `a` in each lane: its maximum and minimum in the
+    /// lanes of `negative` (directions negative on the axis), its minimum and maximum elsewhere.
+    ///
+    /// # Safety
+    /// The CPU must have `L`'s instruction set.
+    #[inline(always)]
+    unsafe fn lane_planes<L: Lanes>(&self, c: usize, a: usize, negative: L::Mask) -> (L, L) {
+        // SAFETY: the caller's CPU has `L`'s instruction set.
+        unsafe {
+            let (lo, hi) = (L::splat(self.planes[a][c]), L::splat(self.planes[a + 3][c]));
+            (lo.select(negative, hi), hi.select(negative, lo))
+        }
+    }
+
     /// The lanes of `p` that enter child `c`: the eight-child test's operations per ray, each
     /// ray's near and far planes picked by its own direction's signs, so every lane decides
     /// exactly as [`NodeTest::test`] does for that ray.
@@ -758,8 +771,7 @@ impl Node<8> {
             let mut near = L::splat(NEAR_START);
             let mut far = L::splat(f32::INFINITY);
             for a in 0..3 {
-                let (lo, hi) = (L::splat(self.planes[a][c]), L::splat(self.planes[a + 3][c]));
-                let (near_plane, far_plane) = (lo.select(p.negative[a], hi), hi.select(p.negative[a], lo));
+                let (near_plane, far_plane) = self.lane_planes::<L>(c, a, p.negative[a]);
                 // maxps / minps return their second operand when either is NaN.
                 near = near_plane.sub(p.origin[a]).mul(p.inv_dir[a]).max_keep(near);
                 far = far_plane.sub(p.origin[a]).mul(p.inv_dir[a]).min_keep(far);

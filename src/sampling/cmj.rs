@@ -349,14 +349,8 @@ impl SmallGrid16 {
     #[target_feature(enable = "avx512f")]
     #[inline]
     fn points(&self, first: u32) -> (std::arch::x86_64::__m512, std::arch::x86_64::__m512) {
-        use std::arch::x86_64::*;
-
-        let u = |x: u32| _mm512_set1_epi32(x as i32);
-        let wn = self.masks[0];
-        let iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
-        let s = _mm512_add_epi32(u(first), iota);
         // SAFETY: this function is compiled for AVX-512F.
-        self.points_of(unsafe { permute_pow2_lanes(s, wn, self.sc.order) })
+        self.points_of(unsafe { permute_pow2_lanes(consecutive16(first), self.masks[0], self.sc.order) })
     }
 
     /// The points of the shuffled samples `s` (each lane a sample's place in the pattern,
@@ -420,12 +414,8 @@ impl QuadrantPattern {
     #[target_feature(enable = "avx512f")]
     #[inline]
     pub(crate) fn points(&self, packet: usize) -> (std::arch::x86_64::__m512, std::arch::x86_64::__m512) {
-        use std::arch::x86_64::*;
-
         let [a, b] = self.bits;
-        let iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
-        let slot = _mm512_add_epi32(_mm512_set1_epi32(16 * packet as i32), iota);
-        let [col, row, quarter] = split_bits(slot, [a, b, 2]);
+        let [col, row, quarter] = split_bits(consecutive16(16 * packet as u32), [a, b, 2]);
         let s = join_bits([col, quarter, row], [a, 2, b]);
         self.grid.points_of(s)
     }
@@ -440,8 +430,7 @@ impl QuadrantPattern {
 
         let u = |x: u32| _mm512_set1_epi32(x as i32);
         let [a, b] = self.bits;
-        let iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
-        let s = _mm512_add_epi32(u(16 * group as u32), iota);
+        let s = consecutive16(16 * group as u32);
         // SAFETY: this function is compiled for AVX-512F.
         let s = unsafe { permute_pow2_lanes(s, self.grid.masks[0], self.grid.sc.order) };
         let [col, quarter, row] = split_bits(s, [a, 2, b]);
@@ -450,6 +439,16 @@ impl QuadrantPattern {
         let bit = _mm512_srlv_epi32(word, _mm512_and_si512(slot, u(15)));
         _mm512_test_epi32_mask(bit, u(1))
     }
+}
+
+/// `first, first + 1, …, first + 15` in sixteen lanes.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+fn consecutive16(first: u32) -> std::arch::x86_64::__m512i {
+    use std::arch::x86_64::*;
+    let iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+    _mm512_add_epi32(_mm512_set1_epi32(first as i32), iota)
 }
 
 /// Each lane of `v` cut into three bit fields of `widths` bits, lowest first.

@@ -186,10 +186,8 @@ impl SampleSets {
         if self.kind != SamplerKind::CorrelatedMultiJittered || !whole || !self.cmj.has_quadrants() {
             return None;
         }
-        let passes = (0..(len / n) as u32).map(move |k| {
-            let pass = self.modulus.quotient(first.wrapping_add(k.wrapping_mul(self.n)));
-            hash_sample(pixel, pass, dim, self.key) as u32
-        });
+        // Whole passes: each run of `passes` is one pass, from its first sample.
+        let passes = self.passes(first, len).map(move |(pass, _, _)| hash_sample(pixel, pass, dim, self.key) as u32);
         Some((&self.cmj, passes))
     }
 
