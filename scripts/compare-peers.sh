@@ -14,7 +14,6 @@
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 peers_src="$root/../shared/peers"
-work="${HEMI_PEERS_DIR:-/tmp/hemi-peers}"
 spp=256
 threads=2
 rounds=1
@@ -32,17 +31,7 @@ done
 [[ "$rounds" =~ ^[1-9][0-9]*$ ]] || { echo "compare-peers: --rounds wants a positive whole number, not '$rounds'" >&2; exit 2; }
 [ -d "$peers_src" ] || { echo "compare-peers: $peers_src not found (../shared must sit beside the repo)" >&2; exit 1; }
 
-if [ ! -x "$work/.venv/bin/python" ]; then
-    echo "compare-peers: setting up the peers in $work (pip install, a few minutes)" >&2
-    rm -rf "$work" && cp -r "$peers_src" "$work" && chmod -R u+w "$work"
-    python3 -m venv "$work/.venv"
-    "$work/.venv/bin/pip" install -q -r "$work/requirements.txt"
-fi
-llvm=/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1
-if [ ! -e "$llvm" ] && [ "$(id -u)" = 0 ]; then
-    apt-get install -y -q libllvm19 >/dev/null 2>&1 || { apt-get update -q >/dev/null && apt-get install -y -q libllvm19 >/dev/null; }
-fi
-export DRJIT_LIBLLVM_PATH="$llvm"
+. "$root/scripts/peers-venv.sh"
 
 (cd "$root" && cargo build --release -q)
 hemi="$root/target/release/hemi"
