@@ -23,6 +23,7 @@ mod direction_rays;
 pub mod error;
 pub mod film;
 pub mod geometry;
+mod huge_pages;
 pub mod light;
 pub mod lights;
 pub mod math;

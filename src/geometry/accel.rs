@@ -782,11 +782,11 @@ impl Blas {
             lanes.extend((first..first + count).step_by(4).map(|lane0| (lane0, (lane0 + 4).min(first + count))));
             (start, lanes.len() as u32 - start)
         });
-        self.packets = lanes
-            .par_iter()
-            .with_min_len(PAR_CHUNK / 4)
-            .map(|&(first, end)| Tri4::pack((first..end).map(triangle)))
-            .collect();
+        // Written straight into an allocation of the right size, advised onto huge pages.
+        self.packets = crate::huge_pages::vec_on_huge_pages(lanes.len());
+        self.packets.par_extend(
+            lanes.par_iter().with_min_len(PAR_CHUNK / 4).map(|&(first, end)| Tri4::pack((first..end).map(triangle))),
+        );
     }
 
     /// A mesh's triangles in its own frame; zero-area triangles are counted and skipped.

@@ -343,13 +343,16 @@ impl<const W: usize> WideBvh<W> {
     /// scenes within noise; same images.
     fn collapse(bvh2: &[Bvh2Node]) -> Self {
         let Some(root) = bvh2.first() else { return WideBvh::default() };
-        let mut nodes = vec![Node::EMPTY];
         if root.prim_count > 0 {
-            nodes[0].set(0, root.aabb());
-            nodes[0].child[0] = root.first_index;
-            nodes[0].count[0] = root.prim_count;
-            return WideBvh { nodes };
+            let mut node = Node::EMPTY;
+            node.set(0, root.aabb());
+            node.child[0] = root.first_index;
+            node.count[0] = root.prim_count;
+            return WideBvh { nodes: vec![node] };
         }
+        // One wide node per BVH2 inner node at most, so the pushes below never reallocate.
+        let mut nodes = crate::huge_pages::vec_on_huge_pages(bvh2.len() / 2 + 1);
+        nodes.push(Node::EMPTY);
         let plan = SlotPlan::new(bvh2, W);
         // (BVH2 node whose subtree fills the wide node, wide node)
         let mut todo = vec![(0usize, 0usize)];

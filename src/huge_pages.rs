@@ -1,0 +1,75 @@
+//! Large arrays the traversal reads at random (BVH nodes, triangle packets) asked onto 2 MiB
+//! pages where the OS offers them (Linux transparent huge pages in `madvise` mode).
+
+/// An empty vector with room for `capacity` items, its allocation advised onto huge pages
+/// before anything is written, so the kernel can back its 2 MiB-aligned stretches with huge
+/// pages as they are first touched. Filled within `capacity`, it keeps that allocation.
+pub fn vec_on_huge_pages<T>(capacity: usize) -> Vec<T> {
+    let mut out: Vec<T> = Vec::with_capacity(capacity);
+    advise(out.as_mut_ptr().cast(), capacity * size_of::<T>());
+    out
+}
+
+#[cfg(target_os = "linux")]
+fn advise(start: *mut u8, bytes: usize) {
+    const HUGE_PAGE: usize = 2 << 20;
+    // Only whole huge pages inside the allocation: the advice covers no byte outside it.
+    let first = (start as usize).next_multiple_of(HUGE_PAGE);
+    let end = (start as usize + bytes) & !(HUGE_PAGE - 1);
+    if end > first {
+        // SAFETY: [first, end) lies inside the allocation; the advice changes how it is backed,
+        // not its contents or who may use it, and where it fails (no transparent huge pages)
+        // nothing changes.
+        unsafe { libc::madvise(first as *mut libc::c_void, end - first, libc::MADV_HUGEPAGE) };
+    }
+}
+
+#[cfg(not(target_os = "linux"))]
+fn advise(_start: *mut u8, _bytes: usize) {}
+
+#[cfg(all(test, target_os = "linux"))]
+mod tests {
+    use super::*;
+
+    /// The `VmFlags` of the mapping in `/proc/self/smaps` that holds `addr`.
+    fn flags_of(addr: usize) -> Option<String> {
+        let smaps = std::fs::read_to_string("/proc/self/smaps").ok()?;
+        let mut current = None;
+        for line in smaps.lines() {
+            if let Some(flags) = line.strip_prefix("VmFlags:") {
+                if let Some((start, end)) = current.take()
+                    && (start..end).contains(&addr)
+                {
+                    return Some(flags.to_string());
+                }
+            } else if let Some((range, _)) = line.split_once(' ')
+                && let Some((start, end)) = range.split_once('-')
+                && let (Ok(start), Ok(end)) = (usize::from_str_radix(start, 16), usize::from_str_radix(end, 16))
+            {
+                current = Some((start, end));
+            }
+        }
+        None
+    }
+
+    #[test]
+    fn the_whole_huge_pages_inside_the_allocation_and_nothing_else_are_advised() {
+        if !std::path::Path::new("/sys/kernel/mm/transparent_hugepage").exists() {
+            eprintln!("skipped: this kernel has no transparent huge pages");
+            return;
+        }
+        let bytes = 9 << 20;
+        let mut v: Vec<u8> = vec_on_huge_pages(bytes);
+        v.resize(bytes, 7);
+        let (start, end) = (v.as_ptr() as usize, v.as_ptr() as usize + bytes);
+        let (first, last) = (start.next_multiple_of(2 << 20), end & !((2 << 20) - 1));
+        let advised = |addr: usize| {
+            let flags = flags_of(addr).expect("the allocation is mapped");
+            flags.split_whitespace().any(|f| f == "hg")
+        };
+        assert!(advised(first) && advised(last - 1), "the whole huge pages inside are advised");
+        assert!(start == first || !advised(start), "nothing before the first whole huge page is");
+        assert!(end == last || !advised(end - 1), "nothing after the last whole huge page is");
+        assert!(v.iter().all(|&b| b == 7));
+    }
+}
