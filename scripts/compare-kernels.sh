@@ -47,7 +47,7 @@ ways = ["single", "single shuffled", "packets of 16 (point order)", "packets of 
 runs, blocked = {}, {}
 for line in open(sys.argv[1]):
     scene, engine, rest = line.split(maxsplit=2)
-    rays, hit = re.match(r"(\d+) rays, (\d+) blocked", rest).groups()
+    hit = re.match(r"\d+ rays, (\d+) blocked", rest).group(1)
     blocked.setdefault(scene, set()).add(hit)
     for way in ways:
         rate = float(re.search(re.escape(way) + r" ([0-9.]+)", rest).group(1))

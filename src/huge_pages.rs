@@ -10,9 +10,12 @@ pub fn vec_on_huge_pages<T>(capacity: usize) -> Vec<T> {
     out
 }
 
+/// A transparent huge page's size on x86_64 Linux.
+#[cfg(target_os = "linux")]
+const HUGE_PAGE: usize = 2 << 20;
+
 #[cfg(target_os = "linux")]
 fn advise(start: *mut u8, bytes: usize) {
-    const HUGE_PAGE: usize = 2 << 20;
     // Only whole huge pages inside the allocation: the advice covers no byte outside it.
     let first = (start as usize).next_multiple_of(HUGE_PAGE);
     let end = (start as usize + bytes) & !(HUGE_PAGE - 1);
@@ -56,20 +59,20 @@ mod tests {
     fn the_whole_huge_pages_inside_the_allocation_and_nothing_else_are_advised() {
         // Where the kernel refuses the advice (no transparent huge pages, some sandboxes) or
         // `smaps` shows no flags, there is nothing to check.
-        let mut probe: Vec<u8> = Vec::with_capacity(4 << 20);
-        let page = (probe.as_mut_ptr() as usize).next_multiple_of(2 << 20);
+        let mut probe: Vec<u8> = Vec::with_capacity(2 * HUGE_PAGE);
+        let page = (probe.as_mut_ptr() as usize).next_multiple_of(HUGE_PAGE);
         // SAFETY: the 2 MiB at `page` lie inside `probe`'s allocation; the advice changes only
         // how they are backed.
-        let refused = unsafe { libc::madvise(page as *mut libc::c_void, 2 << 20, libc::MADV_HUGEPAGE) } != 0;
+        let refused = unsafe { libc::madvise(page as *mut libc::c_void, HUGE_PAGE, libc::MADV_HUGEPAGE) } != 0;
         if refused || !std::fs::read_to_string("/proc/self/smaps").is_ok_and(|s| s.contains("VmFlags:")) {
             eprintln!("skipped: this kernel takes no huge-page advice, or does not show it");
             return;
         }
-        let bytes = 9 << 20;
+        let bytes = 4 * HUGE_PAGE + HUGE_PAGE / 2;
         let mut v: Vec<u8> = vec_on_huge_pages(bytes);
         v.resize(bytes, 7);
         let (start, end) = (v.as_ptr() as usize, v.as_ptr() as usize + bytes);
-        let (first, last) = (start.next_multiple_of(2 << 20), end & !((2 << 20) - 1));
+        let (first, last) = (start.next_multiple_of(HUGE_PAGE), end & !(HUGE_PAGE - 1));
         let advised = |addr: usize| {
             let flags = flags_of(addr).expect("the allocation is mapped");
             flags.split_whitespace().any(|f| f == "hg")
