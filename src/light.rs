@@ -25,7 +25,7 @@ use crate::{
     geometry::SpawnOrigins,
     math::Onb,
     sampling::SampleSets,
-    shading::{RunPoint, Scene, Tracer},
+    shading::{RowPoint, RunPoint, Scene, Tracer},
     systems::{FrameStage, scene_changes::detect_scene_changes},
 };
 
@@ -362,6 +362,18 @@ pub trait LightGroup: Send + Sync {
         skip_black: bool,
         arriving: &mut [Vec3A],
     );
+    /// Adds the group's light arriving at each camera hit of a row of pixels into `arriving`,
+    /// one element per point: for groups that draw no samples ([`LightGroup::dims`] 0), lit
+    /// once per pixel ([`Tracer::fixed_lights_row`]).
+    fn shade_row(
+        &self,
+        tracer: &mut Tracer,
+        scene: &Scene,
+        points: &[RowPoint],
+        first_dim: u32,
+        skip_black: bool,
+        arriving: &mut [Vec3A],
+    );
 }
 
 struct Group<P>(Vec<P>);
@@ -406,6 +418,18 @@ impl<P: PlacedLight> LightGroup for Group<P> {
         arriving: &mut [Vec3A],
     ) {
         tracer.shade_points_lights(scene, points, &self.0, pixel, first, first_dim, skip_black, arriving)
+    }
+
+    fn shade_row(
+        &self,
+        tracer: &mut Tracer,
+        scene: &Scene,
+        points: &[RowPoint],
+        first_dim: u32,
+        skip_black: bool,
+        arriving: &mut [Vec3A],
+    ) {
+        tracer.shade_row_lights(scene, points, &self.0, first_dim, skip_black, arriving)
     }
 }
 

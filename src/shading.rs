@@ -165,16 +165,6 @@ impl SampleOut for [Vec3A] {
     }
 }
 
-/// Which lights [`Tracer::shade`] evaluates.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Lights {
-    /// Lights that use no random numbers (e.g. point lights): the same at a given hit for
-    /// every sample, so evaluated once when samples share a hit.
-    Fixed,
-    /// Lights that draw samples (occluders, area lights).
-    Sampled,
-}
-
 /// A camera ray's first hit.
 #[derive(Clone, Copy, Debug)]
 pub struct PrimaryHit {
@@ -206,6 +196,8 @@ pub struct Tracer {
     run: RunSamples,
     /// The shading points of such a run.
     points: Vec<RunPoint>,
+    /// The camera hits of a row of pixels, for the lights that draw no samples.
+    row: Vec<RowPoint>,
     /// The surface hits of a run of camera rays.
     surfaces: Vec<Option<SurfaceHit>>,
     /// Rays traced by this tracer.
@@ -228,6 +220,20 @@ struct RunSamples {
 pub struct RunPoint {
     /// Index of the sample in the run.
     j: u32,
+    /// The lit point.
+    at: ShadingPoint,
+    /// Where its shadow rays start.
+    spawn: SpawnOrigins,
+}
+
+/// A camera hit of a row of pixels, one camera ray each, ready for the lights that draw no
+/// samples (point lights): the same at the hit for every sample, so lit once per pixel.
+pub struct RowPoint {
+    /// Index of the hit in the row.
+    k: u32,
+    /// The pixel, and the number of its first sample this frame.
+    pixel: u32,
+    first: u32,
     /// The lit point.
     at: ShadingPoint,
     /// Where its shadow rays start.
@@ -311,10 +317,94 @@ impl Tracer {
         );
     }
 
+    /// The light that each group of lights drawing no samples (point lights: [`LightGroup::dims`]
+    /// 0) brings to each camera hit of a row of pixels, before reflectance, into `out`: entry
+    /// `g · hits.len() + k` for the g-th such group of `scene.lights` and `hits[k]`, which is
+    /// (pixel, its first sample this frame, its camera hit), zero where the camera ray escaped
+    /// or, with `skip_black`, where the group's reflectance at the hit is black. Each entry is
+    /// exactly what [`Tracer::shade`] would add up at that hit; the row's shadow rays are traced
+    /// in one call, so neighbouring pixels' rays to a light go as packets. `timed` of the hits
+    /// are timed pixels' ([`crate::stats::timed_pixel`]): that share of the cycles goes to
+    /// `split`.
+    pub fn fixed_lights_row(
+        &mut self,
+        scene: &Scene,
+        hits: &[(u32, u32, Option<PrimaryHit>)],
+        skip_black: bool,
+        timed: u64,
+        out: &mut Vec<Vec3A>,
+    ) {
+        let n = hits.len();
+        let fixed = scene.lights.iter().filter(|(_, g)| g.dims() == 0).count();
+        out.clear();
+        out.resize(fixed * n, Vec3A::ZERO);
+        if fixed == 0 || n == 0 {
+            return;
+        }
+        let mut points = std::mem::take(&mut self.row);
+        points.clear();
+        points.extend(hits.iter().enumerate().filter_map(|(k, &(pixel, first, hit))| {
+            let hit = hit?.hit;
+            let material = scene.geometry.objects[hit.object as usize].material;
+            let at = ShadingPoint::new(hit.p, hit.normal, material);
+            Some(RowPoint { k: k as u32, pixel, first, at, spawn: hit.spawn_origins() })
+        }));
+        // The row's cycles, kept apart and then scaled to the timed pixels' share.
+        let (split, timing) = (std::mem::take(&mut self.split), self.timing);
+        self.timing = timed > 0;
+        let mut arriving = std::mem::take(&mut self.arriving);
+        let groups = scene.lights.iter().filter(|(_, g)| g.dims() == 0);
+        for (g, &(first_dim, group)) in groups.enumerate() {
+            arriving.clear();
+            arriving.resize(points.len(), Vec3A::ZERO);
+            let start = self.timing.then(cycle_count);
+            group.shade_row(self, scene, &points, first_dim, skip_black, &mut arriving);
+            if let Some(start) = start {
+                self.split.add_term(group.term(), cycles_since(start));
+            }
+            for (p, &a) in points.iter().zip(&arriving) {
+                out[g * n + p.k as usize] = a;
+            }
+        }
+        let row = std::mem::replace(&mut self.split, split);
+        let share = |cycles: u64| cycles * timed / n as u64;
+        self.split.ambient += share(row.ambient);
+        self.split.diffuse += share(row.diffuse);
+        self.split.ambient_queries += share(row.ambient_queries);
+        self.split.diffuse_queries += share(row.diffuse_queries);
+        self.timing = timing;
+        self.arriving = arriving;
+        self.row = points;
+    }
+
+    /// What [`Tracer::shade`] does for the lights that draw no samples, with their light at the
+    /// hit already worked out ([`Tracer::fixed_lights_row`]): `arriving(g)` for the g-th such
+    /// group. Sets `out` to the camera hit `primary` and adds each group's reflected light.
+    pub fn shade_fixed<O: SampleOut + ?Sized>(
+        &self,
+        scene: &Scene,
+        primary: &PrimaryHit,
+        skip_black: bool,
+        arriving: impl Fn(usize) -> Vec3A,
+        out: &mut O,
+    ) {
+        let material = scene.geometry.objects[primary.hit.object as usize].material;
+        out.start(primary, &material);
+        let groups = scene.lights.iter().filter(|(_, g)| g.dims() == 0);
+        for (g, &(_, group)) in groups.enumerate() {
+            let term = group.term();
+            let reflectance = term.reflectance(&material);
+            if skip_black && reflectance.max_element() <= 0.0 {
+                continue;
+            }
+            out.add_light(term, reflectance, &[arriving(g)]);
+        }
+    }
+
     /// Light reflected at a primary hit for the samples `first, first + 1, …` of `pixel`, one
-    /// per element of `out` (each light's own sample dimensions), from the lights `which`
-    /// selects. The samples share the hit, so per-hit work and each pass's sample set-up are
-    /// done once for all of them.
+    /// per element of `out` (each light's own sample dimensions), from the lights that draw
+    /// samples (those that draw none come from [`Tracer::fixed_lights_row`]). The samples share
+    /// the hit, so per-hit work and each pass's sample set-up are done once for all of them.
     #[inline]
     #[allow(clippy::too_many_arguments)]
     pub fn shade<O: SampleOut + ?Sized>(
@@ -324,7 +414,6 @@ impl Tracer {
         pixel: u32,
         first: u32,
         skip_black: bool,
-        which: Lights,
         out: &mut O,
     ) {
         let hit = &primary.hit;
@@ -334,8 +423,7 @@ impl Tracer {
         out.start(primary, &material);
         let mut arriving = std::mem::take(&mut self.arriving);
         for &(first_dim, group) in scene.lights {
-            let fixed = group.dims() == 0;
-            if (which == Lights::Fixed && !fixed) || (which == Lights::Sampled && fixed) {
+            if group.dims() == 0 {
                 continue;
             }
             let term = group.term();
@@ -468,6 +556,34 @@ impl Tracer {
         }
         self.drawn = drawn;
         self.run = run;
+    }
+
+    /// Adds the light arriving from `lights` (all of one type, drawing no samples) at each of a
+    /// row's `points` into `arriving`, one element per point, as [`Tracer::shade_lights`] adds
+    /// it at each point alone; points whose reflectance for `P::TERM` is black are skipped when
+    /// `skip_black`.
+    pub(crate) fn shade_row_lights<P: PlacedLight>(
+        &mut self,
+        scene: &Scene,
+        points: &[RowPoint],
+        lights: &[P],
+        first_dim: u32,
+        skip_black: bool,
+        arriving: &mut [Vec3A],
+    ) {
+        let mut drawn = std::mem::take(&mut self.drawn);
+        for (l, light) in lights.iter().enumerate() {
+            let dim = first_dim + l as u32 * P::DIMS;
+            drawn.clear();
+            drawn.extend(points.iter().map(|p| {
+                if skip_black && P::TERM.reflectance(&p.at.material).max_element() <= 0.0 {
+                    return None;
+                }
+                light.sample(&p.at, &LightSamples::from_sets(scene.sets, p.pixel, p.first, dim, P::DIMS))
+            }));
+            self.add_run(scene, |k| &points[k].spawn, &drawn, P::TERM, arriving);
+        }
+        self.drawn = drawn;
     }
 
     /// Adds a run of drawn samples to `arriving`, tracing the shadow rays whose answer matters in

@@ -15,7 +15,7 @@ use crate::{
     light::{LightGroup, LightRegistry},
     resources::{AOV_FLOATS, Accumulation, AovValues, FrameSamples, RenderSettings, SceneProblems, luminance},
     sampling::{SampleSets, dims},
-    shading::{Lights, RayCounts, SampleResult, Scene, Tracer},
+    shading::{RayCounts, SampleResult, Scene, Tracer},
     stats::{FrameStats, TraceSplit, cycle_count, cycles_since, timed_pixel},
 };
 
@@ -169,25 +169,33 @@ fn trace_tile<C: CameraRays>(
     // Without jitter or lens every sample of a pixel has the same camera ray: it is traced once
     // per pixel, a row of the tile's pixels at a time (neighbouring rays travel together).
     let one_ray_per_pixel = !job.jitter && !C::USES_LENS;
-    let mut row_hits = Vec::new();
+    let (mut row_hits, mut row_pixels, mut row_fixed) = (Vec::new(), Vec::new(), Vec::new());
     for y in tile.y0..tile.y1 {
         if one_ray_per_pixel {
             camera_rays.clear();
+            row_pixels.clear();
             let (mut timed, start) = (0, cycle_count());
             for x in tile.x0..tile.x1 {
                 let pixel = y * job.width + x;
                 if !acc.pixel_done(pixel as usize, target) {
                     camera_rays.push(camera.ray(x, y, Vec2::splat(0.5), Vec2::ZERO));
+                    row_pixels.push((pixel, acc.counts[pixel as usize], None));
                     timed += u64::from(timed_pixel(pixel));
                 }
             }
             tracer.primaries(scene, &camera_rays, &mut row_hits);
-            // The timed pixels' part of the row's camera rays.
+            // The lights that draw no samples, once per pixel, the row's shadow rays together.
+            for (p, &hit) in row_pixels.iter_mut().zip(&row_hits) {
+                p.2 = hit;
+            }
+            tracer.fixed_lights_row(scene, &row_pixels, !job.aovs, timed, &mut row_fixed);
+            // The timed pixels' part of the row's camera rays and fixed lights.
             if timed > 0 {
                 tracer.split.pixels += cycles_since(start) * timed / camera_rays.len() as u64;
             }
         }
-        let mut row_hits = row_hits.iter();
+        let row_len = row_hits.len();
+        let mut row_hits = row_hits.iter().enumerate();
         for x in tile.x0..tile.x1 {
             let pixel = y * job.width + x;
             tracer.timing = timed_pixel(pixel);
@@ -210,18 +218,21 @@ fn trace_tile<C: CameraRays>(
             }
             // A shared camera hit: shade all samples at it together, evaluating the lights that
             // draw no samples (point lights) once.
-            let shared = one_ray_per_pixel.then(|| *row_hits.next().expect("one camera ray per pixel still sampled"));
-            // What the lights that draw no samples add to every sample (shared hits only).
+            let shared = one_ray_per_pixel.then(|| row_hits.next().expect("one camera ray per pixel still sampled"));
+            // What the lights that draw no samples add to every sample (shared hits only): the
+            // row's, this pixel's k-th.
+            let row_fixed = &row_fixed;
+            let fixed_light = |k: usize| move |g: usize| row_fixed[g * row_len + k];
             let mut fixed = SampleResult::default();
-            match &shared {
-                Some(Some(hit)) if !job.aovs => {
+            match shared {
+                Some((k, Some(hit))) if !job.aovs => {
                     // The beauty image alone: each sample's radiance, no other AOV, summed here
                     // (no `samples` for the loop below).
                     let mut fixed_radiance = [Vec3A::ZERO];
-                    tracer.shade(scene, hit, pixel, first, true, Lights::Fixed, &mut fixed_radiance[..]);
+                    tracer.shade_fixed(scene, hit, true, fixed_light(k), &mut fixed_radiance[..]);
                     let fixed_radiance = fixed_radiance[0];
                     radiance.resize(count as usize, Vec3A::ZERO);
-                    tracer.shade(scene, hit, pixel, first, true, Lights::Sampled, &mut radiance[..]);
+                    tracer.shade(scene, hit, pixel, first, true, &mut radiance[..]);
                     // A finite total means every sample was finite (∞ and NaN survive a sum),
                     // so only other totals (and adaptive sampling, which needs each sample's
                     // luminance) need the loop that drops samples one by one.
@@ -246,13 +257,13 @@ fn trace_tile<C: CameraRays>(
                     sum = total.into();
                     samples.clear();
                 }
-                Some(Some(hit)) => {
-                    tracer.shade(scene, hit, pixel, first, !job.aovs, Lights::Fixed, std::slice::from_mut(&mut fixed));
+                Some((k, Some(hit))) => {
+                    tracer.shade_fixed(scene, hit, !job.aovs, fixed_light(k), std::slice::from_mut(&mut fixed));
                     // `shade` sets every field of every sample: no need to clear them first.
                     samples.resize(count as usize, SampleResult::default());
-                    tracer.shade(scene, hit, pixel, first, !job.aovs, Lights::Sampled, &mut samples[..]);
+                    tracer.shade(scene, hit, pixel, first, !job.aovs, &mut samples[..]);
                 }
-                Some(None) => {
+                Some((_, None)) => {
                     samples.clear();
                     samples.resize(count as usize, SampleResult { radiance: scene.background, ..Default::default() })
                 }

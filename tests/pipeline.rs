@@ -21,6 +21,35 @@ fn small_default_scene(threads: Option<usize>) -> Renderer {
     }
 }
 
+/// Lights that draw no samples (the default scene's point light) are lit once per pixel, a
+/// tile's row at a time, the row's shadow rays traced together in packets: whatever the
+/// tile's width (one pixel, whose ray goes alone, or 32), every pixel gets the same bits, AOVs
+/// or not, and the same shadow rays are traced.
+#[test]
+fn point_lights_give_the_same_image_whatever_the_width_of_a_row() {
+    for aovs in [false, true] {
+        let render = |tile_size| {
+            let s = RenderSettings {
+                width: 64,
+                height: 36,
+                samples_per_frame: 2,
+                samples_per_set: 8,
+                tile_size,
+                jitter: false,
+                aovs,
+                ..Default::default()
+            };
+            let mut r = Renderer::with_default_scene(s);
+            let rays = r.run_frame().unwrap().rays;
+            (r.image().clone(), rays)
+        };
+        let (narrow, wide) = (render(1), render(32));
+        assert!(wide.1.shadow > 1000, "aovs {aovs}: {:?}", wide.1);
+        assert_eq!(narrow.1, wide.1, "aovs {aovs}");
+        assert!(narrow.0 == wide.0, "aovs {aovs}: the images differ");
+    }
+}
+
 #[test]
 fn a_64x64_frame_renders_in_memory() {
     let mut r = Renderer::with_default_scene(RenderSettings { width: 64, height: 64, ..Default::default() });
