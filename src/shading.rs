@@ -343,12 +343,13 @@ impl Tracer {
         }
         let mut points = std::mem::take(&mut self.row);
         points.clear();
-        points.extend(hits.iter().enumerate().filter_map(|(k, &(pixel, first, hit))| {
-            let hit = hit?.hit;
+        // A plain loop: through `filter_map` each point was copied by a call to memcpy.
+        for (k, (pixel, first, hit)) in hits.iter().enumerate() {
+            let Some(PrimaryHit { hit, .. }) = hit else { continue };
             let material = scene.geometry.objects[hit.object as usize].material;
             let at = ShadingPoint::new(hit.p, hit.normal, material);
-            Some(RowPoint { k: k as u32, pixel, first, at, spawn: hit.spawn_origins() })
-        }));
+            points.push(RowPoint { k: k as u32, pixel: *pixel, first: *first, at, spawn: hit.spawn_origins() });
+        }
         // The row's cycles, kept apart and then scaled to the timed pixels' share.
         let (split, timing) = (std::mem::take(&mut self.split), self.timing);
         self.timing = timed > 0;
