@@ -153,6 +153,8 @@ pub struct FrameStats {
     pub bvh_work: BvhWork,
     /// BVH nodes (binary, as built).
     pub bvh_nodes: usize,
+    /// Nodes of the wide trees traversal uses (`bvh_width` children each).
+    pub bvh_wide_nodes: usize,
     /// Children per node of the trees traversal uses (8 with AVX, else 4).
     pub bvh_width: usize,
     /// Rays per packet in occlusion runs (16 with AVX-512, 8 with AVX, 0: rays traced alone).
@@ -247,6 +249,7 @@ impl FrameStats {
                 "blas_refit": self.bvh_work.blas_refit,
                 "tlas_built": self.bvh_work.tlas_built,
                 "nodes": self.bvh_nodes,
+                "wide_nodes": self.bvh_wide_nodes,
                 "width": self.bvh_width,
                 "packet_lanes": self.packet_lanes,
                 "prims": self.bvh_prims,
@@ -289,11 +292,12 @@ impl FrameStats {
         let r = &self.rays;
         let _ = writeln!(
             s,
-            "  rays: {} primary, {} ao, {} shadow; bvh: {} nodes ({}-wide{}), {} prims, {:.1} MiB{}; buffers {:.1} MiB",
+            "  rays: {} primary, {} ao, {} shadow; bvh: {} binary nodes, {} {}-wide{}, {} prims, {:.1} MiB{}; buffers {:.1} MiB",
             r.primary,
             r.ao,
             r.shadow,
             self.bvh_nodes,
+            self.bvh_wide_nodes,
             self.bvh_width,
             if self.packet_lanes > 0 { format!(", {}-ray packets", self.packet_lanes) } else { String::new() },
             self.bvh_prims,

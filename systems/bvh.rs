@@ -190,6 +190,7 @@ pub fn update_bvh(
         "unchanged".to_string()
     };
     stats.bvh_nodes = geometry.node_count();
+    stats.bvh_wide_nodes = geometry.wide_node_count();
     stats.bvh_width = geometry.node_width();
     stats.packet_lanes = geometry.packet_lanes();
     stats.bvh_prims = geometry.prim_count();

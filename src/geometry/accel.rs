@@ -138,6 +138,14 @@ impl Tree {
         }
     }
 
+    fn len(&self) -> usize {
+        match self {
+            Tree::Four(t) => t.len(),
+            #[cfg(target_arch = "x86_64")]
+            Tree::Eight(t) => t.len(),
+        }
+    }
+
     fn width(&self) -> usize {
         match self {
             Tree::Four(_) => 4,
@@ -840,9 +848,14 @@ impl Blas {
         self.bvh.nodes.first().map(|n| *n.aabb())
     }
 
-    /// Number of nodes.
+    /// Number of nodes of the binary tree as built.
     pub fn node_count(&self) -> usize {
         self.bvh.nodes.len()
+    }
+
+    /// Number of nodes of the wide tree traversal uses ([`Blas::node_width`] children each).
+    pub fn wide_node_count(&self) -> usize {
+        self.tree.len()
     }
 
     /// The primitives, in leaf order.
@@ -1345,9 +1358,15 @@ impl SceneGeometry {
         0
     }
 
-    /// Number of BVH nodes (top level plus every BLAS once).
+    /// Number of binary BVH nodes as built (top level plus every BLAS once).
     pub fn node_count(&self) -> usize {
         self.tlas.len() + self.blases.iter().map(|b| b.node_count()).sum::<usize>()
+    }
+
+    /// Number of nodes of the wide trees traversal uses ([`SceneGeometry::node_width`]
+    /// children each; top level plus every BLAS once).
+    pub fn wide_node_count(&self) -> usize {
+        self.top.len() + self.blases.iter().map(|b| b.wide_node_count()).sum::<usize>()
     }
 
     /// Number of bounded primitives stored (shared meshes once).
