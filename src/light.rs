@@ -25,7 +25,7 @@ use crate::{
     geometry::SpawnOrigins,
     math::Onb,
     sampling::SampleSets,
-    shading::{RowPoint, RunPoint, Scene, Tracer},
+    shading::{RunPoint, Scene, Tracer},
     systems::{FrameStage, scene_changes::detect_scene_changes},
 };
 
@@ -348,28 +348,15 @@ pub trait LightGroup: Send + Sync {
         first_dim: u32,
         arriving: &mut [Vec3A],
     );
-    /// Adds the group's light arriving at each of a run's shading points (one camera sample
-    /// each, its samples computed ahead) into `arriving`, one element per point.
-    #[allow(clippy::too_many_arguments)]
+    /// Adds the group's light arriving at each of `points` into `arriving`, one element per
+    /// point: a pixel's run of camera samples (their light samples computed ahead), or, for
+    /// groups that draw no samples ([`LightGroup::dims`] 0), the pixels of a row, each lit once
+    /// ([`Tracer::fixed_lights_row`]).
     fn shade_points(
         &self,
         tracer: &mut Tracer,
         scene: &Scene,
         points: &[RunPoint],
-        pixel: u32,
-        first: u32,
-        first_dim: u32,
-        skip_black: bool,
-        arriving: &mut [Vec3A],
-    );
-    /// Adds the group's light arriving at each camera hit of a row of pixels into `arriving`,
-    /// one element per point: for groups that draw no samples ([`LightGroup::dims`] 0), lit
-    /// once per pixel ([`Tracer::fixed_lights_row`]).
-    fn shade_row(
-        &self,
-        tracer: &mut Tracer,
-        scene: &Scene,
-        points: &[RowPoint],
         first_dim: u32,
         skip_black: bool,
         arriving: &mut [Vec3A],
@@ -411,25 +398,11 @@ impl<P: PlacedLight> LightGroup for Group<P> {
         tracer: &mut Tracer,
         scene: &Scene,
         points: &[RunPoint],
-        pixel: u32,
-        first: u32,
         first_dim: u32,
         skip_black: bool,
         arriving: &mut [Vec3A],
     ) {
-        tracer.shade_points_lights(scene, points, &self.0, pixel, first, first_dim, skip_black, arriving)
-    }
-
-    fn shade_row(
-        &self,
-        tracer: &mut Tracer,
-        scene: &Scene,
-        points: &[RowPoint],
-        first_dim: u32,
-        skip_black: bool,
-        arriving: &mut [Vec3A],
-    ) {
-        tracer.shade_row_lights(scene, points, &self.0, first_dim, skip_black, arriving)
+        tracer.shade_points_lights(scene, points, &self.0, first_dim, skip_black, arriving)
     }
 }
 

@@ -197,7 +197,7 @@ pub struct Tracer {
     /// The shading points of such a run.
     points: Vec<RunPoint>,
     /// The camera hits of a row of pixels, for the lights that draw no samples.
-    row: Vec<RowPoint>,
+    row: Vec<RunPoint>,
     /// The surface hits of a run of camera rays.
     surfaces: Vec<Option<SurfaceHit>>,
     /// Rays traced by this tracer.
@@ -216,24 +216,15 @@ struct RunSamples {
     stride: usize,
 }
 
-/// A camera sample of a run whose ray hit something, ready to be lit.
+/// A camera hit ready to be lit: one sample of a pixel's run of camera samples (jittered or
+/// lens rays), or one pixel of a tile's row (shared hits, for the lights that draw no samples).
 pub struct RunPoint {
-    /// Index of the sample in the run.
+    /// Its place in the run or row: where its light goes, and where a run's light samples
+    /// computed ahead are read.
     j: u32,
-    /// The lit point.
-    at: ShadingPoint,
-    /// Where its shadow rays start.
-    spawn: SpawnOrigins,
-}
-
-/// A camera hit of a row of pixels, one camera ray each, ready for the lights that draw no
-/// samples (point lights): the same at the hit for every sample, so lit once per pixel.
-pub struct RowPoint {
-    /// Index of the hit in the row.
-    k: u32,
-    /// The pixel, and the number of its first sample this frame.
+    /// The pixel and the sample's number, for light samples drawn on demand.
     pixel: u32,
-    first: u32,
+    sample: u32,
     /// The lit point.
     at: ShadingPoint,
     /// Where its shadow rays start.
@@ -281,14 +272,15 @@ impl Tracer {
             let material = scene.geometry.objects[hit.object as usize].material;
             *o = SampleResult::at_hit(primary, &material);
             let at = ShadingPoint::new(hit.p, hit.normal, material);
-            points.push(RunPoint { j: j as u32, at, spawn: hit.spawn_origins() });
+            let sample = first.wrapping_add(j as u32);
+            points.push(RunPoint { j: j as u32, pixel, sample, at, spawn: hit.spawn_origins() });
         }
         let mut arriving = std::mem::take(&mut self.arriving);
         for &(first_dim, group) in scene.lights {
             arriving.clear();
             arriving.resize(points.len(), Vec3A::ZERO);
             let start = self.timing.then(cycle_count);
-            group.shade_points(self, scene, &points, pixel, first, first_dim, skip_black, &mut arriving);
+            group.shade_points(self, scene, &points, first_dim, skip_black, &mut arriving);
             let term = group.term();
             if let Some(start) = start {
                 self.split.add_term(term, cycles_since(start));
@@ -319,9 +311,10 @@ impl Tracer {
 
     /// The light that each group of lights drawing no samples (point lights: [`LightGroup::dims`]
     /// 0) brings to each camera hit of a row of pixels, before reflectance, into `out`: entry
-    /// `g · hits.len() + k` for the g-th such group of `scene.lights` and `hits[k]`, which is
-    /// (pixel, its first sample this frame, its camera hit), zero where the camera ray escaped
-    /// or, with `skip_black`, where the group's reflectance at the hit is black. Each entry is
+    /// `g · hits.len() + k` for the g-th such group of `scene.lights` and `hits[k]`, the hit of
+    /// `pixels[k]` (the pixel and the number of its first sample this frame), zero where the
+    /// camera ray escaped or, with `skip_black`, where the group's reflectance at the hit is
+    /// black. Each entry is
     /// exactly what [`Tracer::shade`] would add up at that hit; the row's shadow rays are traced
     /// in one call, so neighbouring pixels' rays to a light go as packets. `timed` of the hits
     /// are timed pixels' ([`crate::stats::timed_pixel`]): that share of the cycles goes to
@@ -329,7 +322,8 @@ impl Tracer {
     pub fn fixed_lights_row(
         &mut self,
         scene: &Scene,
-        hits: &[(u32, u32, Option<PrimaryHit>)],
+        pixels: &[(u32, u32)],
+        hits: &[Option<PrimaryHit>],
         skip_black: bool,
         timed: u64,
         out: &mut Vec<Vec3A>,
@@ -344,11 +338,11 @@ impl Tracer {
         let mut points = std::mem::take(&mut self.row);
         points.clear();
         // A plain loop: through `filter_map` each point was copied by a call to memcpy.
-        for (k, (pixel, first, hit)) in hits.iter().enumerate() {
+        for (j, (&(pixel, sample), hit)) in pixels.iter().zip(hits).enumerate() {
             let Some(PrimaryHit { hit, .. }) = hit else { continue };
             let material = scene.geometry.objects[hit.object as usize].material;
             let at = ShadingPoint::new(hit.p, hit.normal, material);
-            points.push(RowPoint { k: k as u32, pixel: *pixel, first: *first, at, spawn: hit.spawn_origins() });
+            points.push(RunPoint { j: j as u32, pixel, sample, at, spawn: hit.spawn_origins() });
         }
         // The row's cycles, kept apart and then scaled to the timed pixels' share.
         let (split, timing) = (std::mem::take(&mut self.split), self.timing);
@@ -359,12 +353,12 @@ impl Tracer {
             arriving.clear();
             arriving.resize(points.len(), Vec3A::ZERO);
             let start = self.timing.then(cycle_count);
-            group.shade_row(self, scene, &points, first_dim, skip_black, &mut arriving);
+            group.shade_points(self, scene, &points, first_dim, skip_black, &mut arriving);
             if let Some(start) = start {
                 self.split.add_term(group.term(), cycles_since(start));
             }
             for (p, &a) in points.iter().zip(&arriving) {
-                out[g * n + p.k as usize] = a;
+                out[g * n + p.j as usize] = a;
             }
         }
         let row = std::mem::replace(&mut self.split, split);
@@ -519,18 +513,15 @@ impl Tracer {
         self.drawn = drawn;
     }
 
-    /// Adds the light arriving from `lights` (all of one type) at each of a run's `points`
-    /// (sample `first + p.j` of `pixel`, its light samples read from the run computed ahead)
-    /// into `arriving`; points whose reflectance for `P::TERM` is black are skipped when
-    /// `skip_black`.
-    #[allow(clippy::too_many_arguments)]
+    /// Adds the light arriving from `lights` (all of one type) at each of `points` into
+    /// `arriving`: lights that draw samples read them from the run computed ahead (at `p.j`;
+    /// only points of one pixel's run), the others get sample `p.sample` of `p.pixel`. Points
+    /// whose reflectance for `P::TERM` is black are skipped when `skip_black`.
     pub(crate) fn shade_points_lights<P: PlacedLight>(
         &mut self,
         scene: &Scene,
         points: &[RunPoint],
         lights: &[P],
-        pixel: u32,
-        first: u32,
         first_dim: u32,
         skip_black: bool,
         arriving: &mut [Vec3A],
@@ -539,15 +530,20 @@ impl Tracer {
         let mut drawn = std::mem::take(&mut self.drawn);
         for (l, light) in lights.iter().enumerate() {
             let dim = first_dim + l as u32 * P::DIMS;
-            let start = (dim - dims::LIGHTS) as usize * run.stride;
-            let columns = &run.values[start..start + P::DIMS as usize * run.stride];
+            // No columns for lights that draw no samples (a row's points have no run).
+            let columns = if P::DIMS == 0 {
+                &[][..]
+            } else {
+                let start = (dim - dims::LIGHTS) as usize * run.stride;
+                &run.values[start..start + P::DIMS as usize * run.stride]
+            };
             drawn.clear();
             drawn.extend(points.iter().map(|p| {
                 if skip_black && P::TERM.reflectance(&p.at.material).max_element() <= 0.0 {
                     return None;
                 }
                 let u = if P::DIMS == 0 {
-                    LightSamples::from_sets(scene.sets, pixel, first.wrapping_add(p.j), dim, 0)
+                    LightSamples::from_sets(scene.sets, p.pixel, p.sample, dim, 0)
                 } else {
                     LightSamples::from_columns(columns, p.j as usize, run.stride)
                 };
@@ -557,34 +553,6 @@ impl Tracer {
         }
         self.drawn = drawn;
         self.run = run;
-    }
-
-    /// Adds the light arriving from `lights` (all of one type, drawing no samples) at each of a
-    /// row's `points` into `arriving`, one element per point, as [`Tracer::shade_lights`] adds
-    /// it at each point alone; points whose reflectance for `P::TERM` is black are skipped when
-    /// `skip_black`.
-    pub(crate) fn shade_row_lights<P: PlacedLight>(
-        &mut self,
-        scene: &Scene,
-        points: &[RowPoint],
-        lights: &[P],
-        first_dim: u32,
-        skip_black: bool,
-        arriving: &mut [Vec3A],
-    ) {
-        let mut drawn = std::mem::take(&mut self.drawn);
-        for (l, light) in lights.iter().enumerate() {
-            let dim = first_dim + l as u32 * P::DIMS;
-            drawn.clear();
-            drawn.extend(points.iter().map(|p| {
-                if skip_black && P::TERM.reflectance(&p.at.material).max_element() <= 0.0 {
-                    return None;
-                }
-                light.sample(&p.at, &LightSamples::from_sets(scene.sets, p.pixel, p.first, dim, P::DIMS))
-            }));
-            self.add_run(scene, |k| &points[k].spawn, &drawn, P::TERM, arriving);
-        }
-        self.drawn = drawn;
     }
 
     /// Adds a run of drawn samples to `arriving`, tracing the shadow rays whose answer matters in

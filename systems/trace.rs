@@ -179,16 +179,13 @@ fn trace_tile<C: CameraRays>(
                 let pixel = y * job.width + x;
                 if !acc.pixel_done(pixel as usize, target) {
                     camera_rays.push(camera.ray(x, y, Vec2::splat(0.5), Vec2::ZERO));
-                    row_pixels.push((pixel, acc.counts[pixel as usize], None));
+                    row_pixels.push((pixel, acc.counts[pixel as usize]));
                     timed += u64::from(timed_pixel(pixel));
                 }
             }
             tracer.primaries(scene, &camera_rays, &mut row_hits);
             // The lights that draw no samples, once per pixel, the row's shadow rays together.
-            for (p, &hit) in row_pixels.iter_mut().zip(&row_hits) {
-                p.2 = hit;
-            }
-            tracer.fixed_lights_row(scene, &row_pixels, !job.aovs, timed, &mut row_fixed);
+            tracer.fixed_lights_row(scene, &row_pixels, &row_hits, !job.aovs, timed, &mut row_fixed);
             // The timed pixels' part of the row's camera rays and fixed lights.
             if timed > 0 {
                 tracer.split.pixels += cycles_since(start) * timed / camera_rays.len() as u64;
