@@ -6,7 +6,8 @@
 //! cargo run --release --example kernel_rays -- SCENE.json RAYS.bin [RAYS_PER_POINT] [ROUNDS]
 //! ```
 //!
-//! Rays: the camera ray through each pixel's centre finds a point; from it leave
+//! Rays: the camera ray through each pixel's centre finds a point; from it (pushed the scene's
+//! `ao.epsilon` along the normal, as the renderer does) leave
 //! `RAYS_PER_POINT` (default 4) cosine-distributed rays with no length limit (SplitMix64 seed
 //! 5). Four orders of the same rays are timed, each as the best of `ROUNDS` (default 3) passes:
 //! one at a time in point order, one at a time in a shuffled order, in
@@ -107,10 +108,12 @@ fn ao_rays(scene: &PeerScene, geometry: &SceneGeometry, per_point: usize) -> Res
         for x in 0..scene.width {
             let Some(hit) = geometry.intersect(&cam.ray(x, y, Vec2::splat(0.5)), &mut stack) else { continue };
             let onb = Onb::from_normal(hit.normal.into());
+            // The renderer's origins for this scene: `ao.epsilon` along the normal.
+            let spawn = hit.spawn_origins(scene.epsilon);
             for _ in 0..per_point {
                 let s = cosine_power_hemisphere(Vec2::new(rng.next_f32(), rng.next_f32()), 1.0);
                 let w = glam::Vec3A::from(onb.to_world(s.dir));
-                rays.push(Ray::new(hit.spawn_origin(w), w, f32::INFINITY));
+                rays.push(Ray::new(spawn.towards(w), w, f32::INFINITY));
             }
         }
     }

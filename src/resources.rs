@@ -36,6 +36,11 @@ pub struct RenderSettings {
     /// [`RenderSettings::ADAPTIVE_MIN_SPP`] samples and the standard error of its mean
     /// luminance is at most this (`None`: every pixel gets every sample).
     pub target_error: Option<f32>,
+    /// Least distance (world units) along the surface normal at which shadow and AO rays
+    /// start from a hit. 0: just past the hit point's own rounding error, the smallest offset
+    /// that is safe at any scale; a peer scene sets its `ao.epsilon`, so that hemi traces the
+    /// rays of the peers' contract (`o = p + ε·n`).
+    pub ray_offset: f32,
 }
 
 impl Default for RenderSettings {
@@ -53,6 +58,7 @@ impl Default for RenderSettings {
             jitter: true,
             aovs: false,
             target_error: None,
+            ray_offset: 0.0,
         }
     }
 }
@@ -94,6 +100,9 @@ impl RenderSettings {
         }
         if !self.background.is_finite() || self.background.min_element() < 0.0 {
             return Err(format!("background {} must be finite and non-negative", self.background));
+        }
+        if !(self.ray_offset.is_finite() && self.ray_offset >= 0.0) {
+            return Err(format!("ray offset {} must be finite and non-negative", self.ray_offset));
         }
         Ok(())
     }

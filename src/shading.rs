@@ -58,6 +58,9 @@ pub struct Scene<'a> {
     pub sets: &'a SampleSets,
     /// Radiance of escaped primary rays.
     pub background: Vec3,
+    /// Least distance along the normal at which shadow and AO rays start from a hit
+    /// ([`crate::resources::RenderSettings::ray_offset`]).
+    pub ray_offset: f32,
 }
 
 /// What one camera sample saw, for the beauty image and the AOVs.
@@ -273,7 +276,7 @@ impl Tracer {
             *o = SampleResult::at_hit(primary, &material);
             let at = ShadingPoint::new(hit.p, hit.normal, material);
             let sample = first.wrapping_add(j as u32);
-            points.push(RunPoint { j: j as u32, pixel, sample, at, spawn: hit.spawn_origins() });
+            points.push(RunPoint { j: j as u32, pixel, sample, at, spawn: hit.spawn_origins(scene.ray_offset) });
         }
         let mut arriving = std::mem::take(&mut self.arriving);
         for &(first_dim, group) in scene.lights {
@@ -342,7 +345,7 @@ impl Tracer {
             let Some(PrimaryHit { hit, .. }) = hit else { continue };
             let material = scene.geometry.objects[hit.object as usize].material;
             let at = ShadingPoint::new(hit.p, hit.normal, material);
-            points.push(RunPoint { j: j as u32, pixel, sample, at, spawn: hit.spawn_origins() });
+            points.push(RunPoint { j: j as u32, pixel, sample, at, spawn: hit.spawn_origins(scene.ray_offset) });
         }
         // The row's cycles, kept apart and then scaled to the timed pixels' share.
         let (split, timing) = (std::mem::take(&mut self.split), self.timing);
@@ -414,7 +417,7 @@ impl Tracer {
         let hit = &primary.hit;
         let material = scene.geometry.objects[hit.object as usize].material;
         let at = ShadingPoint::new(hit.p, hit.normal, material);
-        let spawn = hit.spawn_origins();
+        let spawn = hit.spawn_origins(scene.ray_offset);
         out.start(primary, &material);
         let mut arriving = std::mem::take(&mut self.arriving);
         for &(first_dim, group) in scene.lights {

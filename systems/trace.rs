@@ -68,7 +68,13 @@ pub fn trace(
 
     // Registration order, then entity order, fixes which sample dimensions each light uses.
     let groups: Vec<(u32, &dyn LightGroup)> = lights.groups().filter(|(_, g)| g.count() > 0).collect();
-    let scene = Scene { geometry: &geometry, lights: &groups, sets: &sets, background: settings.background };
+    let scene = Scene {
+        geometry: &geometry,
+        lights: &groups,
+        sets: &sets,
+        background: settings.background,
+        ray_offset: settings.ray_offset,
+    };
 
     let tiles = tiles(settings.width, settings.height, settings.tile_size);
     let job = Job {

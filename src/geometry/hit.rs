@@ -27,19 +27,17 @@ impl SurfaceHit {
     /// arithmetic allows at any scale or distance from the origin.
     #[inline]
     pub fn spawn_origin(&self, w: Vec3A) -> Vec3A {
-        offset_ray_origin(self.p, self.p_error, self.normal, w)
+        offset_ray_origin(self.p, self.p_error, self.normal, w, 0.0)
     }
 
-    /// Both origins [`SurfaceHit::spawn_origin`] can return, worked out once for a hit that
-    /// spawns many rays.
+    /// Both origins a ray leaving this surface can start from, worked out once for a hit that
+    /// spawns many rays: those of [`SurfaceHit::spawn_origin`], pushed along the normal at
+    /// least `least` (world units) instead where that is farther (a fixed offset, as the peer
+    /// renderers' contract has it; 0 keeps the error bound's alone).
     #[inline]
-    pub fn spawn_origins(&self) -> SpawnOrigins {
-        SpawnOrigins {
-            p: self.p,
-            normal: self.normal,
-            front: self.spawn_origin(self.normal),
-            back: self.spawn_origin(-self.normal),
-        }
+    pub fn spawn_origins(&self, least: f32) -> SpawnOrigins {
+        let origin = |n: Vec3A| offset_ray_origin(self.p, self.p_error, self.normal, n, least);
+        SpawnOrigins { p: self.p, normal: self.normal, front: origin(self.normal), back: origin(-self.normal) }
     }
 }
 
@@ -75,10 +73,10 @@ impl SpawnOrigins {
 }
 
 /// Offsets `p` (with error bound `err`) along `n` to the side of `w`, far enough that the
-/// spawned ray cannot re-hit the surface that `p` lies on.
+/// spawned ray cannot re-hit the surface that `p` lies on, and at least `least` (world units).
 #[inline]
-pub fn offset_ray_origin(p: Vec3A, err: Vec3A, n: Vec3A, w: Vec3A) -> Vec3A {
-    let d = n.abs().dot(err);
+pub fn offset_ray_origin(p: Vec3A, err: Vec3A, n: Vec3A, w: Vec3A, least: f32) -> Vec3A {
+    let d = n.abs().dot(err).max(least);
     let mut offset = n * d;
     if w.dot(n) < 0.0 {
         offset = -offset;
@@ -183,11 +181,33 @@ mod tests {
             normal: Vec3A::new(0.6, 0.0, -0.8),
             object: 0,
         };
-        let origins = hit.spawn_origins();
+        let origins = hit.spawn_origins(0.0);
         let ws = [Vec3A::X, -Vec3A::X, Vec3A::Z, Vec3A::new(0.8, 0.3, 0.6), Vec3A::new(0.8, 0.0, 0.6), Vec3A::ZERO];
         for w in ws {
             assert_eq!(origins.towards(w), hit.spawn_origin(w), "w = {w}");
         }
         assert_ne!(origins.towards(Vec3A::X), origins.towards(-Vec3A::X));
+        // A least offset below the error bound's changes nothing.
+        assert_eq!(hit.spawn_origins(1e-9).sides(), origins.sides());
+    }
+
+    #[test]
+    fn a_least_offset_past_the_error_bound_starts_rays_that_far_along_the_normal() {
+        let hit = SurfaceHit {
+            t: 1.0,
+            p: Vec3A::new(2.0, 0.5, -1.0),
+            p_error: Vec3A::splat(1e-7),
+            normal: Vec3A::new(0.0, 0.6, 0.8),
+            object: 0,
+        };
+        let (front, back) = hit.spawn_origins(1e-3).sides();
+        for (origin, side) in [(front, 1.0), (back, -1.0)] {
+            // p + ε·n, then one float further from the surface.
+            let along = (origin - hit.p).dot(hit.normal) * side;
+            assert!((along - 1e-3).abs() < 1e-6, "{side}: {along}");
+            assert!((origin - hit.p - hit.normal * along * side).length() < 1e-6);
+        }
+        // Farther than the error bound alone would put them.
+        assert!((front - hit.p).length() > (hit.spawn_origin(hit.normal) - hit.p).length() * 100.0);
     }
 }

@@ -12,6 +12,7 @@ use crate::{
     components::{AmbientOccluder, Camera, PointLight, Transform},
     error::HemiError,
     npy,
+    resources::RenderSettings,
     scene::gltf::{self, SpawnOptions},
 };
 
@@ -35,7 +36,6 @@ struct CameraJson {
 struct AoJson {
     samples: u32,
     max_distance: Option<f32>,
-    #[allow(dead_code)] // hemi offsets rays by the hit's own error bound instead
     epsilon: Option<f32>,
 }
 
@@ -77,6 +77,9 @@ pub struct PeerScene {
     pub samples: u32,
     /// AO ray length (∞ when `null`).
     pub max_distance: f32,
+    /// How far along the normal shadow and AO rays start (`ao.epsilon`; 0 when `null`): the
+    /// renderer's [`RenderSettings::ray_offset`], which [`PeerScene::spawn`] sets.
+    pub epsilon: f32,
     /// Point lights: position and radiant intensity per channel.
     pub lights: Vec<(Vec3, Vec3)>,
     /// The scene's seed.
@@ -104,12 +107,16 @@ impl PeerScene {
             height: json.height,
             samples: json.ao.samples.max(1),
             max_distance: json.ao.max_distance.unwrap_or(f32::INFINITY),
+            epsilon: json.ao.epsilon.unwrap_or(0.0),
             lights: json.point_lights.iter().map(|l| (l.position.into(), l.intensity.into())).collect(),
             seed: json.seed,
         };
         scene.camera.validate().map_err(fail)?;
         if scene.max_distance.is_nan() || scene.max_distance <= 0.0 {
             return Err(fail(format!("ao.max_distance {} must be positive or null", scene.max_distance)));
+        }
+        if !(scene.epsilon.is_finite() && scene.epsilon >= 0.0) {
+            return Err(fail(format!("ao.epsilon {} must be finite and non-negative, or null", scene.epsilon)));
         }
         if let Some((p, i)) =
             scene.lights.iter().find(|(p, i)| !p.is_finite() || !i.is_finite() || i.min_element() < 0.0)
@@ -119,9 +126,13 @@ impl PeerScene {
         Ok(scene)
     }
 
-    /// Spawns meshes (as static geometry, albedo = baseColorFactor), camera, occluder and lights.
-    /// Returns the loaders' warnings.
+    /// Spawns meshes (as static geometry, albedo = baseColorFactor), camera, occluder and lights,
+    /// and sets the world's [`RenderSettings::ray_offset`] (where it has settings) to the
+    /// scene's `epsilon`. Returns the loaders' warnings.
     pub fn spawn(&self, world: &mut World) -> Result<Vec<String>, HemiError> {
+        if let Some(mut settings) = world.get_resource_mut::<RenderSettings>() {
+            settings.ray_offset = self.epsilon;
+        }
         let mut warnings = Vec::new();
         for mesh in &self.meshes {
             let scene = gltf::load(mesh)?;

@@ -22,6 +22,7 @@ pub fn settings(width: u32, height: u32, spp: u32, sampler: SamplerKind) -> Rend
         jitter: true,
         aovs: false,
         target_error: None,
+        ray_offset: 0.0,
     }
 }
 
