@@ -2,10 +2,13 @@
 # Runs hemi, Embree 4 (embreex) and Mitsuba 3 (llvm_ad_rgb) on the same peer scenes, one after
 # the other in one session, and prints AO-ray throughput, render time and the ratios.
 #
-#   scripts/compare-peers.sh [--spp N] [--threads N] [--rounds N] [SCENE ...]   (default: all five)
+#   scripts/compare-peers.sh [--spp N] [--threads N] [--rounds N] [--split] [SCENE ...]   (default: all five)
 #
 # --rounds N runs every scene N times, round by round (so a slow spell of a shared machine hits
 # all three renderers alike), prints each run, then per scene the median ratios and their range.
+# --split also renders, in each round, a copy of each scene whose AO rays are 1e-7 long, with
+# hemi and Mitsuba: what their AO kernels spend on such rays (sampling, set-up, sums, and the
+# queries' walk down to the nodes around each ray's origin) against what the real rays add.
 #
 # SCENE is a name from ../shared/peers/scenes (cornell, sphere_plane, many_spheres, dragon,
 # sponza). The peers run from a writable copy in $HEMI_PEERS_DIR (default /tmp/hemi-peers) with
@@ -17,13 +20,15 @@ peers_src="$root/../shared/peers"
 spp=256
 threads=2
 rounds=1
+split=0
 scenes=()
 while [ $# -gt 0 ]; do
     case "$1" in
         --spp) spp="$2"; shift 2 ;;
         --threads) threads="$2"; shift 2 ;;
         --rounds) rounds="$2"; shift 2 ;;
-        -h|--help) sed -n '2,14p' "$0"; exit 0 ;;
+        --split) split=1; shift ;;
+        -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
         *) scenes+=("$1"); shift ;;
     esac
 done
@@ -65,6 +70,27 @@ for s in "${scenes[@]}"; do
     ratio=$(python3 -c "print(f'{$h_aok/$m_ao:.2f}x, {$h_ao/$m_ao:.2f}x, {$h_ao/$e_ao:.2f}x')" 2>/dev/null || echo "-")
     printf '%-13s %5s | %10s s %12s %12s %12s | %10s s %12s       | %10s s %12s       | %s\n' "$s" "$spp" "$h_s" "$h_ao" "$h_aok" "$h_aoq" "$e_s" "$e_ao" "$m_s" "$m_ao" "$ratio"
     echo "$s $h_s $h_ao $h_aok $h_aoq $e_s $e_ao $m_s $m_ao" >> "$out/runs.txt"
+    if [ "$split" = 1 ]; then
+        # The scene with 1e-7-long AO rays (mesh paths made absolute), then both kernels' seconds on
+        # it beside those of the run above.
+        python3 - "$peers_src/scenes/$s.json" "$out/$s.stub.json" <<'PY'
+import json, os, sys
+src, dst = sys.argv[1:]
+d = json.load(open(src))
+here = os.path.dirname(os.path.abspath(src))
+d["mesh"] = [os.path.join(here, m) for m in d["mesh"]] if isinstance(d["mesh"], list) else os.path.join(here, d["mesh"])
+d["ao"]["max_distance"] = 1e-7
+json.dump(d, open(dst, "w"))
+PY
+        "$hemi" render "$out/$s.stub.json" --spp "$spp" --threads "$threads" --out "$out/$s.stub.png" \
+            --stats-json "$out/$s.stub.hemi.json" 2>/dev/null
+        h_full=$(json "d['total']['ao_seconds']" < "$out/$s.json")
+        h_stub=$(json "d['total']['ao_seconds']" < "$out/$s.stub.hemi.json")
+        m_full=$(echo "$m_line" | json "d['ao_kernel_exec_s']" 2>/dev/null || echo nan)
+        m_stub=$(cd "$work" && .venv/bin/python mitsuba_ao.py "$out/$s.stub.json" --spp "$spp" --threads "$threads" \
+            --repeat 2 --out "$out/$s.stub.mitsuba" 2>/dev/null | tail -1 | json "d['ao_kernel_exec_s']" 2>/dev/null || echo nan)
+        echo "$s $h_full $h_stub $m_full $m_stub" >> "$out/split.txt"
+    fi
 done
 done
 if [ "$rounds" -gt 1 ]; then
@@ -93,3 +119,20 @@ echo "hemi kernel = AO rays / the trace time spent in the ambient occluder (its 
 echo "the part Mitsuba's number times), from cycle counts of every sixteenth pixel; hemi queries = AO rays / the"
 echo "part of that in the AO rays' BVH queries alone (traversal and triangle tests; no sampling, set-up or sums);"
 echo "embree = ao_incl_gen_mrays_s (numpy ray generation + occlusion); mitsuba = ao_mrays_s (whole AO kernel, warm run)."
+if [ "$split" = 1 ]; then
+    echo "AO kernel ms with rays 1e-7 long ('stub': sampling, set-up, sums, the walk to the origin's nodes) and"
+    echo "what the scene's real rays add ('rest' = full - stub); medians over the rounds."
+    python3 - "$out/split.txt" <<'PY'
+import statistics, sys
+runs = {}
+for line in open(sys.argv[1]):
+    name, *v = line.split()
+    runs.setdefault(name, []).append([1e3 * float(x) for x in v])
+print(f"{'scene':13s} | {'hemi full':>9s} {'stub':>7s} {'rest':>7s} | {'mitsuba full':>12s} {'stub':>7s} {'rest':>7s} | "
+      f"{'stub h/m':>8s} {'rest h/m':>8s}")
+for name, rows in runs.items():
+    hf, hs, mf, ms = (statistics.median(c) for c in zip(*rows))
+    print(f"{name:13s} | {hf:9.1f} {hs:7.1f} {hf - hs:7.1f} | {mf:12.1f} {ms:7.1f} {mf - ms:7.1f} | "
+          f"{hs / ms:7.2f}x {(hf - hs) / (mf - ms):7.2f}x")
+PY
+fi
