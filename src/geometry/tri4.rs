@@ -14,9 +14,12 @@ use super::{
     shapes::Triangle,
 };
 
-/// Four triangles (fewer in a leaf's last packet: unused lanes have slot `u32::MAX`).
+/// Four triangles (fewer in a leaf's last packet: unused lanes have slot `u32::MAX`). Aligned
+/// to 32 bytes, so that in an array each 160-byte packet starts on or halfway into a 64-byte
+/// cache line and spans three lines (16-byte alignment let half of them straddle four, whose
+/// last, with the slots, a prefetch of 160 bytes from the packet's start does not reach).
 #[derive(Clone, Copy, Debug)]
-#[repr(C, align(16))]
+#[repr(C, align(32))]
 pub struct Tri4 {
     /// `p[v][a]`: axis `a` of vertex `v` of the four triangles.
     p: [[Vec4; 3]; 3],
@@ -352,6 +355,21 @@ mod tests {
     fn a_packet_leaving_a_triangle_gets_exactly_finish_s_plane_hits() {
         use crate::geometry::lanes::{Avx, Avx512, both_widths};
         both_widths(packet_leaving_a_triangle::<Avx>, packet_leaving_a_triangle::<Avx512>);
+    }
+
+    #[test]
+    fn every_packet_of_an_array_spans_three_cache_lines() {
+        assert_eq!(size_of::<Tri4>(), 160);
+        let lines = |start: usize| (start + size_of::<Tri4>() - 1) / 64 - start / 64 + 1;
+        // Wherever its alignment lets an array start within a line.
+        for base in (0..64).step_by(align_of::<Tri4>()) {
+            for k in 0..4 {
+                assert_eq!(lines(base + k * size_of::<Tri4>()), 3, "array at {base} mod 64, packet {k}");
+            }
+        }
+        let tri = Triangle { p: [Vec3A::ZERO, Vec3A::X, Vec3A::Y] };
+        let packets: Vec<Tri4> = (0..8).map(|_| Tri4::pack([(0, tri)].into_iter())).collect();
+        assert!(packets.iter().all(|p| lines(p as *const Tri4 as usize) == 3));
     }
 
     /// [`a_packet_leaving_a_triangle_gets_exactly_finish_s_plane_hits`] for `L::WIDTH` rays.
