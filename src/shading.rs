@@ -63,6 +63,14 @@ pub struct Scene<'a> {
     pub ray_offset: f32,
 }
 
+impl Scene<'_> {
+    /// The light groups that draw no samples ([`LightGroup::dims`] 0: point lights), with their
+    /// first sample dimension, in `lights` order.
+    fn fixed_groups(&self) -> impl Iterator<Item = &(u32, &dyn LightGroup)> {
+        self.lights.iter().filter(|(_, g)| g.dims() == 0)
+    }
+}
+
 /// What one camera sample saw, for the beauty image and the AOVs.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SampleResult {
@@ -234,6 +242,16 @@ pub struct RunPoint {
     spawn: SpawnOrigins,
 }
 
+impl RunPoint {
+    /// The point `j` of a run or row: camera hit `hit`, sample `sample` of `pixel`, its material
+    /// from `scene` and its shadow rays starting [`Scene::ray_offset`] or more off the surface.
+    fn new(scene: &Scene, hit: &SurfaceHit, j: usize, pixel: u32, sample: u32) -> Self {
+        let material = scene.geometry.objects[hit.object as usize].material;
+        let at = ShadingPoint::new(hit.p, hit.normal, material);
+        RunPoint { j: j as u32, pixel, sample, at, spawn: hit.spawn_origins(scene.ray_offset) }
+    }
+}
+
 /// pbrt-v4's ShadowEpsilon: shadow rays to a point stop this fraction short of it.
 const SHADOW_EPSILON: f32 = 1e-4;
 
@@ -271,29 +289,40 @@ impl Tracer {
                 *o = SampleResult { radiance: scene.background, ..Default::default() };
                 continue;
             };
-            let hit = &primary.hit;
-            let material = scene.geometry.objects[hit.object as usize].material;
-            *o = SampleResult::at_hit(primary, &material);
-            let at = ShadingPoint::new(hit.p, hit.normal, material);
-            let sample = first.wrapping_add(j as u32);
-            points.push(RunPoint { j: j as u32, pixel, sample, at, spawn: hit.spawn_origins(scene.ray_offset) });
+            let point = RunPoint::new(scene, &primary.hit, j, pixel, first.wrapping_add(j as u32));
+            *o = SampleResult::at_hit(primary, &point.at.material);
+            points.push(point);
         }
         let mut arriving = std::mem::take(&mut self.arriving);
         for &(first_dim, group) in scene.lights {
-            arriving.clear();
-            arriving.resize(points.len(), Vec3A::ZERO);
-            let start = self.timing.then(cycle_count);
-            group.shade_points(self, scene, &points, first_dim, skip_black, &mut arriving);
+            self.light_points(scene, group, first_dim, &points, skip_black, &mut arriving);
             let term = group.term();
-            if let Some(start) = start {
-                self.split.add_term(term, cycles_since(start));
-            }
             for (p, &a) in points.iter().zip(&arriving) {
                 out[p.j as usize].add_light(term, term.reflectance(&p.at.material), a.into());
             }
         }
         self.arriving = arriving;
         self.points = points;
+    }
+
+    /// Sets `arriving` to the light `group` (first sample dimension `first_dim`) brings to each
+    /// of `points`, one element per point, its cycles counted in `split` when timing.
+    fn light_points(
+        &mut self,
+        scene: &Scene,
+        group: &dyn LightGroup,
+        first_dim: u32,
+        points: &[RunPoint],
+        skip_black: bool,
+        arriving: &mut Vec<Vec3A>,
+    ) {
+        arriving.clear();
+        arriving.resize(points.len(), Vec3A::ZERO);
+        let start = self.timing.then(cycle_count);
+        group.shade_points(self, scene, points, first_dim, skip_black, arriving);
+        if let Some(start) = start {
+            self.split.add_term(group.term(), cycles_since(start));
+        }
     }
 
     /// The first hits of a run of camera rays that travel together (one pixel's samples, or a
@@ -332,7 +361,7 @@ impl Tracer {
         out: &mut Vec<Vec3A>,
     ) {
         let n = hits.len();
-        let fixed = scene.lights.iter().filter(|(_, g)| g.dims() == 0).count();
+        let fixed = scene.fixed_groups().count();
         out.clear();
         out.resize(fixed * n, Vec3A::ZERO);
         if fixed == 0 || n == 0 {
@@ -343,33 +372,20 @@ impl Tracer {
         // A plain loop: through `filter_map` each point was copied by a call to memcpy.
         for (j, (&(pixel, sample), hit)) in pixels.iter().zip(hits).enumerate() {
             let Some(PrimaryHit { hit, .. }) = hit else { continue };
-            let material = scene.geometry.objects[hit.object as usize].material;
-            let at = ShadingPoint::new(hit.p, hit.normal, material);
-            points.push(RunPoint { j: j as u32, pixel, sample, at, spawn: hit.spawn_origins(scene.ray_offset) });
+            points.push(RunPoint::new(scene, hit, j, pixel, sample));
         }
         // The row's cycles, kept apart and then scaled to the timed pixels' share.
         let (split, timing) = (std::mem::take(&mut self.split), self.timing);
         self.timing = timed > 0;
         let mut arriving = std::mem::take(&mut self.arriving);
-        let groups = scene.lights.iter().filter(|(_, g)| g.dims() == 0);
-        for (g, &(first_dim, group)) in groups.enumerate() {
-            arriving.clear();
-            arriving.resize(points.len(), Vec3A::ZERO);
-            let start = self.timing.then(cycle_count);
-            group.shade_points(self, scene, &points, first_dim, skip_black, &mut arriving);
-            if let Some(start) = start {
-                self.split.add_term(group.term(), cycles_since(start));
-            }
+        for (g, &(first_dim, group)) in scene.fixed_groups().enumerate() {
+            self.light_points(scene, group, first_dim, &points, skip_black, &mut arriving);
             for (p, &a) in points.iter().zip(&arriving) {
                 out[g * n + p.j as usize] = a;
             }
         }
         let row = std::mem::replace(&mut self.split, split);
-        let share = |cycles: u64| cycles * timed / n as u64;
-        self.split.ambient += share(row.ambient);
-        self.split.diffuse += share(row.diffuse);
-        self.split.ambient_queries += share(row.ambient_queries);
-        self.split.diffuse_queries += share(row.diffuse_queries);
+        self.split.add(&row.scaled(timed, n as u64));
         self.timing = timing;
         self.arriving = arriving;
         self.row = points;
@@ -388,8 +404,7 @@ impl Tracer {
     ) {
         let material = scene.geometry.objects[primary.hit.object as usize].material;
         out.start(primary, &material);
-        let groups = scene.lights.iter().filter(|(_, g)| g.dims() == 0);
-        for (g, &(_, group)) in groups.enumerate() {
+        for (g, &(_, group)) in scene.fixed_groups().enumerate() {
             let term = group.term();
             let reflectance = term.reflectance(&material);
             if skip_black && reflectance.max_element() <= 0.0 {

@@ -94,6 +94,19 @@ impl TraceSplit {
         self.diffuse_queries += other.diffuse_queries;
     }
 
+    /// Every count times `numerator / denominator` (rounded down): a part's share of counts
+    /// taken over a whole.
+    pub fn scaled(&self, numerator: u64, denominator: u64) -> TraceSplit {
+        let share = |cycles: u64| cycles * numerator / denominator;
+        TraceSplit {
+            pixels: share(self.pixels),
+            ambient: share(self.ambient),
+            diffuse: share(self.diffuse),
+            ambient_queries: share(self.ambient_queries),
+            diffuse_queries: share(self.diffuse_queries),
+        }
+    }
+
     /// The share of `trace` (the trace system's wall time) spent in lights of `term`: its
     /// share of the timed pixels' cycles.
     pub fn time_of(&self, term: Term, trace: Duration) -> Duration {
