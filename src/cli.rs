@@ -113,8 +113,9 @@ struct RenderArgs {
     /// scene's ao.samples].
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
     spp: Option<u32>,
-    /// Samples per pixel traced by each frame [default: up to 64; 16 with --target-error, so
-    /// pixels retire early]. Larger frames amortise the camera ray and per-frame work.
+    /// Samples per pixel traced by each frame [default: all of --spp in one frame, up to 4096;
+    /// 16 with --target-error, so pixels retire early]. Larger frames amortise the camera ray
+    /// and per-frame work.
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65_536))]
     spf: Option<u32>,
     /// Image size, WIDTHxHEIGHT [default: 640x360, or a peer scene's own].
@@ -437,15 +438,17 @@ fn render(args: RenderArgs) -> Result<(), HemiError> {
     };
     let size = args.size.or(peer.as_ref().map(|p| (p.width, p.height))).unwrap_or((640, 360));
     let spp = args.spp.or(peer.as_ref().map(|p| p.samples)).unwrap_or(16);
+    // One sample set, and one frame, for the whole render up to the largest set size.
+    let set = spp.min(4096);
     let settings = RenderSettings {
         width: size.0,
         height: size.1,
         samples_per_frame: args.spf.unwrap_or(if args.target_error.is_some() {
             RenderSettings::ADAPTIVE_MIN_SPP
         } else {
-            spp.min(64)
+            set
         }),
-        samples_per_set: spp.min(4096),
+        samples_per_set: set,
         max_spp: Some(spp),
         seed: args.seed.or(peer.as_ref().map(|p| p.seed)).unwrap_or(0),
         sampler: args.sampler,

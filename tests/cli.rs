@@ -46,6 +46,12 @@ fn stats_prints_a_table_per_frame() {
         assert!(out.contains(system), "missing {system} in {out}");
     }
     assert!(err.contains("Mrays/s"));
+    // Without --spf the whole --spp is one frame (one camera ray per pixel, one sample set).
+    let (code, out, err) = hemi(&["render", "--out", png.to_str().unwrap(), "--size", "8x8", "--spp", "80", "--stats"]);
+    assert_eq!(code, 0, "{err}");
+    let frames: Vec<&str> = out.lines().filter(|l| l.starts_with("frame ")).collect();
+    assert_eq!(frames.len(), 1, "{out}");
+    assert!(frames[0].contains("spp    80 (+80)"), "{out}");
 }
 
 #[test]
