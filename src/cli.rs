@@ -438,8 +438,7 @@ fn render(args: RenderArgs) -> Result<(), HemiError> {
     };
     let size = args.size.or(peer.as_ref().map(|p| (p.width, p.height))).unwrap_or((640, 360));
     let spp = args.spp.or(peer.as_ref().map(|p| p.samples)).unwrap_or(16);
-    // One sample set, and one frame, for the whole render up to the largest set size.
-    let set = spp.min(4096);
+    let set = spp.min(RenderSettings::ONE_FRAME_SPP);
     let settings = RenderSettings {
         width: size.0,
         height: size.1,

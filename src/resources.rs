@@ -67,6 +67,12 @@ impl RenderSettings {
     /// Samples a pixel takes before adaptive sampling may judge its error.
     pub const ADAPTIVE_MIN_SPP: u32 = 16;
 
+    /// The largest sample set, and frame, that the command line and `hemi compare` make for a
+    /// render of a given total: up to this many samples per pixel go in one frame, one pass of
+    /// one pattern (one camera ray per pixel under the peers' contract, whole passes for the
+    /// occluder's quadrant packets).
+    pub const ONE_FRAME_SPP: u32 = 4096;
+
     /// Largest image hemi accepts, in pixels (8192 × 4096); buffers take about 60 bytes each.
     pub const MAX_PIXELS: u64 = 1 << 25;
 

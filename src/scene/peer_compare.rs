@@ -50,8 +50,8 @@ pub fn compare(
     let settings = RenderSettings {
         width: scene.width,
         height: scene.height,
-        samples_per_frame: spp.min(64),
-        samples_per_set: spp.min(4096),
+        samples_per_frame: spp.min(RenderSettings::ONE_FRAME_SPP),
+        samples_per_set: spp.min(RenderSettings::ONE_FRAME_SPP),
         max_spp: Some(spp),
         seed: scene.seed,
         sampler,
