@@ -64,6 +64,14 @@ pub struct Scene<'a> {
 }
 
 impl Scene<'_> {
+    /// Camera hit `hit` ready to be lit: its shading point (material from the scene) and where
+    /// its shadow rays start, [`Scene::ray_offset`] or more off the surface.
+    #[inline]
+    fn lit_point(&self, hit: &SurfaceHit) -> (ShadingPoint, SpawnOrigins) {
+        let material = self.geometry.objects[hit.object as usize].material;
+        (ShadingPoint::new(hit.p, hit.normal, material), hit.spawn_origins(self.ray_offset))
+    }
+
     /// The light groups that draw no samples ([`LightGroup::dims`] 0: point lights), with their
     /// first sample dimension, in `lights` order.
     fn fixed_groups(&self) -> impl Iterator<Item = &(u32, &dyn LightGroup)> {
@@ -243,12 +251,11 @@ pub struct RunPoint {
 }
 
 impl RunPoint {
-    /// The point `j` of a run or row: camera hit `hit`, sample `sample` of `pixel`, its material
-    /// from `scene` and its shadow rays starting [`Scene::ray_offset`] or more off the surface.
+    /// The point `j` of a run or row: camera hit `hit` ([`Scene::lit_point`]), sample `sample`
+    /// of `pixel`.
     fn new(scene: &Scene, hit: &SurfaceHit, j: usize, pixel: u32, sample: u32) -> Self {
-        let material = scene.geometry.objects[hit.object as usize].material;
-        let at = ShadingPoint::new(hit.p, hit.normal, material);
-        RunPoint { j: j as u32, pixel, sample, at, spawn: hit.spawn_origins(scene.ray_offset) }
+        let (at, spawn) = scene.lit_point(hit);
+        RunPoint { j: j as u32, pixel, sample, at, spawn }
     }
 }
 
@@ -429,10 +436,8 @@ impl Tracer {
         skip_black: bool,
         out: &mut O,
     ) {
-        let hit = &primary.hit;
-        let material = scene.geometry.objects[hit.object as usize].material;
-        let at = ShadingPoint::new(hit.p, hit.normal, material);
-        let spawn = hit.spawn_origins(scene.ray_offset);
+        let (at, spawn) = scene.lit_point(&primary.hit);
+        let material = at.material;
         out.start(primary, &material);
         let mut arriving = std::mem::take(&mut self.arriving);
         for &(first_dim, group) in scene.lights {
