@@ -27,7 +27,7 @@ use crate::{
         hit::SpawnOrigins,
         ray::Ray,
     },
-    light::{DirectionRun, DirectionTerms},
+    light::{DirectionRun, DirectionTerms, RunSum},
     math::Onb,
     sampling::SampleSets,
     stats::{cycle_count, cycles_since},
@@ -61,6 +61,14 @@ fn quadrant_lanes(needs: u32, negative: [u32; 2]) -> QuadrantLanes {
     let [nu, nv] = negative;
     let (pu, nu) = (needs & !nu, needs & nu);
     [pu & !nv, nu & !nv, nu & nv, pu & nv]
+}
+
+/// Where [`DirectionRays::add_cosine_quadrants`] puts a run's light: one element per sample,
+/// or summed over the run (its samples, and the sum it adds to).
+#[cfg(target_arch = "x86_64")]
+enum QuadrantOut<'a> {
+    Each(&'a mut [Vec3A]),
+    Sum(usize, &'a mut Vec3A),
 }
 
 /// Scratch buffers for [`DirectionRays::add`], kept between runs.
@@ -130,7 +138,8 @@ impl DirectionRays {
     /// scene's packets are sixteen wide and the sets are computed in lanes: straight from the
     /// patterns in quadrant order where the run is whole passes that split into quadrants
     /// ([`SampleSets::quadrant_passes`]), else sorted into quadrants from columns
-    /// ([`SampleSets::fill_columns`]). `None`, having done nothing, elsewhere.
+    /// ([`SampleSets::fill_columns`]). `None`, having done nothing, elsewhere. With `sum`, whole
+    /// quadrant passes add the run's light there, summed, instead of to `arriving`.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn add_cosine(
         &mut self,
@@ -142,15 +151,20 @@ impl DirectionRays {
         (pixel, first, dim): (u32, u32, u32),
         terms: &DirectionTerms,
         arriving: &mut [Vec3A],
+        sum: Option<&mut RunSum>,
     ) -> Option<(u64, u64)> {
         #[cfg(target_arch = "x86_64")]
         if geometry.packet_lanes() == 16 {
             if let Some((cmj, passes)) = sets.quadrant_passes(pixel, first, dim, arriving.len()) {
                 let n = sets.set_size() as usize;
+                let out = match sum {
+                    Some(sum) => QuadrantOut::Sum(arriving.len(), &mut sum.light),
+                    None => QuadrantOut::Each(arriving),
+                };
                 // SAFETY: sixteen-lane packets and quadrant patterns are used only where
                 // AVX-512 (and POPCNT) was detected.
                 return Some(unsafe {
-                    self.add_cosine_quadrants(geometry, stack, spawn, frame, (cmj, n, passes), terms, arriving)
+                    self.add_cosine_quadrants(geometry, stack, spawn, frame, (cmj, n, passes), terms, out)
                 });
             }
             let n = arriving.len().next_multiple_of(16);
@@ -159,11 +173,14 @@ impl DirectionRays {
             ys.resize(n, 0.5);
             let len = arriving.len();
             if sets.fill_columns(pixel, first, dim, &mut xs[..len], &mut ys[..len]) {
+                if let Some(sum) = sum {
+                    sum.per_sample = true;
+                }
                 // SAFETY: sixteen-lane packets are used only where AVX-512 (and POPCNT) was detected.
                 return Some(unsafe { self.add_cosine_avx512(geometry, stack, spawn, frame, terms, arriving) });
             }
         }
-        let _ = (geometry, stack, spawn, frame, sets, pixel, first, dim, terms, arriving);
+        let _ = (geometry, stack, spawn, frame, sets, pixel, first, dim, terms, arriving, sum);
         None
     }
 
@@ -292,8 +309,9 @@ impl DirectionRays {
     /// samples made and traced sixteen slots at a time in the pattern's quadrant order
     /// ([`QuadrantPattern`]), so every packet is rays into one quarter of the hemisphere around
     /// the shading normal, straight from the pattern to the query, with no columns written and
-    /// no sort; then each sample's answer is read back by its slot, in sample order. Each
-    /// sample gets the same ray, answer and sum as in [`DirectionRays::add_cosine_avx512`].
+    /// no sort; then each sample's answer is read back by its slot, in sample order, or, for a
+    /// sum, the blocked ones counted. Each sample gets the same ray, answer and light as in
+    /// [`DirectionRays::add_cosine_avx512`].
     ///
     /// # Safety
     /// The CPU must have AVX-512F and POPCNT ([`crate::cpu::avx512`]).
@@ -308,16 +326,16 @@ impl DirectionRays {
         frame: &Onb,
         (cmj, n, passes): (&Cmj, usize, impl Iterator<Item = u32>),
         terms: &DirectionTerms,
-        arriving: &mut [Vec3A],
+        mut out: QuadrantOut,
     ) -> (u64, u64) {
         use std::arch::x86_64::*;
 
         // Every sample has weight 1: one clear value and one floor for all.
         let (clear, floor) = clear_and_floor(terms, 1.0);
         let tracing = clear.cmpne(floor).any();
-        let (mut traced, mut cycles) = (0, 0);
+        let (mut traced, mut cycles, mut dark) = (0, 0, 0);
         stack.clear();
-        for (sums, p) in arriving.chunks_mut(n).zip(passes) {
+        for (pass, p) in passes.enumerate() {
             let pattern = QuadrantPattern::new(cmj, p);
             // Bit k of entry i: slot 16i + k is blocked.
             let mut blocked = [0u32; 16];
@@ -333,11 +351,19 @@ impl DirectionRays {
                 }
                 traced += n;
             }
+            let QuadrantOut::Each(arriving) = &mut out else {
+                dark += blocked.iter().map(|b| b.count_ones()).sum::<u32>();
+                continue;
+            };
             // SAFETY: the load reads the sixteen entries of `blocked`.
             let blocked = unsafe { _mm512_loadu_si512(blocked.as_ptr().cast()) };
-            for (group, sums) in sums.chunks_mut(16).enumerate() {
+            for (group, sums) in arriving[pass * n..][..n].chunks_mut(16).enumerate() {
                 add_clear_or_floor(clear, floor, pattern.marked(group, blocked).into(), sums);
             }
+        }
+        if let QuadrantOut::Sum(samples, sum) = out {
+            // Whole numbers of samples (at most 2²⁴): exact as floats.
+            *sum += clear * (samples as u32 - dark) as f32 + floor * dark as f32;
         }
         (traced as u64, cycles)
     }

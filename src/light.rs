@@ -336,6 +336,8 @@ pub trait LightGroup: Send + Sync {
     /// Adds the group's light arriving at `at` (before the material's reflectance) for the
     /// samples `first, first + 1, …` of `pixel`, one per element of `arriving`, tracing shadow
     /// rays from `spawn` with `tracer`. The samples share the hit, so per-hit work is done once.
+    /// With `sum`, lights that can add their whole run at once add it there instead
+    /// ([`RunSum`]).
     #[allow(clippy::too_many_arguments)]
     fn shade(
         &self,
@@ -347,6 +349,7 @@ pub trait LightGroup: Send + Sync {
         first: u32,
         first_dim: u32,
         arriving: &mut [Vec3A],
+        sum: Option<&mut RunSum>,
     );
     /// Adds the group's light arriving at each of `points` into `arriving`, one element per
     /// point: a pixel's run of camera samples (their light samples computed ahead), or, for
@@ -361,6 +364,18 @@ pub trait LightGroup: Send + Sync {
         skip_black: bool,
         arriving: &mut [Vec3A],
     );
+}
+
+/// A run's light summed over its samples, for callers that need only the sum (the beauty
+/// image without adaptive sampling): lights that can add a whole run at once (cosine runs of
+/// whole quadrant passes, which count their blocked rays) add it to `light`; the others still
+/// add theirs sample by sample to the run's `arriving`, and set `per_sample`.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RunSum {
+    /// Light arriving, summed over the run's samples.
+    pub light: Vec3A,
+    /// Whether some of the run's light went to `arriving` instead.
+    pub per_sample: bool,
 }
 
 struct Group<P>(Vec<P>);
@@ -389,8 +404,9 @@ impl<P: PlacedLight> LightGroup for Group<P> {
         first: u32,
         first_dim: u32,
         arriving: &mut [Vec3A],
+        sum: Option<&mut RunSum>,
     ) {
-        tracer.shade_lights(scene, spawn, at, &self.0, pixel, first, first_dim, arriving)
+        tracer.shade_lights(scene, spawn, at, &self.0, pixel, first, first_dim, arriving, sum)
     }
 
     fn shade_points(

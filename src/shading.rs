@@ -8,7 +8,7 @@ use crate::{
     components::Matte,
     direction_rays::DirectionRays,
     geometry::{Ray, RayOrder, SceneGeometry, SpawnOrigins, SurfaceHit},
-    light::{DirectionRun, LightGroup, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term},
+    light::{DirectionRun, LightGroup, LightSample, LightSamples, PlacedLight, RunSum, ShadingPoint, Shadow, Term},
     resources::AovValues,
     sampling::{SampleSets, dims},
     stats::{TraceSplit, cycle_count, cycles_since},
@@ -437,26 +437,65 @@ impl Tracer {
         out: &mut O,
     ) {
         let (at, spawn) = scene.lit_point(&primary.hit);
-        let material = at.material;
-        out.start(primary, &material);
+        out.start(primary, &at.material);
+        let sample = (pixel, first, out.len());
+        self.shade_groups(scene, (&at, &spawn), sample, skip_black, false, |term, reflectance, arriving, _| {
+            out.add_light(term, reflectance, arriving)
+        });
+    }
+
+    /// What [`Tracer::shade`] gives the beauty image, summed over the `count` samples (the
+    /// samples' radiance alone, lights whose reflectance is black skipped): where a light can
+    /// add a whole run at once ([`RunSum`]: the ambient occluder's whole quadrant passes, which
+    /// count their blocked rays), no per-sample values are made, added or summed. The same
+    /// rays as [`Tracer::shade`]; the sum may differ from adding its samples in the last bits.
+    #[inline]
+    pub fn shade_sum(&mut self, scene: &Scene, primary: &PrimaryHit, pixel: u32, first: u32, count: u32) -> Vec3A {
+        let (at, spawn) = scene.lit_point(&primary.hit);
+        let mut radiance = Vec3A::ZERO;
+        let sample = (pixel, first, count as usize);
+        self.shade_groups(scene, (&at, &spawn), sample, true, true, |_, reflectance, arriving, sum| {
+            let mut light = sum.light;
+            if sum.per_sample {
+                light += arriving.iter().sum::<Vec3A>();
+            }
+            radiance += Vec3A::from(reflectance) * light;
+        });
+        radiance
+    }
+
+    /// Lights the samples `first, first + 1, …` (`n` of them) of `pixel` at `at` with every
+    /// light group that draws samples, giving `add` each group's term, reflectance, light
+    /// arriving per sample and, when `sums`, the light it added as a whole-run sum instead.
+    #[inline]
+    fn shade_groups(
+        &mut self,
+        scene: &Scene,
+        (at, spawn): (&ShadingPoint, &SpawnOrigins),
+        (pixel, first, n): (u32, u32, usize),
+        skip_black: bool,
+        sums: bool,
+        mut add: impl FnMut(Term, Vec3, &[Vec3A], RunSum),
+    ) {
         let mut arriving = std::mem::take(&mut self.arriving);
         for &(first_dim, group) in scene.lights {
             if group.dims() == 0 {
                 continue;
             }
             let term = group.term();
-            let reflectance = term.reflectance(&material);
+            let reflectance = term.reflectance(&at.material);
             if skip_black && reflectance.max_element() <= 0.0 {
                 continue;
             }
             arriving.clear();
-            arriving.resize(out.len(), Vec3A::ZERO);
+            arriving.resize(n, Vec3A::ZERO);
+            let mut sum = RunSum::default();
             let start = self.timing.then(cycle_count);
-            group.shade(self, scene, &spawn, &at, pixel, first, first_dim, &mut arriving);
+            group.shade(self, scene, spawn, at, pixel, first, first_dim, &mut arriving, sums.then_some(&mut sum));
             if let Some(start) = start {
                 self.split.add_term(term, cycles_since(start));
             }
-            out.add_light(term, reflectance, &arriving);
+            add(term, reflectance, &arriving, sum);
         }
         self.arriving = arriving;
     }
@@ -476,6 +515,7 @@ impl Tracer {
         first: u32,
         first_dim: u32,
         arriving: &mut [Vec3A],
+        mut sum: Option<&mut RunSum>,
     ) {
         let n = arriving.len();
         // Each light's sample values for the whole run, dimension after dimension, and its
@@ -485,27 +525,25 @@ impl Tracer {
         let mut drawn = std::mem::take(&mut self.drawn);
         for (l, light) in lights.iter().enumerate() {
             let dim = first_dim + l as u32 * P::DIMS;
-            if P::DIMS > 0 {
-                // A cosine run in one pass, where the CPU and sampler allow.
-                if let Some(terms) = light.cosine_run() {
-                    let (geometry, rays) = (scene.geometry, &mut self.direction_rays);
-                    rays.timing = self.timing;
-                    let sample = (pixel, first, dim);
-                    if let Some((traced, cycles)) = rays.add_cosine(
-                        geometry,
-                        &mut self.stack,
-                        spawn,
-                        &at.frame,
-                        scene.sets,
-                        sample,
-                        &terms,
-                        arriving,
-                    ) {
-                        self.rays.count(P::TERM, traced);
-                        self.split.add_queries(P::TERM, cycles);
-                        continue;
-                    }
+            // A cosine run in one pass, where the CPU and sampler allow.
+            if let Some(terms) = light.cosine_run().filter(|_| P::DIMS > 0) {
+                let (geometry, rays) = (scene.geometry, &mut self.direction_rays);
+                rays.timing = self.timing;
+                let sample = (pixel, first, dim);
+                let (stack, sum) = (&mut self.stack, sum.as_deref_mut());
+                if let Some((traced, cycles)) =
+                    rays.add_cosine(geometry, stack, spawn, &at.frame, scene.sets, sample, &terms, arriving, sum)
+                {
+                    self.rays.count(P::TERM, traced);
+                    self.split.add_queries(P::TERM, cycles);
+                    continue;
                 }
+            }
+            // Every way below adds sample by sample.
+            if let Some(sum) = sum.as_deref_mut() {
+                sum.per_sample = true;
+            }
+            if P::DIMS > 0 {
                 values.resize(n * P::DIMS as usize, Vec2::ZERO);
                 for (k, column) in (0..P::DIMS).zip(values.chunks_exact_mut(n.max(1))) {
                     scene.sets.fill(pixel, first, dim + k, column);

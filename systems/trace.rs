@@ -234,15 +234,17 @@ fn trace_tile<C: CameraRays>(
                     let mut fixed_radiance = [Vec3A::ZERO];
                     tracer.shade_fixed(scene, hit, true, fixed_light(k), &mut fixed_radiance[..]);
                     let fixed_radiance = fixed_radiance[0];
-                    radiance.resize(count as usize, Vec3A::ZERO);
-                    tracer.shade(scene, hit, pixel, first, true, &mut radiance[..]);
-                    // A finite total means every sample was finite (∞ and NaN survive a sum),
-                    // so only other totals (and adaptive sampling, which needs each sample's
-                    // luminance) need the loop that drops samples one by one.
+                    // Without adaptive sampling (which needs each sample's luminance) the
+                    // samples' sum alone, made without per-sample values where the lights allow
+                    // ([`Tracer::shade_sum`]). A finite sum means every sample was finite (∞ and
+                    // NaN survive a sum); otherwise the samples are made (and their rays traced
+                    // and counted) again, one by one, and the non-finite ones dropped.
                     let quick = (!job.adaptive)
-                        .then(|| radiance.iter().fold(Vec3A::ZERO, |t, &r| t + (r + fixed_radiance)))
+                        .then(|| tracer.shade_sum(scene, hit, pixel, first, count) + fixed_radiance * count as f32)
                         .filter(|&t| all_finite(t));
                     let total = quick.unwrap_or_else(|| {
+                        radiance.resize(count as usize, Vec3A::ZERO);
+                        tracer.shade(scene, hit, pixel, first, true, &mut radiance[..]);
                         let mut total = Vec3A::ZERO;
                         for &r in &radiance {
                             let r = r + fixed_radiance;

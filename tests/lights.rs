@@ -461,7 +461,17 @@ impl PlacedLight for PlacedPerSample {
     }
 }
 
-/// What stands on the plane in [`the_occluder_s_bulk_path_gives_the_bits_of_the_per_sample_path`]:
+/// Asserts that two images agree pixel by pixel to within float rounding (a relative 2e-6 of
+/// the brighter channel): far below what one sample of a pixel's run weighs.
+fn assert_close(a: &[Vec3], b: &[Vec3], case: &str) {
+    assert_eq!(a.len(), b.len(), "{case}: image sizes");
+    for (i, (p, q)) in a.iter().zip(b).enumerate() {
+        let tolerance = 2e-6 * p.abs().max(q.abs()).max_element().max(1e-6);
+        assert!((*p - *q).abs().max_element() <= tolerance, "{case}: pixel {i} {p} against {q}");
+    }
+}
+
+/// What stands on the plane in [`the_occluder_s_bulk_path_matches_the_per_sample_path`]:
 /// an analytic sphere, one triangle mesh (a world-space tree of triangle packets), or three
 /// instances of one mesh (traced through the top level).
 #[derive(Clone, Copy, Debug)]
@@ -471,8 +481,11 @@ enum Blockers {
     Instances,
 }
 
+/// The occluder's bulk paths (rays made in lanes, sorted or in quadrant order, whole-run sums)
+/// trace the same rays as its per-sample path and give the same bits, except the beauty image
+/// of shared hits, which sums each pixel's samples as a whole: the same up to rounding.
 #[test]
-fn the_occluder_s_bulk_path_gives_the_bits_of_the_per_sample_path() {
+fn the_occluder_s_bulk_path_matches_the_per_sample_path() {
     let occluders = [
         AmbientOccluder { min_amount: 0.3, max_distance: 0.7, color: Vec3::new(1.0, 0.5, 0.25), ..Default::default() },
         AmbientOccluder { exponent: 0.0, ls: 3.0, ..Default::default() },
@@ -535,7 +548,14 @@ fn the_occluder_s_bulk_path_gives_the_bits_of_the_per_sample_path() {
                         "{sampler:?} ({spp} of sets of {set}), {blockers:?}, occluder {k}, jitter {jitter}, aovs {aovs}"
                     );
                     assert_eq!(bulk.1, per_sample.1, "{case}: ray counts");
-                    assert!(bulk.0 == per_sample.0, "{case}: images differ");
+                    if jitter || aovs {
+                        assert!(bulk.0 == per_sample.0, "{case}: images differ");
+                    } else {
+                        // The beauty image of shared hits sums each pixel's samples as a whole
+                        // (`Tracer::shade_sum`): whole quadrant passes count their blocked rays
+                        // instead of adding a value per sample. The same up to rounding.
+                        assert_close(&bulk.0, &per_sample.0, &case);
+                    }
                     if k == 0 {
                         assert!(bulk.1.ao > 0, "{case}: AO rays traced");
                     }
@@ -543,7 +563,7 @@ fn the_occluder_s_bulk_path_gives_the_bits_of_the_per_sample_path() {
                         shared.push(bulk.0);
                     }
                 }
-                assert!(shared[0] == shared[1], "occluder {k}: the beauty image depends on whether AOVs are kept");
+                assert_close(&shared[0], &shared[1], &format!("occluder {k}: with and without AOVs"));
             }
         }
     }
