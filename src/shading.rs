@@ -201,6 +201,9 @@ pub struct Tracer {
     samples: Vec<Vec2>,
     /// One light group's arriving light for a run of samples.
     arriving: Vec<Vec3A>,
+    /// Whether every element of `arriving` is zero: a run whose lights all added whole-run
+    /// sums ([`RunSum`]) leaves it untouched, and the next run then need not clear it.
+    arriving_zero: bool,
     /// One light's samples for a run of samples.
     drawn: Vec<Option<LightSample>>,
     /// One direction light's samples for a run at one point.
@@ -325,6 +328,7 @@ impl Tracer {
     ) {
         arriving.clear();
         arriving.resize(points.len(), Vec3A::ZERO);
+        self.arriving_zero = false;
         let start = self.timing.then(cycle_count);
         group.shade_points(self, scene, points, first_dim, skip_black, arriving);
         if let Some(start) = start {
@@ -487,7 +491,9 @@ impl Tracer {
             if skip_black && reflectance.max_element() <= 0.0 {
                 continue;
             }
-            arriving.clear();
+            if !self.arriving_zero {
+                arriving.clear();
+            }
             arriving.resize(n, Vec3A::ZERO);
             let mut sum = RunSum::default();
             let start = self.timing.then(cycle_count);
@@ -495,6 +501,7 @@ impl Tracer {
             if let Some(start) = start {
                 self.split.add_term(term, cycles_since(start));
             }
+            self.arriving_zero = sums && !sum.per_sample;
             add(term, reflectance, &arriving, sum);
         }
         self.arriving = arriving;
