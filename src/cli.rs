@@ -543,6 +543,8 @@ struct Totals {
     ao_secs: f64,
     /// The part of `ao_secs` spent in its rays' scene queries.
     ao_query_secs: f64,
+    /// What the BVH queries did (with the feature `counters`).
+    traversal: crate::geometry::TraversalCounts,
     frames: u32,
     /// Per-frame JSON records, kept only for `--stats-json`.
     json: Option<Vec<serde_json::Value>>,
@@ -553,7 +555,7 @@ impl Totals {
     fn to_json(&self, seconds: f64) -> serde_json::Value {
         let per_s = |rays: u64| mrays_per_second(rays, self.trace_secs);
         let ao_per_s = |secs: f64| mrays_per_second(self.rays.ao, secs);
-        serde_json::json!({
+        let mut json = serde_json::json!({
             "frames": self.json.clone().unwrap_or_default(),
             "total": {
                 "seconds": seconds,
@@ -567,7 +569,11 @@ impl Totals {
                 "ao_query_seconds": self.ao_query_secs,
                 "ao_query_mrays_per_s": ao_per_s(self.ao_query_secs),
             }
-        })
+        });
+        if crate::geometry::TraversalCounts::ENABLED {
+            json["total"]["traversal"] = serde_json::json!(self.traversal);
+        }
+        json
     }
 }
 
@@ -587,6 +593,7 @@ fn render_image(renderer: &mut Renderer, spp: u32, print_stats: bool, totals: &m
         totals.trace_secs += stats.time_of("trace").as_secs_f64();
         totals.ao_secs += stats.trace_time_of(crate::light::Term::Ambient).as_secs_f64();
         totals.ao_query_secs += stats.queries_time_of(crate::light::Term::Ambient).as_secs_f64();
+        totals.traversal.add(&stats.traversal);
         totals.frames += 1;
         if let Some(records) = &mut totals.json {
             records.push(stats.to_json());
@@ -629,4 +636,7 @@ fn report(size: (u32, u32), renderer: &Renderer, totals: &Totals, start: Instant
         if totals.trace_secs > 0.0 { totals.rays.total() as f64 / totals.trace_secs / 1e6 } else { 0.0 },
         what
     );
+    if crate::geometry::TraversalCounts::ENABLED {
+        eprintln!("hemi: {}", crate::stats::traversal_line(&totals.traversal, totals.rays.total()));
+    }
 }

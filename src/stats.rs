@@ -4,7 +4,11 @@ use std::{fmt::Write, time::Duration};
 
 use bevy_ecs::prelude::Resource;
 
-use crate::{geometry::accel::BvhWork, light::Term, shading::RayCounts};
+use crate::{
+    geometry::{TraversalCounts, accel::BvhWork},
+    light::Term,
+    shading::RayCounts,
+};
 
 /// A reading of the CPU's cycle counter (the time-stamp counter on x86_64, nanoseconds since
 /// the first call elsewhere): only differences and ratios of readings mean anything. On x86_64
@@ -182,6 +186,8 @@ pub struct FrameStats {
     pub nonfinite_samples: u64,
     /// How the trace system's time divides between AO, direct light and the rest.
     pub trace_split: TraceSplit,
+    /// What the trace system's BVH queries did (all 0 unless built with the feature `counters`).
+    pub traversal: TraversalCounts,
 }
 
 impl FrameStats {
@@ -233,14 +239,15 @@ impl FrameStats {
         mrays_per_second(self.rays.ao, self.queries_time_of(Term::Ambient).as_secs_f64())
     }
 
-    /// This frame as JSON (the `--stats-json` record of one frame).
+    /// This frame as JSON (the `--stats-json` record of one frame; `traversal` only when built
+    /// with the feature `counters`).
     pub fn to_json(&self) -> serde_json::Value {
         let systems: Vec<serde_json::Value> = self
             .systems
             .iter()
             .map(|s| serde_json::json!({ "name": s.name, "ms": s.time.as_secs_f64() * 1e3, "note": s.note }))
             .collect();
-        serde_json::json!({
+        let mut json = serde_json::json!({
             "frame": self.frame,
             "spp": self.spp,
             "samples_traced": self.samples_traced,
@@ -270,7 +277,11 @@ impl FrameStats {
             },
             "buffer_bytes": self.buffer_bytes,
             "nonfinite_samples": self.nonfinite_samples,
-        })
+        });
+        if TraversalCounts::ENABLED {
+            json["traversal"] = serde_json::json!(self.traversal);
+        }
+        json
     }
 
     /// A human-readable table of this frame.
@@ -318,11 +329,35 @@ impl FrameStats {
             if self.bvh_built { " (built)" } else { "" },
             self.buffer_bytes as f64 / (1 << 20) as f64,
         );
+        if TraversalCounts::ENABLED {
+            let _ = writeln!(s, "  {}", traversal_line(&self.traversal, r.total()));
+        }
         if self.nonfinite_samples > 0 {
             let _ = writeln!(s, "  warning: {} NaN/Inf samples were dropped", self.nonfinite_samples);
         }
         s
     }
+}
+
+/// The `--stats` line of `counts` over `rays` rays (all kinds): totals and per ray.
+pub(crate) fn traversal_line(counts: &TraversalCounts, rays: u64) -> String {
+    let per_ray = |n: u64| if rays > 0 { n as f64 / rays as f64 } else { 0.0 };
+    let c = counts;
+    format!(
+        "traversal: {} packet node tests, {} packet triangle tests, {} rays gone on alone; one ray at a time: {} node tests, {} leaf tests, {} triangle-packet tests; per ray: {:.3}, {:.3}, {:.3}; {:.3}, {:.3}, {:.3}",
+        c.packet_node_tests,
+        c.packet_triangle_tests,
+        c.lone_rays,
+        c.node_tests,
+        c.leaf_tests,
+        c.triangle_packet_tests,
+        per_ray(c.packet_node_tests),
+        per_ray(c.packet_triangle_tests),
+        per_ray(c.lone_rays),
+        per_ray(c.node_tests),
+        per_ray(c.leaf_tests),
+        per_ray(c.triangle_packet_tests),
+    )
 }
 
 #[cfg(test)]

@@ -11,7 +11,7 @@ use rayon::prelude::*;
 
 use crate::{
     camera::{ActiveCamera, CameraRays, Cameras},
-    geometry::SceneGeometry,
+    geometry::{SceneGeometry, TraversalCounts, counters},
     light::{LightGroup, LightRegistry},
     resources::{AOV_FLOATS, Accumulation, AovValues, FrameSamples, RenderSettings, SceneProblems, luminance},
     sampling::{SampleSets, dims},
@@ -36,6 +36,7 @@ struct TileResult {
     aovs: Vec<AovValues>,
     rays: RayCounts,
     split: TraceSplit,
+    traversal: TraversalCounts,
     nonfinite: u64,
 }
 
@@ -103,6 +104,7 @@ pub fn trace(
     frame.active_pixels = results.iter().map(|r| r.counts.iter().filter(|&&c| c > 0).count()).sum();
     let mut rays = RayCounts::default();
     let mut split = TraceSplit::default();
+    let mut traversal = TraversalCounts::default();
     for (tile, result) in tiles.iter().zip(&results) {
         let w = (tile.x1 - tile.x0) as usize;
         for (row, y) in (tile.y0..tile.y1).enumerate() {
@@ -117,10 +119,12 @@ pub fn trace(
         }
         rays.add(&result.rays);
         split.add(&result.split);
+        traversal.add(&result.traversal);
         stats.nonfinite_samples += result.nonfinite;
     }
     stats.rays = rays;
     stats.trace_split = split;
+    stats.traversal = traversal;
     stats.samples_traced = count;
     let note = format!("{} tiles, {count} spp, {}", tiles.len(), lights.summary());
     stats.record("trace", start.elapsed(), note);
@@ -161,6 +165,8 @@ fn trace_tile<C: CameraRays>(
     acc: &Accumulation,
     target: Option<f32>,
 ) -> TileResult {
+    // Counts from this thread's earlier work are not this tile's.
+    counters::take();
     let mut tracer = Tracer::default();
     // One pixel's samples of this frame.
     let mut samples = Vec::with_capacity(job.count as usize);
@@ -320,7 +326,8 @@ fn trace_tile<C: CameraRays>(
             }
         }
     }
-    TileResult { sums, counts, sq_sums, aovs, rays: tracer.rays, split: tracer.split, nonfinite }
+    let traversal = counters::take();
+    TileResult { sums, counts, sq_sums, aovs, rays: tracer.rays, split: tracer.split, traversal, nonfinite }
 }
 
 #[cfg(test)]

@@ -2,6 +2,7 @@
 
 pub mod accel;
 pub mod binned_sah;
+pub mod counters;
 pub mod hit;
 #[cfg(target_arch = "x86_64")]
 pub(crate) mod lanes;
@@ -12,5 +13,6 @@ pub mod wide_bvh;
 pub mod world_space;
 
 pub use accel::{Object, Prim, RayOrder, SceneGeometry, Shape};
+pub use counters::TraversalCounts;
 pub use hit::{SpawnOrigins, SurfaceHit};
 pub use ray::{Ray, Shear};

@@ -10,6 +10,7 @@ use glam::{Vec3A, Vec4};
 #[cfg(target_arch = "x86_64")]
 use super::lanes::{Lanes, RayLanes};
 use super::{
+    counters::{Event, count},
     ray::{Ray, Shear},
     shapes::Triangle,
 };
@@ -88,6 +89,7 @@ impl Tri4 {
     /// Edge tests of the four lanes (unused lanes come back in `exact`; skip them by slot).
     #[inline(always)]
     pub fn edges(&self, r: &RayTri4) -> Edges {
+        count(Event::TrianglePacketTest);
         let [kx, ky, kz] = r.shear.axes;
         let o = &r.origin;
         // Translate to the ray origin, permute so the ray runs along +z, shear.
@@ -220,6 +222,7 @@ impl Tri4 {
     /// The CPU must have `L`'s instruction set.
     #[inline(always)]
     pub(crate) unsafe fn edges_packet<L: Lanes>(&self, lane: usize, r: &RayTriPacket<L>) -> PacketEdges {
+        count(Event::PacketTriangleTest);
         // SAFETY: the caller's CPU has `L`'s instruction set.
         unsafe {
             let (v0, v1, v2) = (self.sheared(0, lane, r), self.sheared(1, lane, r), self.sheared(2, lane, r));

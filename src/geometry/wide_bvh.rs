@@ -16,7 +16,10 @@ use obvhs::{aabb::Aabb, bvh2::node::Bvh2Node};
 
 #[cfg(target_arch = "x86_64")]
 use super::lanes::{FusedLanes, Lanes, RayLanes};
-use super::ray::Ray;
+use super::{
+    counters::{Event, count},
+    ray::Ray,
+};
 use crate::math::gamma;
 
 /// Asks the CPU to start loading `x`'s cache lines (a hint; no effect on results).
@@ -449,6 +452,7 @@ where
         let base = stack.len();
         let mut node = start;
         loop {
+            count(Event::NodeTest);
             let n = &self.nodes[node as usize];
             let (mut mask, _) = n.test(&r, ray.tmax);
             let mut hits = mask;
@@ -466,6 +470,7 @@ where
                 let i = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
                 if n.count[i] > 0 {
+                    count(Event::LeafTest);
                     if leaf(n.child[i], n.count[i], stack) {
                         stack.truncate(base);
                         return true;
@@ -513,10 +518,12 @@ where
         let mut item = 0u32;
         loop {
             if item & LEAF != 0 {
+                count(Event::LeafTest);
                 let n = &self.nodes[((item & !LEAF) >> 3) as usize];
                 let slot = (item & 7) as usize;
                 leaf(n.child[slot], n.count[slot], ray, stack);
             } else {
+                count(Event::NodeTest);
                 let n = &self.nodes[item as usize];
                 let (mut mask, near) = n.test(&r, ray.tmax * far_scale());
                 if mask != 0 {
@@ -821,6 +828,7 @@ impl WideBvh<8> {
             while lanes != 0 {
                 let lane = lanes.trailing_zeros() as usize;
                 lanes &= lanes - 1;
+                count(Event::LoneRay);
                 if single(node, lane, stack) {
                     blocked |= 1 << lane;
                 }
@@ -839,6 +847,7 @@ impl WideBvh<8> {
                 }
                 continue;
             }
+            count(Event::PacketNodeTest);
             let n = &self.nodes[node as usize];
             // SAFETY: the caller's CPU has the packet's instruction set.
             let tested = unsafe { p.enter(n) };
@@ -903,6 +912,7 @@ impl WideBvh<8> {
             len -= 1;
             // SAFETY: every entry below `len` was written before `len` passed it.
             let (node, lanes) = unsafe { todo[len].assume_init() };
+            count(Event::PacketNodeTest);
             let n = &self.nodes[node as usize];
             let mut tested = [0u32; 8];
             for (c, t) in tested.iter_mut().enumerate() {
