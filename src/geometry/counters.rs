@@ -3,7 +3,7 @@
 //! (`cargo run --release --features counters -- render scene.json --stats`), as Embree's and
 //! pbrt's statistics counters are. Each thread counts into cells of its own, with no atomic
 //! operation or shared cache line; the trace system takes a tile's counts on the thread that
-//! traced it. Without the feature [`count`] compiles to nothing and every count stays 0.
+//! traced it. Without the feature the counting compiles to nothing and every count stays 0.
 
 use serde::Serialize;
 
