@@ -192,7 +192,7 @@ impl DirectionRays {
     /// # Safety
     /// The CPU must have AVX-512F and POPCNT ([`crate::cpu::avx512`]).
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f,popcnt")]
+    #[target_feature(enable = "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     unsafe fn add_cosine_avx512(
         &mut self,
         geometry: &SceneGeometry,
@@ -316,7 +316,7 @@ impl DirectionRays {
     /// # Safety
     /// The CPU must have AVX-512F and POPCNT ([`crate::cpu::avx512`]).
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f,popcnt")]
+    #[target_feature(enable = "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[allow(clippy::too_many_arguments)]
     unsafe fn add_cosine_quadrants(
         &mut self,
@@ -423,7 +423,7 @@ impl DirectionRays {
     /// # Safety
     /// The CPU must have AVX-512F and POPCNT ([`crate::cpu::avx512`]).
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f,popcnt")]
+    #[target_feature(enable = "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     unsafe fn add_avx512(
         &mut self,
         geometry: &SceneGeometry,
@@ -442,7 +442,7 @@ impl DirectionRays {
     /// # Safety
     /// The CPU must have AVX.
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     unsafe fn add_avx(
         &mut self,
         geometry: &SceneGeometry,
@@ -665,7 +665,7 @@ fn spawned_lanes(d: [Avx512; 3], spawn: &SpawnOrigins, tmax: f32) -> RayLanes<Av
 /// The lanes of `live` whose ray in `lanes` something in `geometry` blocks, and the cycles
 /// the query took ([`cycle_count`]) when `timing` (0 otherwise).
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,popcnt")]
+#[target_feature(enable = "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
 #[inline]
 fn occluded16(
     geometry: &SceneGeometry,

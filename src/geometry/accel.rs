@@ -176,7 +176,7 @@ trait TreeQuery {
 
 /// [`TreeQuery::run`] compiled for AVX, so that the eight-wide node test inlines.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
 fn query_avx<Q: TreeQuery>(tree: &super::wide_bvh::Bvh8, query: Q) -> Q::Output {
     query.run(tree)
 }
@@ -653,7 +653,7 @@ macro_rules! packet_kernels {
 #[cfg(target_arch = "x86_64")]
 packet_kernels!(
     Avx,
-    "avx",
+    "avx2,fma,bmi1,bmi2,lzcnt,popcnt",
     occlusion_test_avx,
     occluded_packets_avx,
     occluded_lanes_avx,
@@ -667,7 +667,7 @@ packet_kernels!(
 #[cfg(target_arch = "x86_64")]
 packet_kernels!(
     Avx512,
-    "avx512f,popcnt",
+    "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt",
     occlusion_test_avx512,
     occluded_packets_avx512,
     occluded_lanes_avx512,
@@ -1031,7 +1031,7 @@ impl Blas {
 
     /// [`Blas::packets_block`] compiled for AVX (three-operand encodings; same arithmetic).
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline(never)]
     fn packets_block_avx(&self, first: u32, count: u32, ray: &Ray) -> bool {
         self.packets_block_body(first, count, ray)
@@ -1624,7 +1624,7 @@ impl SceneGeometry {
     /// # Safety
     /// The CPU must have AVX-512F and POPCNT ([`crate::cpu::avx512`]).
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f,popcnt")]
+    #[target_feature(enable = "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     pub(crate) unsafe fn occluded_lanes16(
         &self,
         lanes: &RayLanes<Avx512>,

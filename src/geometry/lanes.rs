@@ -126,7 +126,7 @@ impl FusedLanes for Avx512 {
 pub(crate) struct Avx(__m256);
 
 /// The transpose of eight rows of eight floats: lane k of row c becomes lane c of row k.
-#[target_feature(enable = "avx")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
 #[inline]
 fn transpose8(row: &[__m256; 8]) -> [__m256; 8] {
     // Rows 2i and 2i + 1 interleaved: pairs[2i] holds elements 0 and 1 of each 128-bit block,
@@ -192,14 +192,14 @@ impl Lanes for Avx {
     const WIDTH: usize = 8;
     type Mask = __m256;
 
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     unsafe fn splat(x: f32) -> Self {
         Avx(_mm256_set1_ps(x))
     }
     /// Each ray as two rows of eight (origin and direction; reciprocal direction and `tmax`),
     /// transposed eight by eight.
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     unsafe fn rays(rays: &[Ray]) -> RayLanes<Self> {
         let last = rays.len() - 1;
@@ -224,7 +224,7 @@ impl Lanes for Avx {
             tmax: Avx(b[4]),
         }
     }
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     unsafe fn write_rays(lanes: &RayLanes<Self>, out: &mut [Ray], at: &[u32]) {
         let zero = _mm256_setzero_ps();
@@ -241,7 +241,7 @@ impl Lanes for Avx {
         }
     }
     /// Lane by lane, without a branch.
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     unsafe fn places(groups: &[u32; 4], start: &[u32; 4], none: u32) -> [u32; 16] {
         let mut at = [none; 16];
@@ -255,14 +255,14 @@ impl Lanes for Avx {
         }
         at
     }
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     unsafe fn load(x: &[f32]) -> Self {
         let x = &x[..8];
         // SAFETY: eight floats, checked above.
         unsafe { Avx(_mm256_loadu_ps(x.as_ptr())) }
     }
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     unsafe fn add_to(x: Self, y: Self, z: Self, out: &mut [Vec3A]) {
         let out = &mut out[..8];
@@ -293,104 +293,104 @@ impl Lanes for Avx {
             }
         }
     }
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     unsafe fn add(self, b: Self) -> Self {
         Avx(_mm256_add_ps(self.0, b.0))
     }
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     unsafe fn sub(self, b: Self) -> Self {
         Avx(_mm256_sub_ps(self.0, b.0))
     }
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     unsafe fn mul(self, b: Self) -> Self {
         Avx(_mm256_mul_ps(self.0, b.0))
     }
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     unsafe fn div(self, b: Self) -> Self {
         Avx(_mm256_div_ps(self.0, b.0))
     }
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     unsafe fn neg(self) -> Self {
         Avx(_mm256_xor_ps(self.0, _mm256_set1_ps(-0.0)))
     }
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     unsafe fn abs(self) -> Self {
         Avx(_mm256_andnot_ps(_mm256_set1_ps(-0.0), self.0))
     }
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     unsafe fn max_keep(self, b: Self) -> Self {
         Avx(_mm256_max_ps(self.0, b.0))
     }
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     unsafe fn min_keep(self, b: Self) -> Self {
         Avx(_mm256_min_ps(self.0, b.0))
     }
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     unsafe fn lt(self, b: Self) -> __m256 {
         _mm256_cmp_ps::<_CMP_LT_OQ>(self.0, b.0)
     }
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     unsafe fn gt(self, b: Self) -> __m256 {
         _mm256_cmp_ps::<_CMP_GT_OQ>(self.0, b.0)
     }
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     unsafe fn le(self, b: Self) -> __m256 {
         _mm256_cmp_ps::<_CMP_LE_OQ>(self.0, b.0)
     }
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     unsafe fn ne(self, b: Self) -> __m256 {
         _mm256_cmp_ps::<_CMP_NEQ_UQ>(self.0, b.0)
     }
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     unsafe fn eq_or_nan(self, b: Self) -> __m256 {
         _mm256_cmp_ps::<_CMP_EQ_UQ>(self.0, b.0)
     }
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     unsafe fn select(self, m: __m256, if_set: Self) -> Self {
         Avx(_mm256_blendv_ps(self.0, if_set.0, m))
     }
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     unsafe fn and(a: __m256, b: __m256) -> __m256 {
         _mm256_and_ps(a, b)
     }
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     unsafe fn or(a: __m256, b: __m256) -> __m256 {
         _mm256_or_ps(a, b)
     }
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     unsafe fn andnot(a: __m256, b: __m256) -> __m256 {
         _mm256_andnot_ps(a, b)
     }
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     unsafe fn bits(m: __m256) -> u32 {
         _mm256_movemask_ps(m) as u32
     }
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     unsafe fn mask(bits: u32) -> __m256 {
         let lane = |i: u32| -((bits >> i & 1) as i32);
         _mm256_castsi256_ps(_mm256_setr_epi32(lane(0), lane(1), lane(2), lane(3), lane(4), lane(5), lane(6), lane(7)))
     }
     /// In two halves of four f64 lanes.
-    #[target_feature(enable = "avx")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     unsafe fn plane_hits(n: DVec3, a: DVec3, o: &[Self; 3], d: &[Self; 3], tmax: Self) -> u32 {
         let half = |v: &Avx, h: usize| {
@@ -664,15 +664,15 @@ impl Lanes for Avx512 {
     }
 }
 
-/// Runs a test's eight-lane version where the CPU has AVX and its sixteen-lane version where
-/// it has AVX-512 as well, saying which it skips.
+/// Runs a test's eight-lane version where the CPU has AVX2 ([`crate::cpu::avx2`]) and its
+/// sixteen-lane version where it has AVX-512 as well, saying which it skips.
 #[cfg(test)]
 pub(crate) fn both_widths(eight: unsafe fn(), sixteen: unsafe fn()) {
-    if !std::arch::is_x86_feature_detected!("avx") {
-        eprintln!("no AVX on this CPU: packets are not used and not tested");
+    if !crate::cpu::avx2() {
+        eprintln!("no AVX2 on this CPU: packets are not used and not tested");
         return;
     }
-    // SAFETY: AVX was detected.
+    // SAFETY: AVX2 and the rest of x86-64-v3 were detected.
     unsafe { eight() };
     if std::arch::is_x86_feature_detected!("avx512f") {
         // SAFETY: AVX-512 was detected.

@@ -155,7 +155,7 @@ impl NodeTest<8> for Node<8> {
 
 /// The eight-child node test: the four-child one's operations in 256-bit registers.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
 #[inline]
 fn test8_avx(n: &Node<8>, r: &RayBox, tmax: f32) -> (u32, [f32; 8]) {
     use std::arch::x86_64::*;
@@ -325,10 +325,11 @@ impl Bvh4 {
 }
 
 impl Bvh8 {
-    /// Collapses a BVH2 as [`Bvh4::from_bvh2`] does, or `None` where the CPU lacks AVX.
+    /// Collapses a BVH2 as [`Bvh4::from_bvh2`] does, or `None` where the CPU lacks the
+    /// eight-lane copies' instruction sets ([`crate::cpu::avx2`]).
     pub fn from_bvh2(bvh2: &[Bvh2Node]) -> Option<Self> {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx") {
+        if crate::cpu::avx2() {
             return Some(Self::collapse(bvh2));
         }
         let _ = bvh2;
