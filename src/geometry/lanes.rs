@@ -125,6 +125,14 @@ impl FusedLanes for Avx512 {
 #[derive(Clone, Copy)]
 pub(crate) struct Avx(__m256);
 
+impl FusedLanes for Avx {
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    #[inline]
+    unsafe fn mul_add(self, b: Self, c: Self) -> Self {
+        Avx(_mm256_fmadd_ps(self.0, b.0, c.0))
+    }
+}
+
 /// The transpose of eight rows of eight floats: lane k of row c becomes lane c of row k.
 #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
 #[inline]
