@@ -17,8 +17,8 @@ use glam::{BVec3A, Vec3A};
 use crate::{
     geometry::lanes::{Avx, Avx512, Lanes, RayLanes},
     sampling::{
-        cmj::{Cmj, QuadrantPattern},
-        warp::cosine_hemisphere16,
+        cmj::{Cmj, GridLanes, QuadrantPattern, SmallGrid8, SmallGrid16},
+        warp::{cosine_hemisphere8, cosine_hemisphere16},
     },
 };
 use crate::{
@@ -135,11 +135,12 @@ impl DirectionRays {
     /// `frame`'s normal ([`PlacedLight::cosine_run`](crate::light::PlacedLight::cosine_run)),
     /// drawn from `sets` for samples `first, first + 1, …` of `pixel` in dimension `dim`: the
     /// same rays, answers and sums, in one pass from sample points to packets, where the
-    /// scene's packets are sixteen wide and the sets are computed in lanes: straight from the
-    /// patterns in quadrant order where the run is whole passes that split into quadrants
-    /// ([`SampleSets::quadrant_passes`]), else sorted into quadrants from columns
-    /// ([`SampleSets::fill_columns`]). `None`, having done nothing, elsewhere. With `sum`, whole
-    /// quadrant passes add the run's light there, summed, instead of to `arriving`.
+    /// scene's packets are eight or sixteen wide and the sets are computed in lanes: straight
+    /// from the patterns in quadrant order where the run is whole passes that split into
+    /// quadrants ([`SampleSets::quadrant_passes`]), else, with sixteen-lane packets, sorted
+    /// into quadrants from columns ([`SampleSets::fill_columns`]). `None`, having done
+    /// nothing, elsewhere. With `sum`, whole quadrant passes add the run's light there,
+    /// summed, instead of to `arriving`.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn add_cosine(
         &mut self,
@@ -154,19 +155,26 @@ impl DirectionRays {
         sum: Option<&mut RunSum>,
     ) -> Option<(u64, u64)> {
         #[cfg(target_arch = "x86_64")]
+        if let lanes @ (8 | 16) = geometry.packet_lanes()
+            && let Some((cmj, passes)) = sets.quadrant_passes(pixel, first, dim, arriving.len())
+        {
+            let passes = (cmj, sets.set_size() as usize, passes);
+            let out = match sum {
+                Some(sum) => QuadrantOut::Sum(arriving.len(), &mut sum.light),
+                None => QuadrantOut::Each(arriving),
+            };
+            // SAFETY: sixteen-lane packets are used only where AVX-512 was detected, eight-lane
+            // ones only where AVX2 was ([`crate::cpu`]), and quadrant patterns need AVX2.
+            return Some(unsafe {
+                if lanes == 16 {
+                    self.add_cosine_quadrants_avx512(geometry, stack, spawn, frame, passes, terms, out)
+                } else {
+                    self.add_cosine_quadrants_avx2(geometry, stack, spawn, frame, passes, terms, out)
+                }
+            });
+        }
+        #[cfg(target_arch = "x86_64")]
         if geometry.packet_lanes() == 16 {
-            if let Some((cmj, passes)) = sets.quadrant_passes(pixel, first, dim, arriving.len()) {
-                let n = sets.set_size() as usize;
-                let out = match sum {
-                    Some(sum) => QuadrantOut::Sum(arriving.len(), &mut sum.light),
-                    None => QuadrantOut::Each(arriving),
-                };
-                // SAFETY: sixteen-lane packets and quadrant patterns are used only where
-                // AVX-512 (and POPCNT) was detected.
-                return Some(unsafe {
-                    self.add_cosine_quadrants(geometry, stack, spawn, frame, (cmj, n, passes), terms, out)
-                });
-            }
             let n = arriving.len().next_multiple_of(16);
             let [xs, ys, ..] = &mut self.samples;
             xs.resize(n, 0.5);
@@ -229,11 +237,11 @@ impl DirectionRays {
                 // SAFETY (this block): the CPU has AVX-512F; the loads and stores are of
                 // sixteen floats within the columns, which hold whole groups.
                 let masks = unsafe {
-                    let [sx, sy, sz] = cosine_hemisphere16(
+                    let local = cosine_hemisphere16(
                         _mm512_loadu_ps(xs[at..at + 16].as_ptr()),
                         _mm512_loadu_ps(ys[at..at + 16].as_ptr()),
                     );
-                    let d = to_world(frame, [sx, sy, sz]);
+                    let d = to_world(frame, local.map(Avx512));
                     for (column, lanes) in [&mut *dx, &mut *dy, &mut *dz].into_iter().zip(d) {
                         _mm512_storeu_ps(column[at..at + 16].as_mut_ptr(), lanes.0);
                     }
@@ -287,7 +295,7 @@ impl DirectionRays {
                     let load = |c: &Vec<f32>| Avx512(_mm512_maskz_loadu_ps(live as __mmask16, c[p..].as_ptr()));
                     let d = [load(&self.ray_dirs[0]), load(&self.ray_dirs[1]), load(&self.ray_dirs[2])];
                     let lanes = spawned_lanes(d, spawn, terms.max_distance);
-                    occluded16(geometry, stack, &lanes, live, self.timing)
+                    occluded_lanes(geometry, stack, &lanes, live, self.timing)
                 };
                 cycles += took;
                 let mut each = hit;
@@ -299,26 +307,69 @@ impl DirectionRays {
             }
         }
         for (sums, &dark) in arriving.chunks_mut(16).zip(&self.dark) {
-            add_clear_or_floor(clear, floor, dark, sums);
+            // SAFETY: the CPU has AVX-512F.
+            unsafe { add_clear_or_floor::<Avx512>(clear, floor, dark, sums) };
         }
         (traced as u64, cycles)
     }
 
-    /// [`DirectionRays::add_cosine`] for runs of whole passes of quadrant patterns (`passes`:
-    /// the sets' patterns, their size n, and each pass's pattern number): each pass's n
-    /// samples made and traced sixteen slots at a time in the pattern's quadrant order
-    /// ([`QuadrantPattern`]), so every packet is rays into one quarter of the hemisphere around
-    /// the shading normal, straight from the pattern to the query, with no columns written and
-    /// no sort; then each sample's answer is read back by its slot, in sample order, or, for a
-    /// sum, the blocked ones counted. Each sample gets the same ray, answer and light as in
-    /// [`DirectionRays::add_cosine_avx512`].
+    /// [`DirectionRays::add_cosine_quadrants`] in sixteen-lane packets.
     ///
     /// # Safety
-    /// The CPU must have AVX-512F and POPCNT ([`crate::cpu::avx512`]).
+    /// The CPU must have AVX-512F and the rest of [`crate::cpu::avx512`].
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[allow(clippy::too_many_arguments)]
-    unsafe fn add_cosine_quadrants(
+    unsafe fn add_cosine_quadrants_avx512(
+        &mut self,
+        geometry: &SceneGeometry,
+        stack: &mut Vec<(u32, f32)>,
+        spawn: &SpawnOrigins,
+        frame: &Onb,
+        passes: (&Cmj, usize, impl Iterator<Item = u32>),
+        terms: &DirectionTerms,
+        out: QuadrantOut,
+    ) -> (u64, u64) {
+        // SAFETY: this function is compiled for AVX-512F, which the caller's CPU has.
+        unsafe { self.add_cosine_quadrants::<Avx512>(geometry, stack, spawn, frame, passes, terms, out) }
+    }
+
+    /// [`DirectionRays::add_cosine_quadrants`] in eight-lane packets.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2 and the rest of [`crate::cpu::avx2`].
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    #[allow(clippy::too_many_arguments)]
+    unsafe fn add_cosine_quadrants_avx2(
+        &mut self,
+        geometry: &SceneGeometry,
+        stack: &mut Vec<(u32, f32)>,
+        spawn: &SpawnOrigins,
+        frame: &Onb,
+        passes: (&Cmj, usize, impl Iterator<Item = u32>),
+        terms: &DirectionTerms,
+        out: QuadrantOut,
+    ) -> (u64, u64) {
+        // SAFETY: this function is compiled for AVX2, which the caller's CPU has.
+        unsafe { self.add_cosine_quadrants::<Avx>(geometry, stack, spawn, frame, passes, terms, out) }
+    }
+
+    /// [`DirectionRays::add_cosine`] for runs of whole passes of quadrant patterns (`passes`:
+    /// the sets' patterns, their size n, and each pass's pattern number): each pass's n
+    /// samples made and traced `L::WIDTH` slots at a time in the pattern's quadrant order
+    /// ([`QuadrantPattern`]), so every packet is rays into one quarter of the hemisphere around
+    /// the shading normal (n/4 ≥ `L::WIDTH`), straight from the pattern to the query, with no
+    /// columns written and no sort; then each sample's answer is read back by its slot, in
+    /// sample order, or, for a sum, the blocked ones counted. Each sample gets the same ray,
+    /// answer and light as in [`DirectionRays::add`].
+    ///
+    /// # Safety
+    /// The CPU must have `L`'s instruction set.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    unsafe fn add_cosine_quadrants<L: PassLanes>(
         &mut self,
         geometry: &SceneGeometry,
         stack: &mut Vec<(u32, f32)>,
@@ -328,26 +379,27 @@ impl DirectionRays {
         terms: &DirectionTerms,
         mut out: QuadrantOut,
     ) -> (u64, u64) {
-        use std::arch::x86_64::*;
-
         // Every sample has weight 1: one clear value and one floor for all.
         let (clear, floor) = clear_and_floor(terms, 1.0);
         let tracing = clear.cmpne(floor).any();
         let (mut traced, mut cycles, mut dark) = (0, 0, 0);
+        let all = (1u32 << L::WIDTH) - 1;
         stack.clear();
         for (pass, p) in passes.enumerate() {
-            let pattern = QuadrantPattern::new(cmj, p);
-            // Bit k of entry i: slot 16i + k is blocked.
+            // SAFETY (every block below): the caller's CPU has `L`'s instruction set.
+            let pattern = unsafe { QuadrantPattern::<L::Grid>::new(cmj, p) };
+            // Bit t % 16 of entry t / 16: slot t is blocked.
             let mut blocked = [0u32; 16];
             if tracing {
-                for (packet, blocked) in blocked[..pattern.packets()].iter_mut().enumerate() {
-                    let (x, y) = pattern.points(packet);
-                    // SAFETY: the CPU has AVX-512F.
-                    let local = unsafe { cosine_hemisphere16(x, y) };
-                    let lanes = spawned_lanes(to_world(frame, local), spawn, terms.max_distance);
-                    let took;
-                    (*blocked, took) = occluded16(geometry, stack, &lanes, 0xffff, self.timing);
+                for packet in 0..pattern.packets() {
+                    let (hit, took) = unsafe {
+                        let local = L::cosine_directions(&pattern, packet);
+                        let lanes = spawned_lanes(to_world(frame, local), spawn, terms.max_distance);
+                        occluded_lanes(geometry, stack, &lanes, all, self.timing)
+                    };
                     cycles += took;
+                    let slot = packet * L::WIDTH;
+                    blocked[slot / 16] |= hit << (slot % 16);
                 }
                 traced += n;
             }
@@ -355,10 +407,8 @@ impl DirectionRays {
                 dark += blocked.iter().map(|b| b.count_ones()).sum::<u32>();
                 continue;
             };
-            // SAFETY: the load reads the sixteen entries of `blocked`.
-            let blocked = unsafe { _mm512_loadu_si512(blocked.as_ptr().cast()) };
-            for (group, sums) in arriving[pass * n..][..n].chunks_mut(16).enumerate() {
-                add_clear_or_floor(clear, floor, pattern.marked(group, blocked).into(), sums);
+            for (group, sums) in arriving[pass * n..][..n].chunks_mut(L::WIDTH).enumerate() {
+                unsafe { add_clear_or_floor::<L>(clear, floor, L::marked(&pattern, group, &blocked), sums) };
             }
         }
         if let QuadrantOut::Sum(samples, sum) = out {
@@ -590,63 +640,152 @@ unsafe fn add_group<L: Lanes>(x: L, y: L, z: L, sums: &mut [Vec3A]) {
     }
 }
 
-/// Adds `clear` to each sample of `sums` (at most sixteen) whose bit in `dark` is clear, and
-/// `floor` to the others.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-#[inline]
-fn add_clear_or_floor(clear: Vec3A, floor: Vec3A, dark: u32, sums: &mut [Vec3A]) {
-    use std::arch::x86_64::*;
-    let pick = |c: f32, f: f32| Avx512(_mm512_mask_blend_ps(dark as __mmask16, _mm512_set1_ps(c), _mm512_set1_ps(f)));
-    // SAFETY: this function is compiled for AVX-512F.
-    unsafe { add_group(pick(clear.x, floor.x), pick(clear.y, floor.y), pick(clear.z, floor.z), sums) };
-}
-
-/// A packet's lanes stored as rows of sixteen floats: origin x, y, z, direction x, y, z,
-/// reciprocal direction x, y, z, and `tmax`, so that one lane's ray can be read back.
+/// Adds `clear` to each sample of `sums` (at most `L::WIDTH`) whose bit in `dark` is clear,
+/// and `floor` to the others.
 ///
 /// # Safety
-/// The CPU must have AVX-512F.
+/// The CPU must have `L`'s instruction set.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-#[inline]
-unsafe fn lanes_as_rows(lanes: &RayLanes<Avx512>) -> [[f32; 16]; 10] {
+#[inline(always)]
+unsafe fn add_clear_or_floor<L: Lanes>(clear: Vec3A, floor: Vec3A, dark: u32, sums: &mut [Vec3A]) {
+    // SAFETY: the caller's CPU has `L`'s instruction set.
+    unsafe {
+        let dark = L::mask(dark);
+        let pick = |c: f32, f: f32| L::splat(c).select(dark, L::splat(f));
+        add_group(pick(clear.x, floor.x), pick(clear.y, floor.y), pick(clear.z, floor.z), sums);
+    }
+}
+
+/// Lanes that trace whole passes of quadrant patterns
+/// ([`DirectionRays::add_cosine_quadrants`]): their pattern grid, cosine map and scene query.
+/// Every method needs the lanes' instruction set.
+#[cfg(target_arch = "x86_64")]
+trait PassLanes: Lanes {
+    /// The pattern grid of this width.
+    type Grid: GridLanes;
+    /// The cosine directions (x, y and z lanes, around +z) of the slots of packet `packet`.
+    unsafe fn cosine_directions(pattern: &QuadrantPattern<Self::Grid>, packet: usize) -> [Self; 3];
+    /// [`SceneGeometry::occluded_lanes16`] or its eight-lane twin.
+    unsafe fn occluded(
+        geometry: &SceneGeometry,
+        lanes: &RayLanes<Self>,
+        ray: impl Fn(usize) -> Ray,
+        live: u32,
+        stack: &mut Vec<(u32, f32)>,
+    ) -> u32;
+    /// The samples of group `group` whose slot `marks` marks ([`QuadrantPattern::marked`]).
+    unsafe fn marked(pattern: &QuadrantPattern<Self::Grid>, group: usize, marks: &[u32; 16]) -> u32;
+}
+
+#[cfg(target_arch = "x86_64")]
+impl PassLanes for Avx512 {
+    type Grid = SmallGrid16;
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn cosine_directions(pattern: &QuadrantPattern<SmallGrid16>, packet: usize) -> [Self; 3] {
+        // SAFETY: this function is compiled for AVX-512F.
+        unsafe {
+            let (x, y) = pattern.points(packet);
+            cosine_hemisphere16(x, y).map(Avx512)
+        }
+    }
+    #[target_feature(enable = "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    #[inline]
+    unsafe fn occluded(
+        geometry: &SceneGeometry,
+        lanes: &RayLanes<Self>,
+        ray: impl Fn(usize) -> Ray,
+        live: u32,
+        stack: &mut Vec<(u32, f32)>,
+    ) -> u32 {
+        geometry.occluded_lanes16(lanes, ray, live, stack)
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn marked(pattern: &QuadrantPattern<SmallGrid16>, group: usize, marks: &[u32; 16]) -> u32 {
+        // SAFETY: the load reads the sixteen entries of `marks`.
+        let marks = unsafe { std::arch::x86_64::_mm512_loadu_si512(marks.as_ptr().cast()) };
+        pattern.marked(group, marks).into()
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl PassLanes for Avx {
+    type Grid = SmallGrid8;
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    #[inline]
+    unsafe fn cosine_directions(pattern: &QuadrantPattern<SmallGrid8>, packet: usize) -> [Self; 3] {
+        // SAFETY: this function is compiled for AVX2.
+        unsafe {
+            let (x, y) = pattern.points(packet);
+            cosine_hemisphere8(x, y).map(Avx)
+        }
+    }
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    #[inline]
+    unsafe fn occluded(
+        geometry: &SceneGeometry,
+        lanes: &RayLanes<Self>,
+        ray: impl Fn(usize) -> Ray,
+        live: u32,
+        stack: &mut Vec<(u32, f32)>,
+    ) -> u32 {
+        geometry.occluded_lanes8(lanes, ray, live, stack)
+    }
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    #[inline]
+    unsafe fn marked(pattern: &QuadrantPattern<SmallGrid8>, group: usize, marks: &[u32; 16]) -> u32 {
+        pattern.marked(group, marks).into()
+    }
+}
+
+/// A packet's lanes stored as rows of `L::WIDTH` floats (of sixteen): origin x, y, z,
+/// direction x, y, z, reciprocal direction x, y, z, and `tmax`, so that one lane's ray can be
+/// read back.
+///
+/// # Safety
+/// The CPU must have `L`'s instruction set.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn lanes_as_rows<L: Lanes>(lanes: &RayLanes<L>) -> [[f32; 16]; 10] {
     let mut rows = [[0.0; 16]; 10];
     let [ox, oy, oz] = lanes.origin;
     let [dx, dy, dz] = lanes.dir;
     let [ix, iy, iz] = lanes.inv_dir;
     for (row, lanes) in rows.iter_mut().zip([ox, oy, oz, dx, dy, dz, ix, iy, iz, lanes.tmax]) {
-        // SAFETY: a row holds sixteen floats.
-        unsafe { std::arch::x86_64::_mm512_storeu_ps(row.as_mut_ptr(), lanes.0) };
+        // SAFETY: the caller's CPU has `L`'s instruction set.
+        unsafe { lanes.store(row) };
     }
     rows
 }
 
 /// Local directions (x, y and z lanes) in `frame`, in world space: `u·x + v·y + w·z`,
 /// component by component (the frame's `to_world`).
+///
+/// # Safety
+/// The CPU must have `L`'s instruction set.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-#[inline]
-fn to_world(frame: &Onb, [x, y, z]: [std::arch::x86_64::__m512; 3]) -> [Avx512; 3] {
-    let k = |x: f32| Avx512(std::arch::x86_64::_mm512_set1_ps(x));
-    let (x, y, z) = (Avx512(x), Avx512(y), Avx512(z));
+#[inline(always)]
+unsafe fn to_world<L: Lanes>(frame: &Onb, [x, y, z]: [L; 3]) -> [L; 3] {
     let (u, v, w) = (frame.u, frame.v, frame.w);
-    // SAFETY: this function is compiled for AVX-512F.
-    let world = |a: usize| unsafe { k(u[a]).mul(x).add(k(v[a]).mul(y)).add(k(w[a]).mul(z)) };
+    // SAFETY: the caller's CPU has `L`'s instruction set.
+    let world = |a: usize| unsafe { L::splat(u[a]).mul(x).add(L::splat(v[a]).mul(y)).add(L::splat(w[a]).mul(z)) };
     [world(0), world(1), world(2)]
 }
 
-/// Sixteen shadow rays along `d` (x, y and z lanes) leaving `spawn`, each from the side of the
-/// surface its direction points to (the same products and sums as `SpawnOrigins::towards`),
-/// up to `tmax`.
+/// Shadow rays along `d` (x, y and z lanes) leaving `spawn`, each from the side of the surface
+/// its direction points to (the same products and sums as `SpawnOrigins::towards`), up to
+/// `tmax`.
+///
+/// # Safety
+/// The CPU must have `L`'s instruction set.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-#[inline]
-fn spawned_lanes(d: [Avx512; 3], spawn: &SpawnOrigins, tmax: f32) -> RayLanes<Avx512> {
-    let k = |x: f32| Avx512(std::arch::x86_64::_mm512_set1_ps(x));
+#[inline(always)]
+unsafe fn spawned_lanes<L: Lanes>(d: [L; 3], spawn: &SpawnOrigins, tmax: f32) -> RayLanes<L> {
     let (front, back) = spawn.sides();
-    // SAFETY: this function is compiled for AVX-512F.
+    // SAFETY: the caller's CPU has `L`'s instruction set.
     unsafe {
+        let k = |x: f32| L::splat(x);
         let behind = along(&d, spawn.normal()).lt(k(0.0));
         let one = k(1.0);
         RayLanes {
@@ -664,20 +803,22 @@ fn spawned_lanes(d: [Avx512; 3], spawn: &SpawnOrigins, tmax: f32) -> RayLanes<Av
 
 /// The lanes of `live` whose ray in `lanes` something in `geometry` blocks, and the cycles
 /// the query took ([`cycle_count`]) when `timing` (0 otherwise).
+///
+/// # Safety
+/// The CPU must have `L`'s instruction set.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-#[inline]
-fn occluded16(
+#[inline(always)]
+unsafe fn occluded_lanes<L: PassLanes>(
     geometry: &SceneGeometry,
     stack: &mut Vec<(u32, f32)>,
-    lanes: &RayLanes<Avx512>,
+    lanes: &RayLanes<L>,
     live: u32,
     timing: bool,
 ) -> (u32, u64) {
     // A lane's ray, for rays that go on alone and tests that take one ray, read from the lanes
-    // stored as rows: writing all sixteen rays out by a transpose (as the general path does)
-    // took back all that this path saves on cornell (counter cycles, eight rounds).
-    // SAFETY: this function is compiled for AVX-512F.
+    // stored as rows: writing all the rays out by a transpose (as the general path does) took
+    // back all that this path saves on cornell (counter cycles, eight rounds, sixteen lanes).
+    // SAFETY (both blocks): the caller's CPU has `L`'s instruction set.
     let rows = unsafe { lanes_as_rows(lanes) };
     let ray = |j: usize| Ray {
         origin: Vec3A::new(rows[0][j], rows[1][j], rows[2][j]),
@@ -686,8 +827,7 @@ fn occluded16(
         tmax: rows[9][j],
     };
     let start = timing.then(cycle_count);
-    // SAFETY: this function is compiled for AVX-512F and POPCNT.
-    let hit = unsafe { geometry.occluded_lanes16(lanes, ray, live, stack) };
+    let hit = unsafe { L::occluded(geometry, lanes, ray, live, stack) };
     (hit, start.map_or(0, cycles_since))
 }
 

@@ -404,7 +404,8 @@ macro_rules! packet_kernels {
         $scene_packet:ident,
         $instance:ident,
         $closest:ident,
-        $closest_top:ident
+        $closest_top:ident,
+        $scene_lanes:ident
     ) => {
         impl Blas {
             /// The closest hits of `rays` (one packet; lanes of `live`) in `tree`, this BLAS's
@@ -587,6 +588,47 @@ macro_rules! packet_kernels {
                 });
             }
 
+            /// The lanes of `live` whose ray anything blocks, for one packet of world-space
+            /// rays in lanes (`ray(k)` gives lane k's ray, for what takes rays one by one):
+            /// each lane gets exactly the answer [`SceneGeometry::occluded_many`] gives its
+            /// ray, and the packet is traced as that call traces a packet. Uses `stack` above
+            /// its length.
+            #[target_feature(enable = $feature)]
+            pub(crate) fn $scene_lanes(
+                &self,
+                lanes: &RayLanes<$lanes_type>,
+                ray: impl Fn(usize) -> Ray,
+                live: u32,
+                stack: &mut Vec<(u32, f32)>,
+            ) -> u32 {
+                let on_planes = if self.planes.is_empty() {
+                    0
+                } else {
+                    lanes_where(live, &ray, |r| self.planes.iter().any(|p| p.intersect(r).is_some()))
+                };
+                let live = live & !on_planes;
+                if live == 0 {
+                    return on_planes;
+                }
+                let traced = if let Some(blas) = &self.world_blas {
+                    match &blas.tree {
+                        Tree::Eight(tree) if !blas.packets.is_empty() => blas.$lanes_of(tree, lanes, &ray, live, stack),
+                        _ => lanes_where(live, &ray, |r| blas.occluded(r, stack)),
+                    }
+                } else if let Tree::Eight(top) = &self.top {
+                    // The top level's instances take the rays in memory (each moves them into
+                    // its own frame): transposed out of the lanes in place.
+                    let mut rays = [Ray::new(Vec3A::ZERO, Vec3A::X, 0.0); 16];
+                    let order: [u32; 16] = std::array::from_fn(|k| k as u32);
+                    // SAFETY: this function is compiled for the lane type's instruction set.
+                    unsafe { <$lanes_type>::write_rays(lanes, &mut rays, &order) };
+                    self.$scene_packet(top, &rays[..<$lanes_type>::WIDTH], live, stack)
+                } else {
+                    lanes_where(live, &ray, |r| self.occluded(r, stack))
+                };
+                on_planes | traced
+            }
+
             /// The lanes of `live` whose ray in `chunk` (one packet, world space) anything
             /// blocks, traced together through the top-level tree `top`.
             #[target_feature(enable = $feature)]
@@ -662,7 +704,8 @@ packet_kernels!(
     occluded_packet_avx,
     instance_blocks_avx,
     closest_lanes_avx,
-    closest_top_avx
+    closest_top_avx,
+    occluded_lanes8
 );
 #[cfg(target_arch = "x86_64")]
 packet_kernels!(
@@ -676,7 +719,8 @@ packet_kernels!(
     occluded_packet_avx512,
     instance_blocks_avx512,
     closest_lanes_avx512,
-    closest_top_avx512
+    closest_top_avx512,
+    occluded_lanes16
 );
 
 /// The node test of an eight-lane occlusion packet: by fused multiply-adds ([`FusedPacket`]),
@@ -1615,52 +1659,6 @@ impl SceneGeometry {
             let _ = order;
             self.top.query(OccludedEach { target: self, rays, stack, blocked });
         }
-    }
-
-    /// The lanes of `live` whose ray anything blocks, for one packet of sixteen world-space
-    /// rays in lanes (`ray(k)` gives lane k's ray, for what takes rays one by one): each lane
-    /// gets exactly the answer [`SceneGeometry::occluded_many`] gives its ray, and the packet
-    /// is traced as that call traces a packet. Uses `stack` above its length.
-    ///
-    /// # Safety
-    /// The CPU must have AVX-512F and POPCNT ([`crate::cpu::avx512`]).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    pub(crate) unsafe fn occluded_lanes16(
-        &self,
-        lanes: &RayLanes<Avx512>,
-        ray: impl Fn(usize) -> Ray,
-        live: u32,
-        stack: &mut Vec<(u32, f32)>,
-    ) -> u32 {
-        let on_planes = if self.planes.is_empty() {
-            0
-        } else {
-            lanes_where(live, &ray, |r| self.planes.iter().any(|p| p.intersect(r).is_some()))
-        };
-        let live = live & !on_planes;
-        if live == 0 {
-            return on_planes;
-        }
-        let traced = if let Some(blas) = &self.world_blas {
-            match &blas.tree {
-                Tree::Eight(tree) if !blas.packets.is_empty() => {
-                    blas.occluded_lanes_of_avx512(tree, lanes, &ray, live, stack)
-                }
-                _ => lanes_where(live, &ray, |r| blas.occluded(r, stack)),
-            }
-        } else if let Tree::Eight(top) = &self.top {
-            // The top level's instances take the rays in memory (each moves them into its own
-            // frame): transposed out of the lanes in place.
-            let mut rays = [Ray::new(Vec3A::ZERO, Vec3A::X, 0.0); 16];
-            let order: [u32; 16] = std::array::from_fn(|k| k as u32);
-            // SAFETY: this function is compiled for AVX-512F.
-            unsafe { Avx512::write_rays(lanes, &mut rays, &order) };
-            self.occluded_packet_avx512(top, &rays, live, stack)
-        } else {
-            lanes_where(live, &ray, |r| self.occluded(r, stack))
-        };
-        on_planes | traced
     }
 
     /// Whether anything in instances `first..first + count` (a top-level leaf) blocks `ray`.

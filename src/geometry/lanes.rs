@@ -56,6 +56,8 @@ pub(crate) trait Lanes: Copy {
     unsafe fn places(groups: &[u32; 4], start: &[u32; 4], none: u32) -> [u32; 16];
     /// `x[0..WIDTH]`.
     unsafe fn load(x: &[f32]) -> Self;
+    /// The lanes written to `out[0..WIDTH]`.
+    unsafe fn store(self, out: &mut [f32]);
     /// Adds lane k of `x`, `y` and `z` to `out[k]`, for a full vector of `out` (`WIDTH`
     /// elements); the fourth lane of each element gets z's lane, as [`Vec3A::new`] gives it.
     unsafe fn add_to(x: Self, y: Self, z: Self, out: &mut [Vec3A]);
@@ -123,7 +125,7 @@ impl FusedLanes for Avx512 {
 
 /// Eight lanes in an AVX register.
 #[derive(Clone, Copy)]
-pub(crate) struct Avx(__m256);
+pub(crate) struct Avx(pub(crate) __m256);
 
 impl FusedLanes for Avx {
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
@@ -272,6 +274,13 @@ impl Lanes for Avx {
     }
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
+    unsafe fn store(self, out: &mut [f32]) {
+        let out = &mut out[..8];
+        // SAFETY: eight floats, checked above.
+        unsafe { _mm256_storeu_ps(out.as_mut_ptr(), self.0) }
+    }
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    #[inline]
     unsafe fn add_to(x: Self, y: Self, z: Self, out: &mut [Vec3A]) {
         let out = &mut out[..8];
         let xy_lo = _mm256_castps_pd(_mm256_unpacklo_ps(x.0, y.0));
@@ -394,8 +403,8 @@ impl Lanes for Avx {
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     unsafe fn mask(bits: u32) -> __m256 {
-        let lane = |i: u32| -((bits >> i & 1) as i32);
-        _mm256_castsi256_ps(_mm256_setr_epi32(lane(0), lane(1), lane(2), lane(3), lane(4), lane(5), lane(6), lane(7)))
+        let bit = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+        _mm256_castsi256_ps(_mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(bits as i32), bit), bit))
     }
     /// In two halves of four f64 lanes.
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
@@ -507,6 +516,13 @@ impl Lanes for Avx512 {
         let x = &x[..16];
         // SAFETY: sixteen floats, checked above.
         unsafe { Avx512(_mm512_loadu_ps(x.as_ptr())) }
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn store(self, out: &mut [f32]) {
+        let out = &mut out[..16];
+        // SAFETY: sixteen floats, checked above.
+        unsafe { _mm512_storeu_ps(out.as_mut_ptr(), self.0) }
     }
     #[target_feature(enable = "avx512f")]
     #[inline]

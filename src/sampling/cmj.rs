@@ -131,48 +131,30 @@ impl Cmj {
 
     /// [`Cmj::fill`] compiled for AVX2: eight lanes of 32-bit multiplies (SSE2 has no 32-bit
     /// lane multiply, so the portable loop vectorises poorly). Same operations, same values.
-    /// Where n is a power of two and the grid at most 8 × 8 (n ≤ 64), the column and row
-    /// shuffles are worked out once per call and looked up by a lane permute, as
+    /// Where n is a power of two and the grid at most 16 × 16, the column and row shuffles are
+    /// worked out once per call and looked up by lane permutes ([`SmallGrid8`]), as
     /// [`Cmj::fill_small_grid_avx512`] does sixteen-wide.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn fill_avx2(&self, first: u32, p: u32, out: &mut [Vec2]) {
-        if self.n.is_power_of_two() && self.m.get() <= 8 && self.k.get() <= 8 {
+        if self.has_small_grid16() {
             return self.fill_small_grid_avx2(first, p, out);
         }
         self.fill_portable(first, p, out);
     }
 
-    /// [`Cmj::fill_small_grid_avx512`] eight samples at a time in AVX2 lanes, for grids of at
-    /// most 8 × 8. Each lane does the scalar code's operations in its order.
+    /// [`Cmj::fill_small_grid_avx512`] eight samples at a time in AVX2 lanes
+    /// ([`SmallGrid8`]), stored as the `Vec2`s they are.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn fill_small_grid_avx2(&self, first: u32, p: u32, out: &mut [Vec2]) {
         use std::arch::x86_64::*;
 
-        let sc = Scrambles::new(p);
-        let (wn, wm, wk) = (self.n.mask(), self.m.mask(), self.k.mask());
-        let shift = self.m.get().trailing_zeros();
-        let u = |x: u32| _mm256_set1_epi32(x as i32);
+        // SAFETY (both blocks): this function is compiled for AVX2.
+        let grid = unsafe { SmallGrid8::new(self, p) };
         let iota = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-        // SAFETY (all blocks below): this function is compiled for AVX2.
-        // Column c's shuffled sub-column in lane c (lanes past m hold values never looked up).
-        let by_col = unsafe { permute_pow2_lanes(_mm256_and_si256(iota, u(wm)), wm, sc.x) };
-        let by_row = unsafe { permute_pow2_lanes(_mm256_and_si256(iota, u(wk)), wk, sc.y) };
-        let [inv_m, inv_k] = self.inv.map(|v| _mm256_set1_ps(v));
-        let below_one = _mm256_set1_ps(ONE_MINUS_EPSILON);
         for (i, chunk) in out.chunks_mut(8).enumerate() {
-            let s = _mm256_add_epi32(u(first + 8 * i as u32), iota);
-            let s = unsafe { permute_pow2_lanes(s, wn, sc.order) };
-            let (col, row) = (_mm256_and_si256(s, u(wm)), _mm256_srlv_epi32(s, u(shift)));
-            let sx = _mm256_permutevar8x32_epi32(by_col, col);
-            let sy = _mm256_permutevar8x32_epi32(by_row, row);
-            let (jx, jy) = (randfloat_lanes8(s, sc.jx), randfloat_lanes8(s, sc.jy));
-            // Grid indices are small: the signed conversion is exact.
-            let f = |v| _mm256_cvtepi32_ps(v);
-            let x = _mm256_mul_ps(_mm256_add_ps(f(col), _mm256_mul_ps(_mm256_add_ps(f(sy), jx), inv_k)), inv_m);
-            let y = _mm256_mul_ps(_mm256_add_ps(f(row), _mm256_mul_ps(_mm256_add_ps(f(sx), jy), inv_m)), inv_k);
-            let (x, y) = (_mm256_min_ps(x, below_one), _mm256_min_ps(y, below_one));
+            let (x, y) = unsafe { grid.points_of(grid.shuffled(consecutive8(first + 8 * i as u32))) };
             // (x, y) pairs as `Vec2`s lie in memory: samples 0–3, then 4–7.
             let (low, high) = (_mm256_unpacklo_ps(x, y), _mm256_unpackhi_ps(x, y));
             let pairs = [_mm256_permute2f128_ps::<0x20>(low, high), _mm256_permute2f128_ps::<0x31>(low, high)];
@@ -239,11 +221,12 @@ impl Cmj {
         false
     }
 
-    /// Whether this CPU has AVX-512 and the patterns are [`QuadrantPattern`]s: n a power of
-    /// two on a grid of at most 16 × 16 whose m columns split into quarters (n = 16 … 256).
+    /// Whether this CPU has AVX2 (see [`crate::cpu`]) and the patterns are
+    /// [`QuadrantPattern`]s: n a power of two on a grid of at most 16 × 16 whose m columns
+    /// split into quarters (n = 16 … 256).
     #[cfg(target_arch = "x86_64")]
     pub(crate) fn has_quadrants(&self) -> bool {
-        self.has_small_grid16() && self.m.get().is_multiple_of(4) && crate::cpu::avx512()
+        self.has_small_grid16() && self.m.get().is_multiple_of(4) && crate::cpu::avx2()
     }
 
     /// Whether n is a power of two on a grid of at most 16 × 16 ([`SmallGrid16`]'s patterns).
@@ -309,7 +292,7 @@ impl Cmj {
 /// shuffles looked up from tables of sixteen lanes worked out once. Each lane does the scalar
 /// code's operations in its order, so every value is [`Cmj::sample`]'s.
 #[cfg(target_arch = "x86_64")]
-struct SmallGrid16 {
+pub(crate) struct SmallGrid16 {
     sc: Scrambles,
     masks: [u32; 3],
     shift: u32,
@@ -375,51 +358,224 @@ impl SmallGrid16 {
     }
 }
 
+/// A pattern's grid set up for SIMD lanes: [`SmallGrid16`] (sixteen lanes, AVX-512F) or
+/// [`SmallGrid8`] (eight, AVX2). Every method needs the grid's instruction set.
+#[cfg(target_arch = "x86_64")]
+pub(crate) trait GridLanes: Sized {
+    /// Lanes of u32.
+    type Index: U32Lanes;
+    /// Lanes of f32.
+    type Point: Copy;
+    /// Lanes per vector.
+    const WIDTH: u32;
+    /// Pattern `p` of `cmj`, which must have a small grid ([`Cmj::has_small_grid16`]).
+    unsafe fn new(cmj: &Cmj, p: u32) -> Self;
+    /// `first, first + 1, …` in lanes.
+    unsafe fn consecutive(first: u32) -> Self::Index;
+    /// The points of the shuffled samples `s`: x lanes, y lanes.
+    unsafe fn points_of(&self, s: Self::Index) -> (Self::Point, Self::Point);
+    /// Each lane's sample `s` after the sample order's permutation.
+    unsafe fn shuffled(&self, s: Self::Index) -> Self::Index;
+}
+
+#[cfg(target_arch = "x86_64")]
+impl GridLanes for SmallGrid16 {
+    type Index = std::arch::x86_64::__m512i;
+    type Point = std::arch::x86_64::__m512;
+    const WIDTH: u32 = 16;
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn new(cmj: &Cmj, p: u32) -> Self {
+        SmallGrid16::new(cmj, p)
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn consecutive(first: u32) -> Self::Index {
+        consecutive16(first)
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn points_of(&self, s: Self::Index) -> (Self::Point, Self::Point) {
+        SmallGrid16::points_of(self, s)
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn shuffled(&self, s: Self::Index) -> Self::Index {
+        // SAFETY: this function is compiled for AVX-512F.
+        unsafe { permute_pow2_lanes(s, self.masks[0], self.sc.order) }
+    }
+}
+
+/// [`SmallGrid16`] eight samples at a time in AVX2 lanes: the same hashes in lanes, each
+/// sixteen-entry shuffle table held in two registers and looked up by two lane permutes and a
+/// blend ([`lookup16`]). Every value is [`Cmj::sample`]'s.
+#[cfg(target_arch = "x86_64")]
+pub(crate) struct SmallGrid8 {
+    sc: Scrambles,
+    masks: [u32; 3],
+    shift: u32,
+    inv: [f32; 2],
+    /// Column c's shuffled sub-column in lane c % 8 of entry c / 8 (lanes past m hold values
+    /// never looked up).
+    by_col: [std::arch::x86_64::__m256i; 2],
+    /// Row r's shuffled sub-row, likewise.
+    by_row: [std::arch::x86_64::__m256i; 2],
+}
+
+#[cfg(target_arch = "x86_64")]
+impl GridLanes for SmallGrid8 {
+    type Index = std::arch::x86_64::__m256i;
+    type Point = std::arch::x86_64::__m256;
+    const WIDTH: u32 = 8;
+
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn new(cmj: &Cmj, p: u32) -> Self {
+        use std::arch::x86_64::*;
+
+        debug_assert!(cmj.has_small_grid16());
+        let sc = Scrambles::new(p);
+        let (wm, wk) = (cmj.m.mask(), cmj.k.mask());
+        // SAFETY: this function is compiled for AVX2.
+        let table = |w: u32, seed: u32| {
+            [0, 8].map(|from| unsafe {
+                permute_pow2_lanes(_mm256_and_si256(consecutive8(from), _mm256_set1_epi32(w as i32)), w, seed)
+            })
+        };
+        SmallGrid8 {
+            by_col: table(wm, sc.x),
+            by_row: table(wk, sc.y),
+            sc,
+            masks: [cmj.n.mask(), wm, wk],
+            shift: cmj.m.get().trailing_zeros(),
+            inv: cmj.inv,
+        }
+    }
+
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn consecutive(first: u32) -> Self::Index {
+        consecutive8(first)
+    }
+
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn points_of(&self, s: Self::Index) -> (Self::Point, Self::Point) {
+        use std::arch::x86_64::*;
+
+        let u = |x: u32| _mm256_set1_epi32(x as i32);
+        let (col, row) = (_mm256_and_si256(s, u(self.masks[1])), _mm256_srlv_epi32(s, u(self.shift)));
+        let (sx, sy) = (lookup16(self.by_col, col), lookup16(self.by_row, row));
+        let (jx, jy) = (randfloat_lanes8(s, self.sc.jx), randfloat_lanes8(s, self.sc.jy));
+        let [inv_m, inv_k] = self.inv.map(|v| _mm256_set1_ps(v));
+        // Grid indices are small: the signed conversion is exact.
+        let f = |v| _mm256_cvtepi32_ps(v);
+        let x = _mm256_mul_ps(_mm256_add_ps(f(col), _mm256_mul_ps(_mm256_add_ps(f(sy), jx), inv_k)), inv_m);
+        let y = _mm256_mul_ps(_mm256_add_ps(f(row), _mm256_mul_ps(_mm256_add_ps(f(sx), jy), inv_m)), inv_k);
+        let below_one = _mm256_set1_ps(ONE_MINUS_EPSILON);
+        (_mm256_min_ps(x, below_one), _mm256_min_ps(y, below_one))
+    }
+
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn shuffled(&self, s: Self::Index) -> Self::Index {
+        // SAFETY: this function is compiled for AVX2.
+        unsafe { permute_pow2_lanes(s, self.masks[0], self.sc.order) }
+    }
+}
+
+/// Entry `i` (0 to 15) of a sixteen-entry table held as two registers of eight, in each lane.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn lookup16(table: [std::arch::x86_64::__m256i; 2], i: std::arch::x86_64::__m256i) -> std::arch::x86_64::__m256i {
+    use std::arch::x86_64::*;
+    // The permutes read the low three bits of each index.
+    let (low, high) = (_mm256_permutevar8x32_epi32(table[0], i), _mm256_permutevar8x32_epi32(table[1], i));
+    _mm256_blendv_epi8(low, high, _mm256_cmpgt_epi32(i, _mm256_set1_epi32(7)))
+}
+
+/// `first, first + 1, …, first + 7` in eight lanes.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn consecutive8(first: u32) -> std::arch::x86_64::__m256i {
+    use std::arch::x86_64::*;
+    _mm256_add_epi32(_mm256_set1_epi32(first as i32), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7))
+}
+
 /// A pattern of a [`Cmj`] whose columns fall into quarters of [0, 1) ([`Cmj::has_quadrants`]),
-/// its samples taken quadrant by quadrant: slots `q·n/4 … (q + 1)·n/4 − 1` hold the n/4
-/// samples whose x lies in [q/4, (q + 1)/4) (their coarse columns are the m/4 columns of that
-/// quarter). A cosine direction's azimuth is 2πx, so sixteen consecutive slots make rays into
-/// one quarter of the hemisphere (for n ≥ 64; for n = 16 or 32 one packet spans the quarters
-/// in azimuth order), with no sort. Each sample keeps the point [`Cmj::sample`] gives it:
-/// only the order in which they are made changes.
+/// its samples taken quadrant by quadrant, `G::WIDTH` slots at a time: slots
+/// `q·n/4 … (q + 1)·n/4 − 1` hold the n/4 samples whose x lies in [q/4, (q + 1)/4) (their
+/// coarse columns are the m/4 columns of that quarter). A cosine direction's azimuth is 2πx,
+/// so consecutive slots make rays into one quarter of the hemisphere (for n/4 ≥ the width;
+/// below it one packet spans the quarters in azimuth order), with no sort. Each sample keeps
+/// the point [`Cmj::sample`] gives it: only the order in which they are made changes.
 ///
 /// A slot's bits are (low to high) its column within the quarter, its row, its quarter; a
 /// shuffled sample number's are its column within the quarter, its quarter, its row, so one
 /// is a swap of bit fields of the other.
 #[cfg(target_arch = "x86_64")]
-pub(crate) struct QuadrantPattern {
-    grid: SmallGrid16,
+pub(crate) struct QuadrantPattern<G> {
+    grid: G,
     /// Bits of the column within a quarter (log₂ m − 2) and of the row (log₂ k).
     bits: [u32; 2],
     n: u32,
 }
 
 #[cfg(target_arch = "x86_64")]
-impl QuadrantPattern {
+impl<G: GridLanes> QuadrantPattern<G> {
     /// Pattern `p` of `cmj`, which must have quadrants ([`Cmj::has_quadrants`]).
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    pub(crate) fn new(cmj: &Cmj, p: u32) -> Self {
+    ///
+    /// # Safety
+    /// The CPU must have `G`'s instruction set.
+    #[inline(always)]
+    pub(crate) unsafe fn new(cmj: &Cmj, p: u32) -> Self {
         debug_assert!(cmj.has_quadrants());
         let bits = [cmj.m.get().trailing_zeros() - 2, cmj.k.get().trailing_zeros()];
-        QuadrantPattern { grid: SmallGrid16::new(cmj, p), bits, n: cmj.n.get() }
+        // SAFETY: the caller's CPU has `G`'s instruction set.
+        QuadrantPattern { grid: unsafe { G::new(cmj, p) }, bits, n: cmj.n.get() }
     }
 
-    /// Packets of sixteen slots: n/16.
+    /// Packets of `G::WIDTH` slots: n / `G::WIDTH`.
     pub(crate) fn packets(&self) -> usize {
-        self.n as usize / 16
+        (self.n / G::WIDTH) as usize
     }
 
-    /// The points of slots `16·packet … 16·packet + 15`: x lanes, y lanes.
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    pub(crate) fn points(&self, packet: usize) -> (std::arch::x86_64::__m512, std::arch::x86_64::__m512) {
+    /// The points of the slots of packet `packet` (`G::WIDTH` consecutive slots): x lanes, y
+    /// lanes.
+    ///
+    /// # Safety
+    /// The CPU must have `G`'s instruction set.
+    #[inline(always)]
+    pub(crate) unsafe fn points(&self, packet: usize) -> (G::Point, G::Point) {
         let [a, b] = self.bits;
-        let [col, row, quarter] = split_bits(consecutive16(16 * packet as u32), [a, b, 2]);
-        let s = join_bits([col, quarter, row], [a, 2, b]);
-        self.grid.points_of(s)
+        // SAFETY: the caller's CPU has `G`'s instruction set.
+        unsafe {
+            let [col, row, quarter] = split_bits(G::consecutive(G::WIDTH * packet as u32), [a, b, 2]);
+            self.grid.points_of(join_bits([col, quarter, row], [a, 2, b]))
+        }
     }
 
+    /// The slots of samples `G::WIDTH·group …` (in sample order, as [`Cmj::fill`] numbers
+    /// them), one per lane.
+    ///
+    /// # Safety
+    /// The CPU must have `G`'s instruction set.
+    #[inline(always)]
+    unsafe fn slots(&self, group: usize) -> G::Index {
+        let [a, b] = self.bits;
+        // SAFETY: the caller's CPU has `G`'s instruction set.
+        unsafe {
+            let s = self.grid.shuffled(G::consecutive(G::WIDTH * group as u32));
+            let [col, quarter, row] = split_bits(s, [a, 2, b]);
+            join_bits([col, row, quarter], [a, b, 2])
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl QuadrantPattern<SmallGrid16> {
     /// Which of the samples `16·group … 16·group + 15` (in sample order, as [`Cmj::fill`]
     /// numbers them) lie in a marked slot, slot `t` being marked where bit `t % 16` of lane
     /// `t / 16` of `marks` is set.
@@ -429,15 +585,33 @@ impl QuadrantPattern {
         use std::arch::x86_64::*;
 
         let u = |x: u32| _mm512_set1_epi32(x as i32);
-        let [a, b] = self.bits;
-        let s = consecutive16(16 * group as u32);
         // SAFETY: this function is compiled for AVX-512F.
-        let s = unsafe { permute_pow2_lanes(s, self.grid.masks[0], self.grid.sc.order) };
-        let [col, quarter, row] = split_bits(s, [a, 2, b]);
-        let slot = join_bits([col, row, quarter], [a, b, 2]);
+        let slot = unsafe { self.slots(group) };
         let word = _mm512_permutexvar_epi32(_mm512_srli_epi32::<4>(slot), marks);
         let bit = _mm512_srlv_epi32(word, _mm512_and_si512(slot, u(15)));
         _mm512_test_epi32_mask(bit, u(1))
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl QuadrantPattern<SmallGrid8> {
+    /// Which of the samples `8·group … 8·group + 7` (in sample order) lie in a marked slot,
+    /// slot `t` being marked where bit `t % 16` of `marks[t / 16]` is set.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(crate) fn marked(&self, group: usize, marks: &[u32; 16]) -> u8 {
+        use std::arch::x86_64::*;
+
+        let u = |x: u32| _mm256_set1_epi32(x as i32);
+        // SAFETY: this function is compiled for AVX2; the loads read the sixteen entries of
+        // `marks`.
+        let (slot, table) = unsafe {
+            let words = marks.as_ptr().cast::<__m256i>();
+            (self.slots(group), [_mm256_loadu_si256(words), _mm256_loadu_si256(words.add(1))])
+        };
+        let word = lookup16(table, _mm256_srli_epi32::<4>(slot));
+        let bit = _mm256_and_si256(_mm256_srlv_epi32(word, _mm256_and_si256(slot, u(15))), u(1));
+        _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(bit, u(1)))) as u8
     }
 }
 
@@ -452,28 +626,29 @@ fn consecutive16(first: u32) -> std::arch::x86_64::__m512i {
 }
 
 /// Each lane of `v` cut into three bit fields of `widths` bits, lowest first.
+///
+/// # Safety
+/// The CPU must have `V`'s instruction set.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-#[inline]
-fn split_bits(v: std::arch::x86_64::__m512i, widths: [u32; 3]) -> [std::arch::x86_64::__m512i; 3] {
-    use std::arch::x86_64::*;
-    let field = |shift: u32, bits: u32| {
-        _mm512_and_si512(_mm512_srlv_epi32(v, _mm512_set1_epi32(shift as i32)), _mm512_set1_epi32((1 << bits) - 1))
-    };
+#[inline(always)]
+unsafe fn split_bits<V: U32Lanes>(v: V, widths: [u32; 3]) -> [V; 3] {
+    // SAFETY: the caller's CPU has `V`'s instruction set.
+    let field = |shift: u32, bits: u32| unsafe { v.shr(V::splat(shift)).and(V::splat((1 << bits) - 1)) };
     let [a, b, c] = widths;
     [field(0, a), field(a, b), field(a + b, c)]
 }
 
 /// Three bit fields of `widths` bits joined in each lane, the first lowest: the inverse of
 /// [`split_bits`].
+///
+/// # Safety
+/// The CPU must have `V`'s instruction set.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-#[inline]
-fn join_bits(fields: [std::arch::x86_64::__m512i; 3], widths: [u32; 3]) -> std::arch::x86_64::__m512i {
-    use std::arch::x86_64::*;
-    let shifted = |v: __m512i, shift: u32| _mm512_sllv_epi32(v, _mm512_set1_epi32(shift as i32));
+#[inline(always)]
+unsafe fn join_bits<V: U32Lanes>(fields: [V; 3], widths: [u32; 3]) -> V {
     let [x, y, z] = fields;
-    _mm512_or_si512(_mm512_or_si512(x, shifted(y, widths[0])), shifted(z, widths[0] + widths[1]))
+    // SAFETY: the caller's CPU has `V`'s instruction set.
+    unsafe { x.or(y.shl(V::splat(widths[0]))).or(z.shl(V::splat(widths[0] + widths[1]))) }
 }
 
 /// The per-pattern seeds of Kensler's five hashes, derived from the pattern number.
@@ -525,9 +700,9 @@ mod tests {
         }
     }
 
-    /// Every fill path gives `sample`'s values: each vector copy this CPU has (AVX-512 lanes for
-    /// power-of-two grids up to 16 × 16, n ≤ 256; AVX2 lanes up to 8 × 8, n ≤ 64; the
-    /// vectorised loop above that, 1024 being 32 × 32), the portable loop, and the dispatch;
+    /// Every fill path gives `sample`'s values: each vector copy this CPU has (AVX-512 and AVX2
+    /// lanes for power-of-two grids up to 16 × 16, n ≤ 256; the vectorised loop above that,
+    /// 1024 being 32 × 32), the portable loop, and the dispatch;
     /// one sample at a time for other n. So do the columns, wherever they are computed.
     #[test]
     fn fill_gives_the_samples_of_sample() {
@@ -573,7 +748,8 @@ mod tests {
 
     /// A quadrant pattern's slots hold every sample of the pattern once, each at
     /// [`Cmj::sample`]'s point, quarter by quarter of x (so of the azimuth 2πx); and a mark on
-    /// a slot reads back on exactly the sample whose point that slot holds.
+    /// a slot reads back on exactly the sample whose point that slot holds. For each width
+    /// this CPU has: eight lanes (AVX2) and sixteen (AVX-512).
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn quadrant_patterns_hold_each_sample_once_in_its_quarter() {
@@ -582,8 +758,8 @@ mod tests {
         for n in [4u32, 8, 12, 16, 32, 64, 128, 256, 512] {
             let cmj = Cmj::new(n);
             let splits = [16, 32, 64, 128, 256].contains(&n);
-            if !crate::cpu::avx512() {
-                assert!(!cmj.has_quadrants(), "n {n}: quadrants without AVX-512");
+            if !crate::cpu::avx2() {
+                assert!(!cmj.has_quadrants(), "n {n}: quadrants without AVX2");
                 continue;
             }
             assert_eq!(cmj.has_quadrants(), splits, "n {n}");
@@ -591,40 +767,79 @@ mod tests {
                 continue;
             }
             for p in [0u32, 1, 99, 0xdead_beef] {
-                // SAFETY (every block below): the CPU has AVX-512F, checked above.
-                let pattern = unsafe { QuadrantPattern::new(&cmj, p) };
-                assert_eq!(pattern.packets() * 16, n as usize);
-                // Each slot's point, bit for bit.
-                let mut slots = Vec::new();
-                for packet in 0..pattern.packets() {
+                // SAFETY (every block): the CPU has AVX2, checked above.
+                let pattern = unsafe { QuadrantPattern::<SmallGrid8>::new(&cmj, p) };
+                let points = |packet| {
+                    let (mut x, mut y) = ([0.0f32; 8], [0.0f32; 8]);
+                    unsafe {
+                        let (xs, ys) = pattern.points(packet);
+                        _mm256_storeu_ps(x.as_mut_ptr(), xs);
+                        _mm256_storeu_ps(y.as_mut_ptr(), ys);
+                    }
+                    (x.to_vec(), y.to_vec())
+                };
+                let marked = |g, marks: &[u32; 16]| unsafe { u32::from(pattern.marked(g, marks)) };
+                slots_hold_their_samples(&cmj, p, 8, pattern.packets(), points, marked);
+                if !crate::cpu::avx512() {
+                    continue;
+                }
+                // SAFETY (every block): the CPU has AVX-512F, checked just above.
+                let pattern = unsafe { QuadrantPattern::<SmallGrid16>::new(&cmj, p) };
+                let points = |packet| {
                     let (mut x, mut y) = ([0.0f32; 16], [0.0f32; 16]);
                     unsafe {
                         let (xs, ys) = pattern.points(packet);
                         _mm512_storeu_ps(x.as_mut_ptr(), xs);
                         _mm512_storeu_ps(y.as_mut_ptr(), ys);
                     }
-                    slots.extend(x.into_iter().zip(y).map(|(x, y)| [x, y]));
-                }
-                let samples: Vec<[f32; 2]> = (0..n).map(|s| cmj.sample(s, p)).collect();
-                let quarter = n as usize / 4;
-                for (t, point) in slots.iter().enumerate() {
-                    let q = (t / quarter) as f32;
-                    assert!((q / 4.0..(q + 1.0) / 4.0).contains(&point[0]), "n {n}, p {p}: slot {t} at x {}", point[0]);
-                    let owners: Vec<usize> = (0..n as usize).filter(|&s| samples[s] == *point).collect();
-                    assert_eq!(owners.len(), 1, "n {n}, p {p}: slot {t} holds no single sample");
-                    // A mark on this slot alone reads back on its sample alone.
-                    let mut marks = [0u32; 16];
-                    marks[t / 16] = 1 << (t % 16);
-                    let marks = unsafe { _mm512_loadu_si512(marks.as_ptr().cast()) };
-                    let marked: Vec<usize> = (0..pattern.packets())
-                        .flat_map(|g| {
-                            let bits = unsafe { pattern.marked(g, marks) };
-                            (0..16).filter(move |k| bits & (1 << k) != 0).map(move |k| 16 * g + k)
-                        })
-                        .collect();
-                    assert_eq!(marked, owners, "n {n}, p {p}: slot {t}");
-                }
+                    (x.to_vec(), y.to_vec())
+                };
+                let marked = |g, marks: &[u32; 16]| unsafe {
+                    u32::from(pattern.marked(g, _mm512_loadu_si512(marks.as_ptr().cast())))
+                };
+                slots_hold_their_samples(&cmj, p, 16, pattern.packets(), points, marked);
             }
+        }
+    }
+
+    /// The checks of the test above for one pattern `p` of `cmj` taken `width` slots at a time
+    /// in `packets` packets: `points(packet)` gives a packet's x and y, `marked(group, marks)`
+    /// the samples of a group that `marks` (bit t % 16 of word t / 16 for slot t) marks.
+    #[cfg(target_arch = "x86_64")]
+    fn slots_hold_their_samples(
+        cmj: &Cmj,
+        p: u32,
+        width: usize,
+        packets: usize,
+        points: impl Fn(usize) -> (Vec<f32>, Vec<f32>),
+        marked: impl Fn(usize, &[u32; 16]) -> u32,
+    ) {
+        let n = cmj.n.get();
+        assert_eq!(packets * width, n as usize);
+        // Each slot's point, bit for bit.
+        let slots: Vec<[f32; 2]> = (0..packets)
+            .flat_map(|packet| {
+                let (x, y) = points(packet);
+                x.into_iter().zip(y).map(|(x, y)| [x, y])
+            })
+            .collect();
+        let samples: Vec<[f32; 2]> = (0..n).map(|s| cmj.sample(s, p)).collect();
+        let quarter = n as usize / 4;
+        for (t, point) in slots.iter().enumerate() {
+            let q = (t / quarter) as f32;
+            assert!((q / 4.0..(q + 1.0) / 4.0).contains(&point[0]), "n {n}, p {p}: slot {t} at x {}", point[0]);
+            let owners: Vec<usize> = (0..n as usize).filter(|&s| samples[s] == *point).collect();
+            assert_eq!(owners.len(), 1, "n {n}, p {p}: slot {t} holds no single sample");
+            // A mark on this slot alone reads back on its sample alone.
+            let mut marks = [0u32; 16];
+            marks[t / 16] = 1 << (t % 16);
+            let marked: Vec<usize> = (0..packets)
+                .flat_map(|g| {
+                    let bits = marked(g, &marks);
+                    (0..width).filter(move |k| bits & (1 << k) != 0).map(move |k| width * g + k)
+                })
+                .collect();
+            assert_eq!(marked, owners, "n {n}, p {p}, width {width}: slot {t}");
         }
     }
 }

@@ -134,7 +134,7 @@ fn permute_round(mut i: u32, w: u32, p: u32) -> u32 {
 /// compiled for its type's instruction set, which the CPU must have; callers are generic code
 /// inlined into functions compiled for it.
 #[cfg(target_arch = "x86_64")]
-pub(super) trait U32Lanes: Copy {
+pub(crate) trait U32Lanes: Copy {
     /// `x` in every lane.
     unsafe fn splat(x: u32) -> Self;
     /// `self ^ b`.
@@ -147,11 +147,26 @@ pub(super) trait U32Lanes: Copy {
     unsafe fn mul(self, b: Self) -> Self;
     /// `self >> n`, lane by lane.
     unsafe fn shr(self, n: Self) -> Self;
+    /// `self << n`, lane by lane.
+    unsafe fn shl(self, n: Self) -> Self;
+    /// `self | b`.
+    unsafe fn or(self, b: Self) -> Self;
 }
 
 #[cfg(target_arch = "x86_64")]
 macro_rules! u32_lanes {
-    ($ty:ty, $feature:literal, $set1:ident, $xor:ident, $and:ident, $add:ident, $mul:ident, $shr:ident) => {
+    (
+        $ty:ty,
+        $feature:literal,
+        $set1:ident,
+        $xor:ident,
+        $and:ident,
+        $add:ident,
+        $mul:ident,
+        $shr:ident,
+        $shl:ident,
+        $or:ident
+    ) => {
         impl U32Lanes for $ty {
             #[target_feature(enable = $feature)]
             #[inline]
@@ -183,6 +198,16 @@ macro_rules! u32_lanes {
             unsafe fn shr(self, n: Self) -> Self {
                 std::arch::x86_64::$shr(self, n)
             }
+            #[target_feature(enable = $feature)]
+            #[inline]
+            unsafe fn shl(self, n: Self) -> Self {
+                std::arch::x86_64::$shl(self, n)
+            }
+            #[target_feature(enable = $feature)]
+            #[inline]
+            unsafe fn or(self, b: Self) -> Self {
+                std::arch::x86_64::$or(self, b)
+            }
         }
     };
 }
@@ -196,7 +221,9 @@ u32_lanes!(
     _mm512_and_si512,
     _mm512_add_epi32,
     _mm512_mullo_epi32,
-    _mm512_srlv_epi32
+    _mm512_srlv_epi32,
+    _mm512_sllv_epi32,
+    _mm512_or_si512
 );
 #[cfg(target_arch = "x86_64")]
 u32_lanes!(
@@ -207,7 +234,9 @@ u32_lanes!(
     _mm256_and_si256,
     _mm256_add_epi32,
     _mm256_mullo_epi32,
-    _mm256_srlv_epi32
+    _mm256_srlv_epi32,
+    _mm256_sllv_epi32,
+    _mm256_or_si256
 );
 
 /// [`permute_pow2`] of each lane, with the scalar function's operations, so each lane gets its

@@ -112,6 +112,41 @@ pub(crate) unsafe fn cosine_hemisphere16(
     [mul(sin_theta, cos_phi), mul(sin_theta, sin_phi), cos_theta]
 }
 
+/// [`cosine_hemisphere16`] for eight sample points in AVX2 lanes: the same operations, so
+/// each lane is the scalar code's bits.
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+pub(crate) unsafe fn cosine_hemisphere8(
+    u0: std::arch::x86_64::__m256,
+    u1: std::arch::x86_64::__m256,
+) -> [std::arch::x86_64::__m256; 3] {
+    use std::arch::x86_64::*;
+
+    let k = |x: f32| _mm256_set1_ps(x);
+    let (add, sub, mul) = (_mm256_add_ps, _mm256_sub_ps, _mm256_mul_ps);
+    let round = |x| sub(add(x, k(ROUNDER)), k(ROUNDER));
+    let q = round(mul(u0, k(4.0)));
+    let x = mul(sub(u0, mul(q, k(0.25))), k(TAU));
+    let z = mul(x, x);
+    let sin = add(mul(mul(add(mul(add(mul(k(SIN[0]), z), k(SIN[1])), z), k(SIN[2])), z), x), x);
+    let cos =
+        add(sub(mul(mul(add(mul(add(mul(k(COS[0]), z), k(COS[1])), z), k(COS[2])), z), z), mul(z, k(0.5))), k(1.0));
+    let half = mul(q, k(0.5));
+    let odd = _mm256_cmp_ps::<_CMP_NEQ_UQ>(half, round(half));
+    let (s, c) = (_mm256_blendv_ps(sin, cos, odd), _mm256_blendv_ps(cos, sin, odd));
+    let within =
+        |lo: f32, hi: f32| _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(q, k(lo)), _mm256_cmp_ps::<_CMP_LT_OQ>(q, k(hi)));
+    let flip = |v: __m256, m: __m256| _mm256_xor_ps(v, _mm256_and_ps(m, k(-0.0)));
+    let (sin_phi, cos_phi) = (flip(s, within(2.0, 4.0)), flip(c, within(1.0, 3.0)));
+    let cos_theta = _mm256_sqrt_ps(sub(k(1.0), u1));
+    let sin_theta = _mm256_sqrt_ps(_mm256_max_ps(sub(k(1.0), mul(cos_theta, cos_theta)), k(0.0)));
+    [mul(sin_theta, cos_phi), mul(sin_theta, sin_phi), cos_theta]
+}
+
 /// Adding and removing 2²³ rounds to the nearest integer (exactly, below 2²²).
 const ROUNDER: f32 = 8_388_608.0;
 /// Cephes's sinf polynomial on [−π/4, π/4]: x + x³(S0 + x²(S1 + x²·S2)), in Horner order.
@@ -171,37 +206,66 @@ mod tests {
         (0..n).map(|_| Vec2::new(rng.next_f32(), rng.next_f32())).collect()
     }
 
-    /// The sixteen-lane cosine directions give the scalar map's bits, for random points and
-    /// for the quarter-turn and end values where a rounding or sign choice could differ.
+    /// The sixteen- and eight-lane cosine directions give the scalar map's bits, for random
+    /// points and for the quarter-turn and end values where a rounding or sign choice could
+    /// differ.
     #[cfg(target_arch = "x86_64")]
     #[test]
-    fn sixteen_lane_cosine_directions_give_the_scalar_bits() {
+    fn lane_cosine_directions_give_the_scalar_bits() {
         use std::arch::x86_64::*;
-        if !std::arch::is_x86_feature_detected!("avx512f") {
-            eprintln!("no AVX-512 on this CPU: its copy is not used and not tested");
-            return;
-        }
         let below_one = crate::sampling::ONE_MINUS_EPSILON;
         let edges = [0.0, 0.125, 0.25, 0.375, 0.5, 0.625, 0.75, 0.875, below_one, 1e-8, 0.2499999, 0.7500001];
         let mut points: Vec<Vec2> = edges.iter().flat_map(|&x| edges.iter().map(move |&y| Vec2::new(x, y))).collect();
         points.extend(uniform_points(4000, 8));
+        type Copy = fn(&[[f32; 16]; 2]) -> [[f32; 16]; 3];
+        let mut copies: Vec<(&str, Copy)> = Vec::new();
+        if std::arch::is_x86_feature_detected!("avx2") {
+            copies.push(("avx2", |u| {
+                let mut out = [[0.0f32; 16]; 3];
+                // SAFETY: the CPU has AVX2, checked above; the loads and stores are of eight
+                // floats within rows of sixteen.
+                unsafe {
+                    for h in [0, 8] {
+                        let d = cosine_hemisphere8(
+                            _mm256_loadu_ps(u[0][h..].as_ptr()),
+                            _mm256_loadu_ps(u[1][h..].as_ptr()),
+                        );
+                        for (o, d) in out.iter_mut().zip(d) {
+                            _mm256_storeu_ps(o[h..].as_mut_ptr(), d);
+                        }
+                    }
+                }
+                out
+            }));
+        }
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            copies.push(("avx512", |u| {
+                let mut out = [[0.0f32; 16]; 3];
+                // SAFETY: the CPU has AVX-512F, checked above; the loads and stores are of 16 floats.
+                unsafe {
+                    let d = cosine_hemisphere16(_mm512_loadu_ps(u[0].as_ptr()), _mm512_loadu_ps(u[1].as_ptr()));
+                    for (o, d) in out.iter_mut().zip(d) {
+                        _mm512_storeu_ps(o.as_mut_ptr(), d);
+                    }
+                }
+                out
+            }));
+        }
+        if copies.len() < 2 {
+            eprintln!("no AVX2 or no AVX-512 on this CPU: its copy is not used and not tested");
+        }
         for group in points.chunks(16) {
             let mut u = [[0.5f32; 16]; 2];
             for (k, p) in group.iter().enumerate() {
                 (u[0][k], u[1][k]) = (p.x, p.y);
             }
-            let mut out = [[0.0f32; 16]; 3];
-            // SAFETY: the CPU has AVX-512F, checked above; the loads and stores are of 16 floats.
-            unsafe {
-                let d = cosine_hemisphere16(_mm512_loadu_ps(u[0].as_ptr()), _mm512_loadu_ps(u[1].as_ptr()));
-                for (o, d) in out.iter_mut().zip(d) {
-                    _mm512_storeu_ps(o.as_mut_ptr(), d);
+            for (name, copy) in &copies {
+                let out = copy(&u);
+                for (k, &p) in group.iter().enumerate() {
+                    let d = cosine_power_hemisphere(p, 1.0).dir;
+                    let lane = Vec3::new(out[0][k], out[1][k], out[2][k]);
+                    assert_eq!(lane.to_array().map(f32::to_bits), d.to_array().map(f32::to_bits), "{name}: {p}");
                 }
-            }
-            for (k, &p) in group.iter().enumerate() {
-                let d = cosine_power_hemisphere(p, 1.0).dir;
-                let lane = Vec3::new(out[0][k], out[1][k], out[2][k]);
-                assert_eq!(lane.to_array().map(f32::to_bits), d.to_array().map(f32::to_bits), "{p}");
             }
         }
     }
