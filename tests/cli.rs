@@ -80,8 +80,8 @@ fn stats_json_holds_the_ao_rate_of_the_trace_the_ao_kernel_and_its_queries() {
 }
 
 /// The AVX2 copies (eight-lane packets, the AVX2 loops of CMJ and the cosine directions) and
-/// the AVX-512 ones (sixteen-lane packets, and the occluder's one-pass cosine runs at the
-/// shared camera hits of the peer Cornell box) give the same image bit for bit;
+/// the AVX-512 ones (sixteen-lane packets) give the same image bit for bit, with the
+/// occluder's one-pass cosine runs at the shared camera hits of the peer Cornell box in both;
 /// `HEMI_NO_AVX512=1` picks the former.
 #[test]
 fn cpus_with_and_without_avx512_render_the_same_image() {

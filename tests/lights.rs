@@ -495,11 +495,12 @@ fn the_occluder_s_bulk_path_matches_the_per_sample_path() {
     let mesh = std::sync::Arc::new(hemi::scene::mesh_gen::uv_sphere(0.3, 12, 24));
     // (sampler, set size, samples per pixel). 37 samples: full groups of four, eight and
     // sixteen lanes, and a partial one of each. Correlated multi-jittered sets take the
-    // occluder's one-pass paths for cosine runs where the CPU has AVX-512: with sets of 16 and
-    // 37 samples a run spans three passes, the first and last partial (rays sorted into
-    // quadrants); with 32 it is two whole passes and with sets of 64 one (rays made in the
-    // patterns' quadrant order, a packet spanning the quadrants of a set of 16 and holding
-    // one quadrant of a set of 64).
+    // occluder's one-pass paths for cosine runs where the CPU has AVX2 or AVX-512: with sets
+    // of 16 and 37 samples a run spans three passes, the first and last partial (with
+    // AVX-512, rays sorted into quadrants); with 32 it is two whole passes and with sets of 64
+    // one (rays made in the patterns' quadrant order, a packet of sixteen spanning the
+    // quadrants of a set of 16 and holding one quadrant of a set of 64, a packet of eight
+    // spanning two quadrants of a set of 16 and holding half of one of a set of 64).
     let samplers = [
         (SamplerKind::MultiJittered, 37, 37),
         (SamplerKind::CorrelatedMultiJittered, 16, 37),
