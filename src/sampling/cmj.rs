@@ -368,6 +368,8 @@ pub(crate) trait GridLanes: Sized {
     type Point: Copy;
     /// Lanes per vector.
     const WIDTH: u32;
+    /// Most bits of a packet's slots that pick a column ([`QuadrantPattern`]).
+    const PACKET_COLUMN_BITS: u32;
     /// Pattern `p` of `cmj`, which must have a small grid ([`Cmj::has_small_grid16`]).
     unsafe fn new(cmj: &Cmj, p: u32) -> Self;
     /// `first, first + 1, …` in lanes.
@@ -383,6 +385,7 @@ impl GridLanes for SmallGrid16 {
     type Index = std::arch::x86_64::__m512i;
     type Point = std::arch::x86_64::__m512;
     const WIDTH: u32 = 16;
+    const PACKET_COLUMN_BITS: u32 = 2;
     #[target_feature(enable = "avx512f")]
     #[inline]
     unsafe fn new(cmj: &Cmj, p: u32) -> Self {
@@ -427,6 +430,7 @@ impl GridLanes for SmallGrid8 {
     type Index = std::arch::x86_64::__m256i;
     type Point = std::arch::x86_64::__m256;
     const WIDTH: u32 = 8;
+    const PACKET_COLUMN_BITS: u32 = 1;
 
     #[target_feature(enable = "avx2")]
     #[inline]
@@ -520,6 +524,8 @@ pub(crate) struct QuadrantPattern<G> {
     grid: G,
     /// Bits of the column within a quarter (log₂ m − 2) and of the row (log₂ k).
     bits: [u32; 2],
+    /// Bits of a packet's slots that pick a column and a row.
+    packet_bits: [u32; 2],
     n: u32,
 }
 
@@ -532,9 +538,16 @@ impl<G: GridLanes> QuadrantPattern<G> {
     #[inline(always)]
     pub(crate) unsafe fn new(cmj: &Cmj, p: u32) -> Self {
         debug_assert!(cmj.has_quadrants());
-        let bits = [cmj.m.get().trailing_zeros() - 2, cmj.k.get().trailing_zeros()];
+        let [a, b] = [cmj.m.get().trailing_zeros() - 2, cmj.k.get().trailing_zeros()];
+        let lanes = G::WIDTH.trailing_zeros();
+        let packet_bits = if a + b <= lanes {
+            [a, b]
+        } else {
+            let columns = a.min(G::PACKET_COLUMN_BITS).max(lanes.saturating_sub(b));
+            [columns, lanes - columns]
+        };
         // SAFETY: the caller's CPU has `G`'s instruction set.
-        QuadrantPattern { grid: unsafe { G::new(cmj, p) }, bits, n: cmj.n.get() }
+        QuadrantPattern { grid: unsafe { G::new(cmj, p) }, bits: [a, b], packet_bits, n: cmj.n.get() }
     }
 
     /// Packets of `G::WIDTH` slots: n / `G::WIDTH`.
@@ -549,10 +562,15 @@ impl<G: GridLanes> QuadrantPattern<G> {
     /// The CPU must have `G`'s instruction set.
     #[inline(always)]
     pub(crate) unsafe fn points(&self, packet: usize) -> (G::Point, G::Point) {
-        let [a, b] = self.bits;
+        let ([a, b], [pc, pr]) = (self.bits, self.packet_bits);
         // SAFETY: the caller's CPU has `G`'s instruction set.
         unsafe {
-            let [col, row, quarter] = split_bits(G::consecutive(G::WIDTH * packet as u32), [a, b, 2]);
+            let t = G::consecutive(G::WIDTH * packet as u32);
+            let [col_lo, row_lo, rest] = split_bits(t, [pc, pr, 16]);
+            let [col_hi, row_hi, quarter] = split_bits(rest, [a - pc, b - pr, 2]);
+            let none = G::Index::splat(0);
+            let col = join_bits([col_lo, col_hi, none], [pc, a - pc, 0]);
+            let row = join_bits([row_lo, row_hi, none], [pr, b - pr, 0]);
             self.grid.points_of(join_bits([col, quarter, row], [a, 2, b]))
         }
     }
@@ -564,12 +582,15 @@ impl<G: GridLanes> QuadrantPattern<G> {
     /// The CPU must have `G`'s instruction set.
     #[inline(always)]
     unsafe fn slots(&self, group: usize) -> G::Index {
-        let [a, b] = self.bits;
+        let ([a, b], [pc, pr]) = (self.bits, self.packet_bits);
         // SAFETY: the caller's CPU has `G`'s instruction set.
         unsafe {
             let s = self.grid.shuffled(G::consecutive(G::WIDTH * group as u32));
             let [col, quarter, row] = split_bits(s, [a, 2, b]);
-            join_bits([col, row, quarter], [a, b, 2])
+            let [col_lo, col_hi, _] = split_bits(col, [pc, a - pc, 0]);
+            let [row_lo, row_hi, _] = split_bits(row, [pr, b - pr, 0]);
+            let rest = join_bits([col_hi, row_hi, quarter], [a - pc, b - pr, 2]);
+            join_bits([col_lo, row_lo, rest], [pc, pr, 0])
         }
     }
 }
