@@ -18,7 +18,7 @@ use crate::{
     geometry::lanes::{Avx, Avx512, Lanes, RayLanes},
     sampling::{
         cmj::{Cmj, GridLanes, QuadrantPattern, SmallGrid8, SmallGrid16},
-        warp::{cosine_hemisphere8, cosine_hemisphere16},
+        warp::cosine_hemisphere,
     },
 };
 use crate::{
@@ -167,9 +167,9 @@ impl DirectionRays {
             // ones only where AVX2 was ([`crate::cpu`]), and quadrant patterns need AVX2.
             return Some(unsafe {
                 if lanes == 16 {
-                    self.add_cosine_quadrants_avx512(geometry, stack, spawn, frame, passes, terms, out)
+                    Avx512::add_quadrants(self, geometry, stack, spawn, frame, passes, terms, out)
                 } else {
-                    self.add_cosine_quadrants_avx2(geometry, stack, spawn, frame, passes, terms, out)
+                    Avx::add_quadrants(self, geometry, stack, spawn, frame, passes, terms, out)
                 }
             });
         }
@@ -194,7 +194,7 @@ impl DirectionRays {
 
     /// [`DirectionRays::add_cosine`] in AVX-512 lanes, the sample points already in
     /// `samples[0]` and `samples[1]`. Each group of sixteen samples is mapped to directions
-    /// ([`cosine_hemisphere16`]) and sorted into the quadrants of [`DirectionRays::add_lanes`]
+    /// ([`cosine_hemisphere`]) and sorted into the quadrants of [`DirectionRays::add_lanes`]
     /// by lane compression; packets load their lanes straight from those columns.
     ///
     /// # Safety
@@ -237,11 +237,11 @@ impl DirectionRays {
                 // SAFETY (this block): the CPU has AVX-512F; the loads and stores are of
                 // sixteen floats within the columns, which hold whole groups.
                 let masks = unsafe {
-                    let local = cosine_hemisphere16(
-                        _mm512_loadu_ps(xs[at..at + 16].as_ptr()),
-                        _mm512_loadu_ps(ys[at..at + 16].as_ptr()),
+                    let local = cosine_hemisphere(
+                        Avx512(_mm512_loadu_ps(xs[at..at + 16].as_ptr())),
+                        Avx512(_mm512_loadu_ps(ys[at..at + 16].as_ptr())),
                     );
-                    let d = to_world(frame, local.map(Avx512));
+                    let d = to_world(frame, local);
                     for (column, lanes) in [&mut *dx, &mut *dy, &mut *dz].into_iter().zip(d) {
                         _mm512_storeu_ps(column[at..at + 16].as_mut_ptr(), lanes.0);
                     }
@@ -311,48 +311,6 @@ impl DirectionRays {
             unsafe { add_clear_or_floor::<Avx512>(clear, floor, dark, sums) };
         }
         (traced as u64, cycles)
-    }
-
-    /// [`DirectionRays::add_cosine_quadrants`] in sixteen-lane packets.
-    ///
-    /// # Safety
-    /// The CPU must have AVX-512F and the rest of [`crate::cpu::avx512`].
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[allow(clippy::too_many_arguments)]
-    unsafe fn add_cosine_quadrants_avx512(
-        &mut self,
-        geometry: &SceneGeometry,
-        stack: &mut Vec<(u32, f32)>,
-        spawn: &SpawnOrigins,
-        frame: &Onb,
-        passes: (&Cmj, usize, impl Iterator<Item = u32>),
-        terms: &DirectionTerms,
-        out: QuadrantOut,
-    ) -> (u64, u64) {
-        // SAFETY: this function is compiled for AVX-512F, which the caller's CPU has.
-        unsafe { self.add_cosine_quadrants::<Avx512>(geometry, stack, spawn, frame, passes, terms, out) }
-    }
-
-    /// [`DirectionRays::add_cosine_quadrants`] in eight-lane packets.
-    ///
-    /// # Safety
-    /// The CPU must have AVX2 and the rest of [`crate::cpu::avx2`].
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[allow(clippy::too_many_arguments)]
-    unsafe fn add_cosine_quadrants_avx2(
-        &mut self,
-        geometry: &SceneGeometry,
-        stack: &mut Vec<(u32, f32)>,
-        spawn: &SpawnOrigins,
-        frame: &Onb,
-        passes: (&Cmj, usize, impl Iterator<Item = u32>),
-        terms: &DirectionTerms,
-        out: QuadrantOut,
-    ) -> (u64, u64) {
-        // SAFETY: this function is compiled for AVX2, which the caller's CPU has.
-        unsafe { self.add_cosine_quadrants::<Avx>(geometry, stack, spawn, frame, passes, terms, out) }
     }
 
     /// [`DirectionRays::add_cosine`] for runs of whole passes of quadrant patterns (`passes`:
@@ -675,69 +633,75 @@ trait PassLanes: Lanes {
     ) -> u32;
     /// The samples of group `group` whose slot `marks` marks ([`QuadrantPattern::marked`]).
     unsafe fn marked(pattern: &QuadrantPattern<Self::Grid>, group: usize, marks: &[u32; 16]) -> u32;
+    /// [`DirectionRays::add_cosine_quadrants`] in these lanes, compiled for their instruction
+    /// set.
+    #[allow(clippy::too_many_arguments)]
+    unsafe fn add_quadrants(
+        rays: &mut DirectionRays,
+        geometry: &SceneGeometry,
+        stack: &mut Vec<(u32, f32)>,
+        spawn: &SpawnOrigins,
+        frame: &Onb,
+        passes: (&Cmj, usize, impl Iterator<Item = u32>),
+        terms: &DirectionTerms,
+        out: QuadrantOut,
+    ) -> (u64, u64);
+}
+
+/// [`PassLanes`] for one lane type: its grid, its instruction set and its scene query.
+#[cfg(target_arch = "x86_64")]
+macro_rules! pass_lanes {
+    ($lanes:ident, $grid:ty, $feature:literal, $occluded:ident) => {
+        impl PassLanes for $lanes {
+            type Grid = $grid;
+            #[target_feature(enable = $feature)]
+            #[inline]
+            unsafe fn cosine_directions(pattern: &QuadrantPattern<$grid>, packet: usize) -> [Self; 3] {
+                // SAFETY: this function is compiled for the lanes' instruction set.
+                unsafe {
+                    let (x, y) = pattern.points(packet);
+                    cosine_hemisphere($lanes(x), $lanes(y))
+                }
+            }
+            #[target_feature(enable = $feature)]
+            #[inline]
+            unsafe fn occluded(
+                geometry: &SceneGeometry,
+                lanes: &RayLanes<Self>,
+                ray: impl Fn(usize) -> Ray,
+                live: u32,
+                stack: &mut Vec<(u32, f32)>,
+            ) -> u32 {
+                geometry.$occluded(lanes, ray, live, stack)
+            }
+            #[target_feature(enable = $feature)]
+            #[inline]
+            unsafe fn marked(pattern: &QuadrantPattern<$grid>, group: usize, marks: &[u32; 16]) -> u32 {
+                pattern.marked(group, marks)
+            }
+            #[target_feature(enable = $feature)]
+            #[allow(clippy::too_many_arguments)]
+            unsafe fn add_quadrants(
+                rays: &mut DirectionRays,
+                geometry: &SceneGeometry,
+                stack: &mut Vec<(u32, f32)>,
+                spawn: &SpawnOrigins,
+                frame: &Onb,
+                passes: (&Cmj, usize, impl Iterator<Item = u32>),
+                terms: &DirectionTerms,
+                out: QuadrantOut,
+            ) -> (u64, u64) {
+                // SAFETY: this function is compiled for the lanes' instruction set.
+                unsafe { rays.add_cosine_quadrants::<Self>(geometry, stack, spawn, frame, passes, terms, out) }
+            }
+        }
+    };
 }
 
 #[cfg(target_arch = "x86_64")]
-impl PassLanes for Avx512 {
-    type Grid = SmallGrid16;
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn cosine_directions(pattern: &QuadrantPattern<SmallGrid16>, packet: usize) -> [Self; 3] {
-        // SAFETY: this function is compiled for AVX-512F.
-        unsafe {
-            let (x, y) = pattern.points(packet);
-            cosine_hemisphere16(x, y).map(Avx512)
-        }
-    }
-    #[target_feature(enable = "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn occluded(
-        geometry: &SceneGeometry,
-        lanes: &RayLanes<Self>,
-        ray: impl Fn(usize) -> Ray,
-        live: u32,
-        stack: &mut Vec<(u32, f32)>,
-    ) -> u32 {
-        geometry.occluded_lanes16(lanes, ray, live, stack)
-    }
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn marked(pattern: &QuadrantPattern<SmallGrid16>, group: usize, marks: &[u32; 16]) -> u32 {
-        // SAFETY: the load reads the sixteen entries of `marks`.
-        let marks = unsafe { std::arch::x86_64::_mm512_loadu_si512(marks.as_ptr().cast()) };
-        pattern.marked(group, marks).into()
-    }
-}
-
+pass_lanes!(Avx512, SmallGrid16, "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt", occluded_lanes16);
 #[cfg(target_arch = "x86_64")]
-impl PassLanes for Avx {
-    type Grid = SmallGrid8;
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn cosine_directions(pattern: &QuadrantPattern<SmallGrid8>, packet: usize) -> [Self; 3] {
-        // SAFETY: this function is compiled for AVX2.
-        unsafe {
-            let (x, y) = pattern.points(packet);
-            cosine_hemisphere8(x, y).map(Avx)
-        }
-    }
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn occluded(
-        geometry: &SceneGeometry,
-        lanes: &RayLanes<Self>,
-        ray: impl Fn(usize) -> Ray,
-        live: u32,
-        stack: &mut Vec<(u32, f32)>,
-    ) -> u32 {
-        geometry.occluded_lanes8(lanes, ray, live, stack)
-    }
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn marked(pattern: &QuadrantPattern<SmallGrid8>, group: usize, marks: &[u32; 16]) -> u32 {
-        pattern.marked(group, marks).into()
-    }
-}
+pass_lanes!(Avx, SmallGrid8, "avx2,fma,bmi1,bmi2,lzcnt,popcnt", occluded_lanes8);
 
 /// A packet's lanes stored as rows of `L::WIDTH` floats (of sixteen): origin x, y, z,
 /// direction x, y, z, reciprocal direction x, y, z, and `tmax`, so that one lane's ray can be

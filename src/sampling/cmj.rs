@@ -598,19 +598,20 @@ impl<G: GridLanes> QuadrantPattern<G> {
 #[cfg(target_arch = "x86_64")]
 impl QuadrantPattern<SmallGrid16> {
     /// Which of the samples `16·group … 16·group + 15` (in sample order, as [`Cmj::fill`]
-    /// numbers them) lie in a marked slot, slot `t` being marked where bit `t % 16` of lane
-    /// `t / 16` of `marks` is set.
+    /// numbers them) lie in a marked slot, slot `t` being marked where bit `t % 16` of
+    /// `marks[t / 16]` is set.
     #[target_feature(enable = "avx512f")]
     #[inline]
-    pub(crate) fn marked(&self, group: usize, marks: std::arch::x86_64::__m512i) -> u16 {
+    pub(crate) fn marked(&self, group: usize, marks: &[u32; 16]) -> u32 {
         use std::arch::x86_64::*;
 
         let u = |x: u32| _mm512_set1_epi32(x as i32);
-        // SAFETY: this function is compiled for AVX-512F.
-        let slot = unsafe { self.slots(group) };
+        // SAFETY: this function is compiled for AVX-512F; the load reads the sixteen entries
+        // of `marks`.
+        let (slot, marks) = unsafe { (self.slots(group), _mm512_loadu_si512(marks.as_ptr().cast())) };
         let word = _mm512_permutexvar_epi32(_mm512_srli_epi32::<4>(slot), marks);
         let bit = _mm512_srlv_epi32(word, _mm512_and_si512(slot, u(15)));
-        _mm512_test_epi32_mask(bit, u(1))
+        _mm512_test_epi32_mask(bit, u(1)).into()
     }
 }
 
@@ -620,7 +621,7 @@ impl QuadrantPattern<SmallGrid8> {
     /// slot `t` being marked where bit `t % 16` of `marks[t / 16]` is set.
     #[target_feature(enable = "avx2")]
     #[inline]
-    pub(crate) fn marked(&self, group: usize, marks: &[u32; 16]) -> u8 {
+    pub(crate) fn marked(&self, group: usize, marks: &[u32; 16]) -> u32 {
         use std::arch::x86_64::*;
 
         let u = |x: u32| _mm256_set1_epi32(x as i32);
@@ -632,7 +633,7 @@ impl QuadrantPattern<SmallGrid8> {
         };
         let word = lookup16(table, _mm256_srli_epi32::<4>(slot));
         let bit = _mm256_and_si256(_mm256_srlv_epi32(word, _mm256_and_si256(slot, u(15))), u(1));
-        _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(bit, u(1)))) as u8
+        _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(bit, u(1)))) as u32
     }
 }
 
@@ -799,7 +800,7 @@ mod tests {
                     }
                     (x.to_vec(), y.to_vec())
                 };
-                let marked = |g, marks: &[u32; 16]| unsafe { u32::from(pattern.marked(g, marks)) };
+                let marked = |g, marks: &[u32; 16]| unsafe { pattern.marked(g, marks) };
                 slots_hold_their_samples(&cmj, p, 8, pattern.packets(), points, marked);
                 if !crate::cpu::avx512() {
                     continue;
@@ -815,9 +816,7 @@ mod tests {
                     }
                     (x.to_vec(), y.to_vec())
                 };
-                let marked = |g, marks: &[u32; 16]| unsafe {
-                    u32::from(pattern.marked(g, _mm512_loadu_si512(marks.as_ptr().cast())))
-                };
+                let marked = |g, marks: &[u32; 16]| unsafe { pattern.marked(g, marks) };
                 slots_hold_their_samples(&cmj, p, 16, pattern.packets(), points, marked);
             }
         }
