@@ -18,7 +18,7 @@ use crate::{
     geometry::lanes::{Avx, Avx512, Lanes, RayLanes},
     sampling::{
         cmj::{Cmj, GridLanes, QuadrantPattern, SmallGrid8, SmallGrid16},
-        warp::cosine_hemisphere,
+        warp::{cosine_hemisphere8, cosine_hemisphere16},
     },
 };
 use crate::{
@@ -194,7 +194,7 @@ impl DirectionRays {
 
     /// [`DirectionRays::add_cosine`] in AVX-512 lanes, the sample points already in
     /// `samples[0]` and `samples[1]`. Each group of sixteen samples is mapped to directions
-    /// ([`cosine_hemisphere`]) and sorted into the quadrants of [`DirectionRays::add_lanes`]
+    /// ([`cosine_hemisphere16`]) and sorted into the quadrants of [`DirectionRays::add_lanes`]
     /// by lane compression; packets load their lanes straight from those columns.
     ///
     /// # Safety
@@ -237,11 +237,11 @@ impl DirectionRays {
                 // SAFETY (this block): the CPU has AVX-512F; the loads and stores are of
                 // sixteen floats within the columns, which hold whole groups.
                 let masks = unsafe {
-                    let local = cosine_hemisphere(
-                        Avx512(_mm512_loadu_ps(xs[at..at + 16].as_ptr())),
-                        Avx512(_mm512_loadu_ps(ys[at..at + 16].as_ptr())),
+                    let local = cosine_hemisphere16(
+                        _mm512_loadu_ps(xs[at..at + 16].as_ptr()),
+                        _mm512_loadu_ps(ys[at..at + 16].as_ptr()),
                     );
-                    let d = to_world(frame, local);
+                    let d = to_world(frame, local.map(Avx512));
                     for (column, lanes) in [&mut *dx, &mut *dy, &mut *dz].into_iter().zip(d) {
                         _mm512_storeu_ps(column[at..at + 16].as_mut_ptr(), lanes.0);
                     }
@@ -648,10 +648,11 @@ trait PassLanes: Lanes {
     ) -> (u64, u64);
 }
 
-/// [`PassLanes`] for one lane type: its grid, its instruction set and its scene query.
+/// [`PassLanes`] for one lane type: its grid, its instruction set, its cosine map and its
+/// scene query.
 #[cfg(target_arch = "x86_64")]
 macro_rules! pass_lanes {
-    ($lanes:ident, $grid:ty, $feature:literal, $occluded:ident) => {
+    ($lanes:ident, $grid:ty, $feature:literal, $cosine:ident, $occluded:ident) => {
         impl PassLanes for $lanes {
             type Grid = $grid;
             #[target_feature(enable = $feature)]
@@ -660,7 +661,7 @@ macro_rules! pass_lanes {
                 // SAFETY: this function is compiled for the lanes' instruction set.
                 unsafe {
                     let (x, y) = pattern.points(packet);
-                    cosine_hemisphere($lanes(x), $lanes(y))
+                    $cosine(x, y).map($lanes)
                 }
             }
             #[target_feature(enable = $feature)]
@@ -699,9 +700,9 @@ macro_rules! pass_lanes {
 }
 
 #[cfg(target_arch = "x86_64")]
-pass_lanes!(Avx512, SmallGrid16, "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt", occluded_lanes16);
+pass_lanes!(Avx512, SmallGrid16, "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt", cosine_hemisphere16, occluded_lanes16);
 #[cfg(target_arch = "x86_64")]
-pass_lanes!(Avx, SmallGrid8, "avx2,fma,bmi1,bmi2,lzcnt,popcnt", occluded_lanes8);
+pass_lanes!(Avx, SmallGrid8, "avx2,fma,bmi1,bmi2,lzcnt,popcnt", cosine_hemisphere8, occluded_lanes8);
 
 /// A packet's lanes stored as rows of `L::WIDTH` floats (of sixteen): origin x, y, z,
 /// direction x, y, z, reciprocal direction x, y, z, and `tmax`, so that one lane's ray can be

@@ -73,8 +73,6 @@ pub(crate) trait Lanes: Copy {
     unsafe fn neg(self) -> Self;
     /// `|self|`.
     unsafe fn abs(self) -> Self;
-    /// `√self`, correctly rounded.
-    unsafe fn sqrt(self) -> Self;
     /// `max(self, b)`, `b` where either is NaN (`maxps`).
     unsafe fn max_keep(self, b: Self) -> Self;
     /// `min(self, b)`, `b` where either is NaN (`minps`).
@@ -349,11 +347,6 @@ impl Lanes for Avx {
     }
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
-    unsafe fn sqrt(self) -> Self {
-        Avx(_mm256_sqrt_ps(self.0))
-    }
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
     unsafe fn min_keep(self, b: Self) -> Self {
         Avx(_mm256_min_ps(self.0, b.0))
     }
@@ -598,11 +591,6 @@ impl Lanes for Avx512 {
     #[inline]
     unsafe fn max_keep(self, b: Self) -> Self {
         Avx512(_mm512_max_ps(self.0, b.0))
-    }
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn sqrt(self) -> Self {
-        Avx512(_mm512_sqrt_ps(self.0))
     }
     #[target_feature(enable = "avx512f")]
     #[inline]

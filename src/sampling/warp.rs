@@ -4,9 +4,6 @@ use std::f32::consts::{FRAC_PI_4, TAU};
 
 use glam::{Vec2, Vec3, Vec4};
 
-#[cfg(target_arch = "x86_64")]
-use crate::geometry::lanes::Lanes;
-
 /// Shirley–Chiu concentric mapping of [0,1)² onto the unit disk: area-preserving, low
 /// distortion, and continuous, so stratification survives the mapping.
 #[inline]
@@ -76,36 +73,78 @@ pub fn cosine_power_hemisphere4(u0: Vec4, u1: Vec4, e: f32) -> HemisphereSamples
     HemisphereSamples4 { x: sin_theta * cos_phi, y: sin_theta * sin_phi, z: cos_theta, weight }
 }
 
-/// The directions of [`cosine_power_hemisphere`] with e = 1 for a vector of sample points
-/// (u₀, u₁) in SIMD lanes (eight with AVX2, sixteen with AVX-512): x, y and z lanes, each lane
-/// the scalar code's bits (same operations in the same order, [`sin_cos_2pi_one`]'s quarter
-/// turns by lane masks).
+/// The directions of [`cosine_power_hemisphere`] with e = 1 for sixteen sample points
+/// (u₀, u₁) in AVX-512 lanes: x, y and z lanes, each lane the scalar code's bits (same
+/// operations in the same order, [`sin_cos_2pi_one`]'s quarter turns by lane masks).
 ///
 /// # Safety
-/// The CPU must have `L`'s instruction set.
+/// The CPU must have AVX-512F.
 #[cfg(target_arch = "x86_64")]
-#[inline(always)]
-pub(crate) unsafe fn cosine_hemisphere<L: Lanes>(u0: L, u1: L) -> [L; 3] {
-    // SAFETY: the caller's CPU has `L`'s instruction set.
-    unsafe {
-        let k = |x: f32| L::splat(x);
-        let round = |x: L| x.add(k(ROUNDER)).sub(k(ROUNDER));
-        let q = round(u0.mul(k(4.0)));
-        let x = u0.sub(q.mul(k(0.25))).mul(k(TAU));
-        let z = x.mul(x);
-        let sin = k(SIN[0]).mul(z).add(k(SIN[1])).mul(z).add(k(SIN[2])).mul(z).mul(x).add(x);
-        let cos = k(COS[0]).mul(z).add(k(COS[1])).mul(z).add(k(COS[2])).mul(z).mul(z).sub(z.mul(k(0.5))).add(k(1.0));
-        let half = q.mul(k(0.5));
-        let odd = half.ne(round(half));
-        let (s, c) = (sin.select(odd, cos), cos.select(odd, sin));
-        // q is a whole number in [0, 4]: lo ≤ q < hi.
-        let within = |lo: f32, hi: f32| L::andnot(q.lt(k(lo)), q.lt(k(hi)));
-        let flip = |v: L, m| v.select(m, v.neg());
-        let (sin_phi, cos_phi) = (flip(s, within(2.0, 4.0)), flip(c, within(1.0, 3.0)));
-        let cos_theta = k(1.0).sub(u1).sqrt();
-        let sin_theta = k(1.0).sub(cos_theta.mul(cos_theta)).max_keep(k(0.0)).sqrt();
-        [sin_theta.mul(cos_phi), sin_theta.mul(sin_phi), cos_theta]
-    }
+#[target_feature(enable = "avx512f")]
+#[inline]
+pub(crate) unsafe fn cosine_hemisphere16(
+    u0: std::arch::x86_64::__m512,
+    u1: std::arch::x86_64::__m512,
+) -> [std::arch::x86_64::__m512; 3] {
+    use std::arch::x86_64::*;
+
+    let k = |x: f32| _mm512_set1_ps(x);
+    let (add, sub, mul) = (_mm512_add_ps, _mm512_sub_ps, _mm512_mul_ps);
+    let round = |x| sub(add(x, k(ROUNDER)), k(ROUNDER));
+    let q = round(mul(u0, k(4.0)));
+    let x = mul(sub(u0, mul(q, k(0.25))), k(TAU));
+    let z = mul(x, x);
+    let sin = add(mul(mul(add(mul(add(mul(k(SIN[0]), z), k(SIN[1])), z), k(SIN[2])), z), x), x);
+    let cos =
+        add(sub(mul(mul(add(mul(add(mul(k(COS[0]), z), k(COS[1])), z), k(COS[2])), z), z), mul(z, k(0.5))), k(1.0));
+    let half = mul(q, k(0.5));
+    let odd = _mm512_cmp_ps_mask::<_CMP_NEQ_UQ>(half, round(half));
+    let (s, c) = (_mm512_mask_blend_ps(odd, sin, cos), _mm512_mask_blend_ps(odd, cos, sin));
+    let within =
+        |lo: f32, hi: f32| _mm512_cmp_ps_mask::<_CMP_GE_OQ>(q, k(lo)) & _mm512_cmp_ps_mask::<_CMP_LT_OQ>(q, k(hi));
+    let flip = |v: __m512, m| {
+        let v = _mm512_castps_si512(v);
+        _mm512_castsi512_ps(_mm512_mask_xor_epi32(v, m, v, _mm512_set1_epi32(i32::MIN)))
+    };
+    let (sin_phi, cos_phi) = (flip(s, within(2.0, 4.0)), flip(c, within(1.0, 3.0)));
+    let cos_theta = _mm512_sqrt_ps(sub(k(1.0), u1));
+    let sin_theta = _mm512_sqrt_ps(_mm512_max_ps(sub(k(1.0), mul(cos_theta, cos_theta)), k(0.0)));
+    [mul(sin_theta, cos_phi), mul(sin_theta, sin_phi), cos_theta]
+}
+
+/// [`cosine_hemisphere16`] for eight sample points in AVX2 lanes: the same operations, so
+/// each lane is the scalar code's bits.
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+pub(crate) unsafe fn cosine_hemisphere8(
+    u0: std::arch::x86_64::__m256,
+    u1: std::arch::x86_64::__m256,
+) -> [std::arch::x86_64::__m256; 3] {
+    use std::arch::x86_64::*;
+
+    let k = |x: f32| _mm256_set1_ps(x);
+    let (add, sub, mul) = (_mm256_add_ps, _mm256_sub_ps, _mm256_mul_ps);
+    let round = |x| sub(add(x, k(ROUNDER)), k(ROUNDER));
+    let q = round(mul(u0, k(4.0)));
+    let x = mul(sub(u0, mul(q, k(0.25))), k(TAU));
+    let z = mul(x, x);
+    let sin = add(mul(mul(add(mul(add(mul(k(SIN[0]), z), k(SIN[1])), z), k(SIN[2])), z), x), x);
+    let cos =
+        add(sub(mul(mul(add(mul(add(mul(k(COS[0]), z), k(COS[1])), z), k(COS[2])), z), z), mul(z, k(0.5))), k(1.0));
+    let half = mul(q, k(0.5));
+    let odd = _mm256_cmp_ps::<_CMP_NEQ_UQ>(half, round(half));
+    let (s, c) = (_mm256_blendv_ps(sin, cos, odd), _mm256_blendv_ps(cos, sin, odd));
+    let within =
+        |lo: f32, hi: f32| _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(q, k(lo)), _mm256_cmp_ps::<_CMP_LT_OQ>(q, k(hi)));
+    let flip = |v: __m256, m: __m256| _mm256_xor_ps(v, _mm256_and_ps(m, k(-0.0)));
+    let (sin_phi, cos_phi) = (flip(s, within(2.0, 4.0)), flip(c, within(1.0, 3.0)));
+    let cos_theta = _mm256_sqrt_ps(sub(k(1.0), u1));
+    let sin_theta = _mm256_sqrt_ps(_mm256_max_ps(sub(k(1.0), mul(cos_theta, cos_theta)), k(0.0)));
+    [mul(sin_theta, cos_phi), mul(sin_theta, sin_phi), cos_theta]
 }
 
 /// Adding and removing 2²³ rounds to the nearest integer (exactly, below 2²²).
@@ -173,20 +212,44 @@ mod tests {
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn lane_cosine_directions_give_the_scalar_bits() {
-        use crate::geometry::lanes::{Avx, Avx512};
+        use std::arch::x86_64::*;
         let below_one = crate::sampling::ONE_MINUS_EPSILON;
         let edges = [0.0, 0.125, 0.25, 0.375, 0.5, 0.625, 0.75, 0.875, below_one, 1e-8, 0.2499999, 0.7500001];
         let mut points: Vec<Vec2> = edges.iter().flat_map(|&x| edges.iter().map(move |&y| Vec2::new(x, y))).collect();
         points.extend(uniform_points(4000, 8));
         type Copy = fn(&[[f32; 16]; 2]) -> [[f32; 16]; 3];
         let mut copies: Vec<(&str, Copy)> = Vec::new();
-        if crate::cpu::avx2() {
-            // SAFETY: the CPU has AVX2, checked above.
-            copies.push(("avx2", |u| unsafe { cosine_rows::<Avx>(u) }));
+        if std::arch::is_x86_feature_detected!("avx2") {
+            copies.push(("avx2", |u| {
+                let mut out = [[0.0f32; 16]; 3];
+                // SAFETY: the CPU has AVX2, checked above; the loads and stores are of eight
+                // floats within rows of sixteen.
+                unsafe {
+                    for h in [0, 8] {
+                        let d = cosine_hemisphere8(
+                            _mm256_loadu_ps(u[0][h..].as_ptr()),
+                            _mm256_loadu_ps(u[1][h..].as_ptr()),
+                        );
+                        for (o, d) in out.iter_mut().zip(d) {
+                            _mm256_storeu_ps(o[h..].as_mut_ptr(), d);
+                        }
+                    }
+                }
+                out
+            }));
         }
         if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the CPU has AVX-512F, checked above.
-            copies.push(("avx512", |u| unsafe { cosine_rows::<Avx512>(u) }));
+            copies.push(("avx512", |u| {
+                let mut out = [[0.0f32; 16]; 3];
+                // SAFETY: the CPU has AVX-512F, checked above; the loads and stores are of 16 floats.
+                unsafe {
+                    let d = cosine_hemisphere16(_mm512_loadu_ps(u[0].as_ptr()), _mm512_loadu_ps(u[1].as_ptr()));
+                    for (o, d) in out.iter_mut().zip(d) {
+                        _mm512_storeu_ps(o.as_mut_ptr(), d);
+                    }
+                }
+                out
+            }));
         }
         if copies.len() < 2 {
             eprintln!("no AVX2 or no AVX-512 on this CPU: its copy is not used and not tested");
@@ -205,26 +268,6 @@ mod tests {
                 }
             }
         }
-    }
-
-    /// [`cosine_hemisphere`] of sixteen points (rows of u₀ and u₁), `L::WIDTH` at a time:
-    /// rows of x, y and z.
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
-    #[cfg(target_arch = "x86_64")]
-    unsafe fn cosine_rows<L: Lanes>(u: &[[f32; 16]; 2]) -> [[f32; 16]; 3] {
-        let mut out = [[0.0f32; 16]; 3];
-        for at in (0..16).step_by(L::WIDTH) {
-            // SAFETY: the caller's CPU has `L`'s instruction set.
-            unsafe {
-                let d = cosine_hemisphere(L::load(&u[0][at..]), L::load(&u[1][at..]));
-                for (o, d) in out.iter_mut().zip(d) {
-                    d.store(&mut o[at..]);
-                }
-            }
-        }
-        out
     }
 
     #[test]
