@@ -326,7 +326,7 @@ impl Bvh4 {
 
 impl Bvh8 {
     /// Collapses a BVH2 as [`Bvh4::from_bvh2`] does, or `None` where the CPU lacks the
-    /// eight-lane copies' instruction sets ([`crate::cpu::avx2`]).
+    /// eight-lane copies' instruction sets (x86-64-v3: AVX2, FMA, BMI1/2, LZCNT, POPCNT).
     pub fn from_bvh2(bvh2: &[Bvh2Node]) -> Option<Self> {
         #[cfg(target_arch = "x86_64")]
         if crate::cpu::avx2() {
