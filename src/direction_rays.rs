@@ -366,7 +366,7 @@ impl DirectionRays {
                 continue;
             };
             for (group, sums) in arriving[pass * n..][..n].chunks_mut(L::WIDTH).enumerate() {
-                unsafe { add_clear_or_floor::<L>(clear, floor, L::marked(&pattern, group, &blocked), sums) };
+                unsafe { add_clear_or_floor::<L>(clear, floor, pattern.marked(group, &blocked), sums) };
             }
         }
         if let QuadrantOut::Sum(samples, sum) = out {
@@ -631,8 +631,6 @@ trait PassLanes: Lanes {
         live: u32,
         stack: &mut Vec<(u32, f32)>,
     ) -> u32;
-    /// The samples of group `group` whose slot `marks` marks ([`QuadrantPattern::marked`]).
-    unsafe fn marked(pattern: &QuadrantPattern<Self::Grid>, group: usize, marks: &[u32; 16]) -> u32;
     /// [`DirectionRays::add_cosine_quadrants`] in these lanes, compiled for their instruction
     /// set.
     #[allow(clippy::too_many_arguments)]
@@ -674,11 +672,6 @@ macro_rules! pass_lanes {
                 stack: &mut Vec<(u32, f32)>,
             ) -> u32 {
                 geometry.$occluded(lanes, ray, live, stack)
-            }
-            #[target_feature(enable = $feature)]
-            #[inline]
-            unsafe fn marked(pattern: &QuadrantPattern<$grid>, group: usize, marks: &[u32; 16]) -> u32 {
-                pattern.marked(group, marks)
             }
             #[target_feature(enable = $feature)]
             #[allow(clippy::too_many_arguments)]

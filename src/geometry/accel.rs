@@ -174,7 +174,8 @@ trait TreeQuery {
         Node<W>: NodeTest<W>;
 }
 
-/// [`TreeQuery::run`] compiled for AVX, so that the eight-wide node test inlines.
+/// [`TreeQuery::run`] compiled for the eight-lane instruction sets ([`crate::cpu::avx2`]), so
+/// that the eight-wide node test inlines.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
 fn query_avx<Q: TreeQuery>(tree: &super::wide_bvh::Bvh8, query: Q) -> Q::Output {
@@ -388,15 +389,14 @@ fn packet_width() -> PacketWidth {
 /// use; for closest hits, the per-packet `Blas::$closest`. Each is compiled for that
 /// instruction set, and the closures they hand to the generic traversal are written inside them
 /// so that they are compiled for it too (a closure gets the instruction set of the function it
-/// is written in, and cannot be inlined into a function compiled for less: the sixteen-lane
-/// kernels and the one-pass cosine runs, whose closures they call per lone ray, all take
-/// POPCNT as well). Callers must make sure the CPU has the instruction set.
+/// is written in, and cannot be inlined into a function compiled for less: the kernels and the
+/// one-pass cosine runs, whose closures they call per lone ray, all take the x86-64-v3 set
+/// of [`crate::cpu::avx2`] as well). Callers must make sure the CPU has the instruction set.
 #[cfg(target_arch = "x86_64")]
 macro_rules! packet_kernels {
     (
         $lanes_type:ty,
         $feature:literal,
-        $occlusion_test:ident,
         $packets:ident,
         $lanes:ident,
         $lanes_of:ident,
@@ -497,7 +497,8 @@ macro_rules! packet_kernels {
             ) -> u32 {
                 // SAFETY (all blocks below): this function is compiled for the lane type's
                 // instruction set and AVX, which the caller's CPU has.
-                let packet = unsafe { $occlusion_test(in_lanes, live) };
+                // Nodes are tested by fused multiply-adds at both widths ([`FusedPacket`]).
+                let packet = unsafe { FusedPacket::new(in_lanes, live) };
                 // The edge tests' constants, made when the packet first reaches a leaf.
                 let mut edges = None;
                 let leaf = |first, count, lanes: u32, _: &mut Vec<(u32, f32)>| {
@@ -696,7 +697,6 @@ macro_rules! packet_kernels {
 packet_kernels!(
     Avx,
     "avx2,fma,bmi1,bmi2,lzcnt,popcnt",
-    occlusion_test_avx,
     occluded_packets_avx,
     occluded_lanes_avx,
     occluded_lanes_of_avx,
@@ -711,7 +711,6 @@ packet_kernels!(
 packet_kernels!(
     Avx512,
     "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt",
-    occlusion_test_avx512,
     occluded_packets_avx512,
     occluded_lanes_avx512,
     occluded_lanes_of_avx512,
@@ -722,24 +721,6 @@ packet_kernels!(
     closest_top_avx512,
     occluded_lanes16
 );
-
-/// The node test of an eight-lane occlusion packet: by fused multiply-adds ([`FusedPacket`]),
-/// as for sixteen lanes. Against each lane's own test (subtract, multiply) at 64 spp, four
-/// alternating rounds on a Zen 1 CPU (AVX2, 128-bit units): see the README's Stop 31.
-#[cfg(target_arch = "x86_64")]
-#[inline(always)]
-unsafe fn occlusion_test_avx(rays: &RayLanes<Avx>, live: u32) -> FusedPacket<Avx> {
-    // SAFETY: the caller's CPU has AVX2 and FMA.
-    unsafe { FusedPacket::new(rays, live) }
-}
-
-/// The node test of a sixteen-lane occlusion packet: by fused multiply-adds ([`FusedPacket`]).
-#[cfg(target_arch = "x86_64")]
-#[inline(always)]
-unsafe fn occlusion_test_avx512(rays: &RayLanes<Avx512>, live: u32) -> FusedPacket<Avx512> {
-    // SAFETY: the caller's CPU has AVX-512F.
-    unsafe { FusedPacket::new(rays, live) }
-}
 
 /// The lanes of `lanes` whose ray (`ray(k)` for lane k) `blocks`, asked one ray at a time.
 #[cfg(target_arch = "x86_64")]

@@ -378,6 +378,9 @@ pub(crate) trait GridLanes: Sized {
     unsafe fn points_of(&self, s: Self::Index) -> (Self::Point, Self::Point);
     /// Each lane's sample `s` after the sample order's permutation.
     unsafe fn shuffled(&self, s: Self::Index) -> Self::Index;
+    /// The lanes whose slot (`slots`, one per lane, each below 256) is marked, slot `t` being
+    /// marked where bit `t % 16` of `marks[t / 16]` is set.
+    unsafe fn marked_lanes(slots: Self::Index, marks: &[u32; 16]) -> u32;
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -406,6 +409,18 @@ impl GridLanes for SmallGrid16 {
     unsafe fn shuffled(&self, s: Self::Index) -> Self::Index {
         // SAFETY: this function is compiled for AVX-512F.
         unsafe { permute_pow2_lanes(s, self.masks[0], self.sc.order) }
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn marked_lanes(slots: Self::Index, marks: &[u32; 16]) -> u32 {
+        use std::arch::x86_64::*;
+
+        let u = |x: u32| _mm512_set1_epi32(x as i32);
+        // SAFETY: the load reads the sixteen entries of `marks`.
+        let marks = unsafe { _mm512_loadu_si512(marks.as_ptr().cast()) };
+        let word = _mm512_permutexvar_epi32(_mm512_srli_epi32::<4>(slots), marks);
+        let bit = _mm512_srlv_epi32(word, _mm512_and_si512(slots, u(15)));
+        _mm512_test_epi32_mask(bit, u(1)).into()
     }
 }
 
@@ -485,6 +500,22 @@ impl GridLanes for SmallGrid8 {
     unsafe fn shuffled(&self, s: Self::Index) -> Self::Index {
         // SAFETY: this function is compiled for AVX2.
         unsafe { permute_pow2_lanes(s, self.masks[0], self.sc.order) }
+    }
+
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn marked_lanes(slots: Self::Index, marks: &[u32; 16]) -> u32 {
+        use std::arch::x86_64::*;
+
+        let u = |x: u32| _mm256_set1_epi32(x as i32);
+        // SAFETY: the loads read the sixteen entries of `marks`.
+        let table = unsafe {
+            let words = marks.as_ptr().cast::<__m256i>();
+            [_mm256_loadu_si256(words), _mm256_loadu_si256(words.add(1))]
+        };
+        let word = lookup16(table, _mm256_srli_epi32::<4>(slots));
+        let bit = _mm256_and_si256(_mm256_srlv_epi32(word, _mm256_and_si256(slots, u(15))), u(1));
+        _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(bit, u(1)))) as u32
     }
 }
 
@@ -575,13 +606,14 @@ impl<G: GridLanes> QuadrantPattern<G> {
         }
     }
 
-    /// The slots of samples `G::WIDTH·group …` (in sample order, as [`Cmj::fill`] numbers
-    /// them), one per lane.
+    /// Which of the samples `G::WIDTH·group …` (in sample order, as [`Cmj::fill`] numbers
+    /// them) lie in a marked slot, slot `t` being marked where bit `t % 16` of `marks[t / 16]`
+    /// is set: bit k for the group's sample k.
     ///
     /// # Safety
     /// The CPU must have `G`'s instruction set.
     #[inline(always)]
-    unsafe fn slots(&self, group: usize) -> G::Index {
+    pub(crate) unsafe fn marked(&self, group: usize, marks: &[u32; 16]) -> u32 {
         let ([a, b], [pc, pr]) = (self.bits, self.packet_bits);
         // SAFETY: the caller's CPU has `G`'s instruction set.
         unsafe {
@@ -590,50 +622,8 @@ impl<G: GridLanes> QuadrantPattern<G> {
             let [col_lo, col_hi, _] = split_bits(col, [pc, a - pc, 0]);
             let [row_lo, row_hi, _] = split_bits(row, [pr, b - pr, 0]);
             let rest = join_bits([col_hi, row_hi, quarter], [a - pc, b - pr, 2]);
-            join_bits([col_lo, row_lo, rest], [pc, pr, 0])
+            G::marked_lanes(join_bits([col_lo, row_lo, rest], [pc, pr, 0]), marks)
         }
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-impl QuadrantPattern<SmallGrid16> {
-    /// Which of the samples `16·group … 16·group + 15` (in sample order, as [`Cmj::fill`]
-    /// numbers them) lie in a marked slot, slot `t` being marked where bit `t % 16` of
-    /// `marks[t / 16]` is set.
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    pub(crate) fn marked(&self, group: usize, marks: &[u32; 16]) -> u32 {
-        use std::arch::x86_64::*;
-
-        let u = |x: u32| _mm512_set1_epi32(x as i32);
-        // SAFETY: this function is compiled for AVX-512F; the load reads the sixteen entries
-        // of `marks`.
-        let (slot, marks) = unsafe { (self.slots(group), _mm512_loadu_si512(marks.as_ptr().cast())) };
-        let word = _mm512_permutexvar_epi32(_mm512_srli_epi32::<4>(slot), marks);
-        let bit = _mm512_srlv_epi32(word, _mm512_and_si512(slot, u(15)));
-        _mm512_test_epi32_mask(bit, u(1)).into()
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-impl QuadrantPattern<SmallGrid8> {
-    /// Which of the samples `8·group … 8·group + 7` (in sample order) lie in a marked slot,
-    /// slot `t` being marked where bit `t % 16` of `marks[t / 16]` is set.
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    pub(crate) fn marked(&self, group: usize, marks: &[u32; 16]) -> u32 {
-        use std::arch::x86_64::*;
-
-        let u = |x: u32| _mm256_set1_epi32(x as i32);
-        // SAFETY: this function is compiled for AVX2; the loads read the sixteen entries of
-        // `marks`.
-        let (slot, table) = unsafe {
-            let words = marks.as_ptr().cast::<__m256i>();
-            (self.slots(group), [_mm256_loadu_si256(words), _mm256_loadu_si256(words.add(1))])
-        };
-        let word = lookup16(table, _mm256_srli_epi32::<4>(slot));
-        let bit = _mm256_and_si256(_mm256_srlv_epi32(word, _mm256_and_si256(slot, u(15))), u(1));
-        _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(bit, u(1)))) as u32
     }
 }
 
