@@ -176,7 +176,8 @@ pub struct FrameStats {
     pub bvh_width: usize,
     /// Rays per packet in occlusion runs (16 with AVX-512, 8 with AVX, 0: rays traced alone).
     pub packet_lanes: usize,
-    /// Primitives in the BVH (triangles + spheres).
+    /// Primitives in the BVH's leaves (triangles + spheres; a triangle that spatial splits put
+    /// in several leaves once per leaf).
     pub bvh_prims: usize,
     /// Bytes of BVH nodes and primitives.
     pub bvh_bytes: usize,

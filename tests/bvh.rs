@@ -415,3 +415,78 @@ fn bundles_get_single_hits(geometry: &SceneGeometry, vertices: &[Vec3A], seam: &
     }
     assert!(hits > rays_traced / 3, "{hits} of {rays_traced} rays hit");
 }
+
+/// A room of large triangles (a floor, two walls, long beams across it) around two meshes: its
+/// BLAS is built with spatial splits, which put the large triangles in several leaves each, and
+/// single rays, packets of occlusion rays from surface points and bundles of camera rays must
+/// still get exactly the brute-force answers, rays at the room's vertices and along its edges
+/// included.
+#[test]
+fn spatially_split_triangles_give_the_brute_force_answers() {
+    let mut rng = SplitMix64::new(41);
+    let v = Vec3::new;
+    let mut room = Mesh {
+        positions: vec![
+            v(-8.0, 0.0, -6.0),
+            v(8.0, 0.0, -6.0),
+            v(8.0, 0.0, 6.0),
+            v(-8.0, 0.0, 6.0),
+            v(-8.0, 8.0, -6.0),
+            v(8.0, 8.0, -6.0),
+            v(-8.0, 8.0, 6.0),
+        ],
+        indices: vec![[0, 2, 1], [0, 3, 2], [0, 1, 5], [0, 5, 4], [0, 4, 6], [0, 6, 3]],
+    };
+    // Enough beams that spatial splits are tried among them (from 512 triangles a node).
+    for k in 0..600 {
+        let (y, s) = (0.3 + k as f32 * 0.006, rng.next_f32() * 2.0 - 1.0);
+        let first = room.positions.len() as u32;
+        room.positions.extend([v(-7.6, y, -5.6 * s), v(7.6, y + 0.2, 5.6 * s), v(7.6, y + 0.35, 5.6 * s + 0.3)]);
+        room.indices.push([first, first + 1, first + 2]);
+    }
+    let mut prims = world_space::mesh(&room, &Transform::IDENTITY, 0).unwrap().prims;
+    let room_triangles: Vec<[Vec3A; 3]> =
+        room.indices.iter().map(|t| t.map(|i| Vec3A::from(room.positions[i as usize]))).collect();
+    for (i, mesh) in [uv_sphere(0.8, 16, 32), torus_knot(2, 3, 0.6, 0.12, 120, 8)].iter().enumerate() {
+        let t = Transform::from_xyz(if i == 0 { -1.5 } else { 1.5 }, 1.2, 0.0);
+        prims.extend(world_space::mesh(mesh, &t, i as u32 + 1).unwrap().prims);
+    }
+    let triangles = prims.len();
+    let objects = vec![Object { entity: Entity::PLACEHOLDER, material: Matte::default() }; 3];
+    let geometry = SceneGeometry::build(prims, vec![], objects);
+    assert!(geometry.prim_count() > triangles, "spatial splits were made");
+    assert_eq!(geometry.world_prims().len(), triangles, "each triangle listed once");
+
+    let mut stack = Vec::new();
+    let (mut on_room, mut blocked) = (0, 0);
+    for i in 0..6_000 {
+        let origin = Vec3A::new(rng.next_f32() * 7.6 - 3.8, rng.next_f32() * 3.8 + 0.1, rng.next_f32() * 5.6 - 2.8);
+        // Every other ray aims at a vertex or an edge point of a room triangle.
+        let dir = if i % 2 == 0 {
+            random_unit(&mut rng)
+        } else {
+            let [a, b, c] = room_triangles[(rng.next_u64() % room_triangles.len() as u64) as usize];
+            let target = match i % 6 {
+                1 => [a, b, c][i % 3],
+                3 => a + (b - a) * rng.next_f32(),
+                _ => c + (a - c) * rng.next_f32(),
+            };
+            (target - origin).normalize_or(Vec3A::Y)
+        };
+        let tmax = if i % 3 == 0 { rng.next_f32() * 3.0 } else { f32::INFINITY };
+        let ray = Ray::new(origin, dir, tmax);
+        let slow = geometry.intersect_brute_force(&ray);
+        assert_eq!(
+            geometry.intersect(&ray, &mut stack).map(|h| (h.t, h.object)),
+            slow.map(|h| (h.t, h.object)),
+            "ray {i}"
+        );
+        assert_eq!(geometry.occluded(&ray, &mut stack), slow.is_some(), "ray {i}");
+        on_room += usize::from(slow.is_some_and(|h| h.object == 0));
+        blocked += usize::from(slow.is_some());
+    }
+    assert!(on_room > 2_000 && blocked < 5_900, "{on_room} on the room, {blocked} blocked");
+    runs_match_brute_force(&geometry, &mut rng);
+    let vertices: Vec<Vec3A> = room_triangles.iter().flatten().copied().collect();
+    bundles_get_single_hits(&geometry, &vertices, &vertices[..6], &mut rng);
+}

@@ -764,13 +764,21 @@ pub struct Blas {
 }
 
 impl Blas {
-    /// Builds a BVH over `prims` (in any order), each primitive in one leaf (so a deformable
-    /// BLAS can be refit): by [`binned_sah::build`] from 1024 primitives up, else by obvhs's
-    /// PLOC with its medium preset and leaves of at most one packet. Spatial pre-splits are not used: with PLOC they
-    /// traced no faster on the peer scenes (sphere_plane and Sponza 4–8 % slower, cornell within
-    /// 2 %) and cost the dragon 60–90 ms of build; with the binned builder they left Sponza's
-    /// SAH cost where it was.
+    /// Builds a BVH over `prims` (in any order) that is never refit: by
+    /// [`binned_sah::build_with_spatial_splits`] from 1024 primitives up where all are
+    /// triangles (the spatial splits only where enough of them are large), by
+    /// [`binned_sah::build`] from 1024 up otherwise, else by obvhs's PLOC with its medium
+    /// preset and leaves of at most one packet. (obvhs's spatial pre-splits, tried with PLOC,
+    /// traced sphere_plane and Sponza 4–8 % slower and cost the dragon 60–90 ms of build; with
+    /// the binned builder they left Sponza's SAH cost where it was. Splits chosen node by node
+    /// trace Sponza's AO rays 16 % faster.)
     pub fn build(prims: Vec<Prim>) -> Self {
+        Blas::build_with(prims, true)
+    }
+
+    /// [`Blas::build`], with or without spatial splits. Without them each primitive is in one
+    /// leaf, so that a deformable BLAS can be refit.
+    fn build_with(prims: Vec<Prim>, spatial_splits: bool) -> Self {
         let triangle_count = prims.iter().filter(|p| matches!(p.shape, Shape::Triangle(_))).count();
         let (bvh, depth) = if prims.is_empty() {
             (Bvh2::default(), 0)
@@ -779,6 +787,11 @@ impl Blas {
             let bvh = build_bvh2(&aabbs, small_set_params(), &mut Duration::default());
             let depth = subtree_depth(&bvh.nodes);
             (bvh, depth)
+        } else if spatial_splits && triangle_count == prims.len() {
+            binned_sah::build_with_spatial_splits(prims.len(), |i| match prims[i].shape {
+                Shape::Triangle(t) => t.p,
+                Shape::Sphere(_) => unreachable!("an all-triangle set"),
+            })
         } else {
             binned_sah::build(prims.len(), |i| prims[i].bounds())
         };
@@ -802,7 +815,7 @@ impl Blas {
         self.tree = Tree::from_bvh2(&self.bvh.nodes);
         self.packets.clear();
         let prims = &self.prims;
-        if prims.is_empty() || self.triangle_count != prims.len() {
+        if prims.is_empty() || !prims.iter().all(|p| matches!(p.shape, Shape::Triangle(_))) {
             return;
         }
         let triangle = |k: u32| match prims[k as usize].shape {
@@ -846,7 +859,7 @@ impl Blas {
             let p = tri.map(|i| Vec3A::from(mesh.positions[i as usize]));
             Prim { shape: Shape::Triangle(Triangle { p }), object: 0 }
         });
-        Blas::build(prims.collect())
+        Blas::build_with(prims.collect(), false)
     }
 
     /// Moves the triangles of a [`Blas::deformable`] BLAS to `positions` (same triangles as at
@@ -884,9 +897,12 @@ impl Blas {
         self.tree.len()
     }
 
-    /// The primitives, in leaf order.
+    /// The primitives, each once (a triangle that spatial splits put in several leaves is
+    /// stored once per leaf), in the order of their first leaves.
     pub fn prims(&self) -> impl Iterator<Item = &Prim> {
-        self.prims.iter()
+        let mut seen = vec![false; self.prims.len()];
+        let mut first_leaf = move |&i: &u32| !std::mem::replace(&mut seen[i as usize], true);
+        self.bvh.primitive_indices.iter().zip(&self.prims).filter_map(move |(i, p)| first_leaf(i).then_some(p))
     }
 
     /// Bytes held by nodes and primitives.
@@ -1395,7 +1411,8 @@ impl SceneGeometry {
         self.top.len() + self.blases.iter().map(|b| b.wide_node_count()).sum::<usize>()
     }
 
-    /// Number of bounded primitives stored (shared meshes once).
+    /// Number of primitives stored in the leaves (shared meshes once; a triangle that spatial
+    /// splits put in several leaves once per leaf).
     pub fn prim_count(&self) -> usize {
         self.blases.iter().map(|b| b.prims.len()).sum()
     }

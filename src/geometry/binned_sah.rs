@@ -18,6 +18,9 @@ use obvhs::{
 };
 use rayon::prelude::*;
 
+mod spatial;
+pub use spatial::build as build_with_spatial_splits;
+
 /// Centroid bins per axis.
 const BINS: usize = 32;
 
@@ -169,12 +172,55 @@ fn bounds_of(refs: &[Ref]) -> (Aabb, Aabb) {
 /// [`SMALL_BINS`] under [`SMALL_NODE`] primitives (where setting up and sweeping the bins is
 /// most of the work).
 fn choose(refs: &[Ref]) -> (Aabb, Split) {
-    if refs.len() < SMALL_NODE { choose_in::<SMALL_BINS>(refs) } else { choose_in::<BINS>(refs) }
+    let best = object_split(refs);
+    (best.bounds, decide(refs.len(), best.bounds, best.cost, best.split))
 }
 
-/// [`choose`] with `N` bins per axis; the passes over `refs` run in parallel chunks for large
-/// nodes (unions and counts, so the result is the same).
-fn choose_in<const N: usize>(refs: &[Ref]) -> (Aabb, Split) {
+/// A node's best split by centroid bins.
+struct ObjectSplit {
+    /// The union of the node's boxes.
+    bounds: Aabb,
+    /// The two children's half areas times their packets; ∞ where no boundary separates
+    /// the centroids (the split is then [`Split::Halves`]).
+    cost: f32,
+    /// Half the area of the box where the two children's boxes overlap (0 where they do not).
+    overlap: f32,
+    split: Split,
+}
+
+/// [`ObjectSplit`] of `refs` with [`BINS`] or [`SMALL_BINS`] bins per axis, as [`choose`] uses.
+fn object_split(refs: &[Ref]) -> ObjectSplit {
+    if refs.len() < SMALL_NODE { object_split_in::<SMALL_BINS>(refs) } else { object_split_in::<BINS>(refs) }
+}
+
+/// Whether a node of `count` primitives in `bounds` becomes a leaf, or takes `split`, whose
+/// children cost `cost`: a leaf when it fits and splitting does not pay.
+fn decide(count: usize, bounds: Aabb, cost: f32, split: Split) -> Split {
+    if count == 1 {
+        return Split::Leaf;
+    }
+    let split_cost = bounds.half_area() * NODE_COST + cost;
+    let fits = count <= MAX_LEAF;
+    // False when either cost is NaN: such a node stays a leaf if it can.
+    let split_pays = split_cost < bounds.half_area() * packets(count);
+    if fits && !split_pays {
+        return Split::Leaf;
+    }
+    if cost.is_infinite() {
+        return if fits { Split::Leaf } else { Split::Halves };
+    }
+    split
+}
+
+/// Half the area of the overlap of `a` and `b`; 0 where they do not overlap.
+fn overlap_half_area(a: &Aabb, b: &Aabb) -> f32 {
+    let extent = a.max.min(b.max) - a.min.max(b.min);
+    if extent.cmpgt(Vec3A::ZERO).all() { extent.x * extent.y + extent.y * extent.z + extent.z * extent.x } else { 0.0 }
+}
+
+/// [`object_split`] with `N` bins per axis; the passes over `refs` run in parallel chunks for
+/// large nodes (unions and counts, so the result is the same).
+fn object_split_in<const N: usize>(refs: &[Ref]) -> ObjectSplit {
     let parallel = refs.len() >= 4 * PARALLEL_MIN;
     let (bounds, centroids) = if parallel {
         let pair = |a: (Aabb, Aabb), b: (Aabb, Aabb)| (a.0.union(&b.0), a.1.union(&b.1));
@@ -183,8 +229,9 @@ fn choose_in<const N: usize>(refs: &[Ref]) -> (Aabb, Split) {
         bounds_of(refs)
     };
     let count = refs.len();
+    let none = ObjectSplit { bounds, cost: f32::INFINITY, overlap: 0.0, split: Split::Halves };
     if count == 1 {
-        return (bounds, Split::Leaf);
+        return none;
     }
     let extent = centroids.max - centroids.min;
     // Zero (or NaN, from NaN boxes) where the centroids do not spread: no boundary there.
@@ -195,16 +242,16 @@ fn choose_in<const N: usize>(refs: &[Ref]) -> (Aabb, Split) {
     } else {
         Bins::<N>::of(refs, centroids.min, scale)
     };
-    // (cost of the two children, axis, bin)
-    let mut best = (f32::INFINITY, 0, 0);
+    // (cost of the two children, axis, bin, overlap)
+    let mut best = (f32::INFINITY, 0, 0, 0.0);
     for (axis, bins) in bins.0.iter().enumerate() {
-        // Cost of everything from bin k up, swept from the right.
-        let mut right = [0.0f32; N];
+        // Cost and box of everything from bin k up, swept from the right.
+        let mut right = [(0.0f32, Aabb::INVALID); N];
         let (mut b, mut n) = (Aabb::INVALID, 0);
         for k in (1..N).rev() {
             b = b.union(&bins[k].0);
             n += bins[k].1 as usize;
-            right[k] = b.half_area() * packets(n);
+            right[k] = (b.half_area() * packets(n), b);
         }
         let (mut b, mut n) = (Aabb::INVALID, 0);
         for k in 1..N {
@@ -213,24 +260,22 @@ fn choose_in<const N: usize>(refs: &[Ref]) -> (Aabb, Split) {
             if n == 0 || n == count {
                 continue;
             }
-            let cost = b.half_area() * packets(n) + right[k];
+            let cost = b.half_area() * packets(n) + right[k].0;
             if cost < best.0 {
-                best = (cost, axis, k);
+                best = (cost, axis, k, overlap_half_area(&b, &right[k].1));
             }
         }
     }
-    let split_cost = bounds.half_area() * NODE_COST + best.0;
-    let fits = count <= MAX_LEAF;
-    // False when either cost is NaN: such a node stays a leaf if it can.
-    let split_pays = split_cost < bounds.half_area() * packets(count);
-    if fits && !split_pays {
-        return (bounds, Split::Leaf);
-    }
     if best.0.is_infinite() {
-        return (bounds, if fits { Split::Leaf } else { Split::Halves });
+        return none;
     }
-    let (_, axis, bin) = best;
-    (bounds, Split::Bins { axis, bin, min: centroids.min[axis], scale: scale[axis] })
+    let (cost, axis, bin, overlap) = best;
+    ObjectSplit {
+        bounds,
+        cost,
+        overlap,
+        split: Split::Bins { axis, bin, min: centroids.min[axis], scale: scale[axis] },
+    }
 }
 
 /// Reorders `refs` for `split` and returns how many go left (neither side empty).
