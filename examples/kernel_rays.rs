@@ -8,14 +8,15 @@
 //!
 //! Rays: the camera ray through each pixel's centre finds a point; from it (pushed the scene's
 //! `ao.epsilon` along the normal, as the renderer does) leave
-//! `RAYS_PER_POINT` (default 4) cosine-distributed rays with no length limit (SplitMix64 seed
-//! 5). Four orders of the same rays are timed, each as the best of `ROUNDS` (default 3) passes:
+//! `RAYS_PER_POINT` (default 4) cosine-distributed rays as long as the scene's
+//! `ao.max_distance` (unbounded where it is null; SplitMix64 seed 5). Four orders of the same rays are timed, each as the best of `ROUNDS` (default 3) passes:
 //! one at a time in point order, one at a time in a shuffled order, in
 //! packets of 16 consecutive rays from a few points (point order), and in packets of 16 from 16
 //! neighbouring points, one ray each (sample order: how Mitsuba's wavefront groups its rays).
 //!
 //! RAYS.bin, little-endian: u64 triangle count, 9 f32 per triangle; u64 ray count, u32 rays
-//! per point, 6 f32 per ray (origin, direction) in point order; the shuffled order as u32.
+//! per point, 6 f32 per ray (origin, direction) in point order; the shuffled order as u32; the
+//! rays' length as f32 (+∞ for none).
 
 use std::{io::Write, path::Path, process::ExitCode, time::Instant};
 
@@ -53,7 +54,7 @@ fn run() -> Result<(), String> {
     let geometry = scene_geometry(&scene)?;
     let rays = ao_rays(&scene, &geometry, per_point)?;
     let shuffled = shuffled_order(rays.len());
-    write_rays(Path::new(out), &geometry, &rays, per_point, &shuffled)?;
+    write_rays(Path::new(out), &geometry, &rays, per_point, &shuffled, scene.max_distance)?;
 
     let mut stack = Vec::new();
     let single = |order: &mut dyn Iterator<Item = &Ray>, stack: &mut Vec<(u32, f32)>| {
@@ -113,7 +114,7 @@ fn ao_rays(scene: &PeerScene, geometry: &SceneGeometry, per_point: usize) -> Res
             for _ in 0..per_point {
                 let s = cosine_power_hemisphere(Vec2::new(rng.next_f32(), rng.next_f32()), 1.0);
                 let w = glam::Vec3A::from(onb.to_world(s.dir));
-                rays.push(Ray::new(spawn.towards(w), w, f32::INFINITY));
+                rays.push(Ray::new(spawn.towards(w), w, scene.max_distance));
             }
         }
     }
@@ -154,6 +155,7 @@ fn write_rays(
     rays: &[Ray],
     per_point: usize,
     order: &[u32],
+    length: f32,
 ) -> Result<(), String> {
     let fail = |e: std::io::Error| format!("{}: {e}", path.display());
     let mut f = std::io::BufWriter::new(std::fs::File::create(path).map_err(fail)?);
@@ -177,6 +179,7 @@ fn write_rays(
         bytes.extend(ray.origin.to_array().iter().chain(&ray.dir.to_array()).flat_map(|v| v.to_le_bytes()));
     }
     bytes.extend(order.iter().flat_map(|i| i.to_le_bytes()));
+    bytes.extend(length.to_le_bytes());
     f.write_all(&bytes).map_err(fail)?;
     f.flush().map_err(fail)
 }
