@@ -494,7 +494,50 @@ mod tests {
 
     #[test]
     fn every_point_of_every_triangle_lies_in_a_leaf_that_holds_it() {
-        let tris = room(&mut SplitMix64::new(1), 40, 4000);
+        // Near the origin, and far from it.
+        for offset in [Vec3A::ZERO, Vec3A::new(3.0e4, -2.0e4, 1.0e4)] {
+            let tris: Vec<[Vec3A; 3]> =
+                room(&mut SplitMix64::new(1), 40, 4000).into_iter().map(|t| t.map(|p| p + offset)).collect();
+            every_point_in_a_leaf(&tris);
+        }
+    }
+
+    #[test]
+    fn a_split_parts_boxes_hold_the_exact_points_where_its_edges_cross_the_plane() {
+        // Crossing points worked out in f64 must lie in both parts' boxes: the rounding of the
+        // f32 crossing points is what the padding covers (without it this fails).
+        let mut rng = SplitMix64::new(9);
+        let mut crossings = 0;
+        for k in 0..20_000 {
+            let scale = [1.0, 1.0e3, 3.0e4][k % 3];
+            let p = |rng: &mut SplitMix64| Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * scale;
+            let tri = [p(&mut rng), p(&mut rng), p(&mut rng)];
+            let axis = k % 3;
+            let position = (tri[0][axis] + tri[1][axis]) * 0.5;
+            let within = Aabb::new(tri[0].min(tri[1]).min(tri[2]), tri[0].max(tri[1]).max(tri[2]));
+            let (left, right) = split_part(&tri, &within, axis, position);
+            for i in 0..3 {
+                let (a, b) = (tri[i].as_dvec3(), tri[(i + 1) % 3].as_dvec3());
+                let x = position as f64;
+                if (a[axis] - x) * (b[axis] - x) >= 0.0 {
+                    continue;
+                }
+                // On the plane exactly; f64's own rounding is far below f32's elsewhere.
+                let mut crossing = a + (b - a) * ((x - a[axis]) / (b[axis] - a[axis]));
+                crossing[axis] = x;
+                for side in [&left, &right] {
+                    let inside = (0..3).all(|j| side.min[j] as f64 <= crossing[j] && crossing[j] <= side.max[j] as f64);
+                    assert!(inside, "triangle {tri:?}, axis {axis} at {position}: {crossing} outside {side:?}");
+                }
+                crossings += 1;
+            }
+        }
+        assert!(crossings > 20_000, "{crossings} crossings");
+    }
+
+    /// Builds `tris` (the first 46 large) with splits and checks that every point of every
+    /// triangle lies in a leaf that holds it.
+    fn every_point_in_a_leaf(tris: &[[Vec3A; 3]]) {
         let (bvh, _) = build(tris.len(), |i| tris[i]);
         assert!(bvh.primitive_indices.len() > tris.len() + 50, "spatial splits were made");
         assert!(bvh.primitive_indices.len() <= tris.len() + (tris.len() as f32 * SPLIT_BUDGET) as usize);
