@@ -67,11 +67,16 @@ impl Ref {
 /// Leaves hold at most [`MAX_LEAF`] primitives, as ranges of `primitive_indices`. The boxes go
 /// straight into the builder's references, in parallel: no array of boxes is made first.
 pub fn build(count: usize, bounds: impl Fn(usize) -> Aabb + Sync) -> (Bvh2, usize) {
-    let mut refs: Vec<Ref> = (0..count)
+    let refs: Vec<Ref> = (0..count)
         .into_par_iter()
         .with_min_len(PARALLEL_MIN)
         .map(|i| Ref { aabb: bounds(i), index: i as u32 })
         .collect();
+    build_refs(refs)
+}
+
+/// [`build`] over references already made (at least one).
+fn build_refs(mut refs: Vec<Ref>) -> (Bvh2, usize) {
     let (nodes, depth) = subtree(&mut refs, 0);
     // obvhs's convention (as its PLOC builder sets it): a bound for its traversal stacks.
     let max_depth = (depth + 1).max(DEFAULT_MAX_STACK_DEPTH);
@@ -242,16 +247,16 @@ fn object_split_in<const N: usize>(refs: &[Ref]) -> ObjectSplit {
     } else {
         Bins::<N>::of(refs, centroids.min, scale)
     };
-    // (cost of the two children, axis, bin, overlap)
-    let mut best = (f32::INFINITY, 0, 0, 0.0);
+    // (cost of the two children, axis, bin)
+    let mut best = (f32::INFINITY, 0, 0);
     for (axis, bins) in bins.0.iter().enumerate() {
-        // Cost and box of everything from bin k up, swept from the right.
-        let mut right = [(0.0f32, Aabb::INVALID); N];
+        // Cost of everything from bin k up, swept from the right.
+        let mut right = [0.0f32; N];
         let (mut b, mut n) = (Aabb::INVALID, 0);
         for k in (1..N).rev() {
             b = b.union(&bins[k].0);
             n += bins[k].1 as usize;
-            right[k] = (b.half_area() * packets(n), b);
+            right[k] = b.half_area() * packets(n);
         }
         let (mut b, mut n) = (Aabb::INVALID, 0);
         for k in 1..N {
@@ -260,16 +265,19 @@ fn object_split_in<const N: usize>(refs: &[Ref]) -> ObjectSplit {
             if n == 0 || n == count {
                 continue;
             }
-            let cost = b.half_area() * packets(n) + right[k].0;
+            let cost = b.half_area() * packets(n) + right[k];
             if cost < best.0 {
-                best = (cost, axis, k, overlap_half_area(&b, &right[k].1));
+                best = (cost, axis, k);
             }
         }
     }
     if best.0.is_infinite() {
         return none;
     }
-    let (cost, axis, bin, overlap) = best;
+    let (cost, axis, bin) = best;
+    // The chosen children's boxes, once, from the winning axis's bins.
+    let union = |bins: &[(Aabb, u32)]| bins.iter().fold(Aabb::INVALID, |b, bin| b.union(&bin.0));
+    let overlap = overlap_half_area(&union(&bins.0[axis][..bin]), &union(&bins.0[axis][bin..]));
     ObjectSplit {
         bounds,
         cost,

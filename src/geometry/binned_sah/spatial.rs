@@ -68,7 +68,7 @@ pub fn build(count: usize, triangle: impl Fn(usize) -> [Vec3A; 3] + Sync) -> (Bv
         .collect();
     let root_area = refs.iter().fold(Aabb::INVALID, |b, r| b.union(&r.aabb)).half_area();
     if !worth_splitting(&refs, root_area) {
-        return super::build(count, |i| refs[i].aabb);
+        return super::build_refs(refs);
     }
     let input = Input { triangle: &triangle, root_area };
     let budget = (count as f32 * SPLIT_BUDGET) as usize;
