@@ -9,10 +9,11 @@
 //! Rays: the camera ray through each pixel's centre finds a point; from it (pushed the scene's
 //! `ao.epsilon` along the normal, as the renderer does) leave
 //! `RAYS_PER_POINT` (default 4) cosine-distributed rays as long as the scene's
-//! `ao.max_distance` (unbounded where it is null; SplitMix64 seed 5). Four orders of the same rays are timed, each as the best of `ROUNDS` (default 3) passes:
-//! one at a time in point order, one at a time in a shuffled order, in
-//! packets of 16 consecutive rays from a few points (point order), and in packets of 16 from 16
-//! neighbouring points, one ray each (sample order: how Mitsuba's wavefront groups its rays).
+//! `ao.max_distance` (unbounded where it is null; SplitMix64 seed 5). Four orders of the same
+//! rays are timed, each as the best of `ROUNDS` (default 3) passes: one at a time in point
+//! order, one at a time in a shuffled order, in packets of 16 consecutive rays from a few points
+//! (point order), and in packets of 16 from 16 neighbouring points, one ray each (sample order:
+//! how Mitsuba's wavefront groups its rays).
 //!
 //! RAYS.bin, little-endian: u64 triangle count, 9 f32 per triangle; u64 ray count, u32 rays
 //! per point, 6 f32 per ray (origin, direction) in point order; the shuffled order as u32; the
