@@ -199,13 +199,34 @@ fn a_batch_of_occlusion_queries_answers_as_single_queries_do() {
 /// grid vertices (zero edge functions) and rays parallel to an axis.
 #[test]
 fn runs_from_surface_points_match_brute_force() {
+    let mut rng = SplitMix64::new(31);
+    for geometry in &surface_scenes(Vec3::ZERO) {
+        runs_match_brute_force(geometry, Vec3::ZERO, &mut rng, false);
+    }
+}
+
+/// Runs of bounded rays (as AO rays with a `max_distance`), many ending exactly at, just
+/// before or just past the surface they point at: packets of such rays start their traversal
+/// below the root, at the node their segments lead to, and must still get the brute-force
+/// answers, near the origin and 3·10⁴ from it.
+#[test]
+fn bounded_runs_ending_at_surfaces_match_brute_force() {
+    let mut rng = SplitMix64::new(37);
+    for offset in [Vec3::ZERO, Vec3::new(3.0e4, 0.0, -2.0e4)] {
+        for geometry in &surface_scenes(offset) {
+            runs_match_brute_force(geometry, offset, &mut rng, true);
+        }
+    }
+}
+
+/// A sphere, a torus knot and a ground of unit squares (two triangles each) at y = 0, moved
+/// by `offset`, plus a wall plane: baked into one world-space BLAS, and as instances.
+fn surface_scenes(offset: Vec3) -> [SceneGeometry; 2] {
     use std::sync::Arc;
 
     use glam::{Affine3A, Quat};
     use hemi::geometry::accel::{Blas, Instance};
 
-    let mut rng = SplitMix64::new(31);
-    // A ground of unit squares at y = 0, two triangles each.
     let n = 8;
     let ground = Mesh {
         positions: (0..=n).flat_map(|z| (0..=n).map(move |x| Vec3::new(x as f32 - 4.0, 0.0, z as f32 - 4.0))).collect(),
@@ -220,18 +241,19 @@ fn runs_from_surface_points_match_brute_force() {
     };
     let meshes = [uv_sphere(1.0, 24, 48), torus_knot(2, 3, 0.8, 0.15, 200, 12), ground];
     let places = [
-        Affine3A::from_translation(Vec3::new(-1.25, 1.2, 0.0)),
+        Affine3A::from_translation(offset + Vec3::new(-1.25, 1.2, 0.0)),
         Affine3A::from_scale_rotation_translation(
             Vec3::splat(1.3),
             Quat::from_rotation_y(0.7),
-            Vec3::new(1.25, 1.2, 0.0),
+            offset + Vec3::new(1.25, 1.2, 0.0),
         ),
-        Affine3A::IDENTITY,
+        Affine3A::from_translation(offset),
     ];
-    let wall =
-        || vec![world_space::plane(&Plane { normal: Vec3::Z }, &Transform::from_xyz(0.0, 0.0, -3.0), 3).unwrap()];
+    let wall = || {
+        let at = Transform::from_translation(offset + Vec3::new(0.0, 0.0, -3.0));
+        vec![world_space::plane(&Plane { normal: Vec3::Z }, &at, 3).unwrap()]
+    };
     let objects = vec![Object { entity: Entity::PLACEHOLDER, material: Matte::default() }; 4];
-    // The meshes baked into one world-space BLAS, and the same meshes as instances.
     let mut prims = Vec::new();
     for (i, (mesh, m)) in meshes.iter().zip(&places).enumerate() {
         prims.extend(world_space::mesh(mesh, &Transform::from_affine(m), i as u32).unwrap().prims);
@@ -241,19 +263,23 @@ fn runs_from_surface_points_match_brute_force() {
     let instances = (0..3)
         .map(|i| Instance::new(i as u32, blases[i].bounds().unwrap(), places[i], Some(i as u32)).unwrap())
         .collect();
-    let instanced = SceneGeometry::from_instances(blases, instances, wall(), objects);
-    for geometry in [&baked, &instanced] {
-        runs_match_brute_force(geometry, &mut rng);
-    }
+    [baked, SceneGeometry::from_instances(blases, instances, wall(), objects)]
 }
 
-fn runs_match_brute_force(geometry: &SceneGeometry, rng: &mut SplitMix64) {
+/// 300 runs (100 if `bounded`) of 64 rays (some 13) from surface points of a scene moved by
+/// `offset`, traced by `occluded_many` in both orders and one by one, against brute force.
+/// Unbounded rays, and every fourth short, unless `bounded`: then every ray ends near what it
+/// points at (exactly at it, one step before or past, at half or twice its distance) or,
+/// pointing at nothing, within 3.
+fn runs_match_brute_force(geometry: &SceneGeometry, offset: Vec3, rng: &mut SplitMix64, bounded: bool) {
+    let offset = Vec3A::from(offset);
     let mut stack = Vec::new();
     let (mut blocked, mut total) = (0, 0);
-    for run in 0..300 {
+    let runs = if bounded { 100 } else { 300 };
+    for run in 0..runs {
         // A surface point: the first hit of a ray from above, then 64 directions around its
         // normal, some aimed at ground vertices, the last run short (a partial packet).
-        let from = Vec3A::new(rng.next_f32() * 8.0 - 4.0, 5.0, rng.next_f32() * 6.0 - 3.0);
+        let from = offset + Vec3A::new(rng.next_f32() * 8.0 - 4.0, 5.0, rng.next_f32() * 6.0 - 3.0);
         let Some(hit) = geometry.intersect(&Ray::new(from, Vec3A::new(0.1, -1.0, 0.05), f32::INFINITY), &mut stack)
         else {
             continue;
@@ -266,16 +292,24 @@ fn runs_match_brute_force(geometry: &SceneGeometry, rng: &mut SplitMix64) {
                     dir = -dir;
                 }
                 if i % 9 == 0 {
-                    let vertex =
-                        Vec3A::new((rng.next_f32() * 8.0).floor() - 4.0, 0.0, (rng.next_f32() * 8.0).floor() - 4.0);
+                    let vertex = offset
+                        + Vec3A::new((rng.next_f32() * 8.0).floor() - 4.0, 0.0, (rng.next_f32() * 8.0).floor() - 4.0);
                     dir = (vertex - hit.p).normalize_or(hit.normal);
                 }
                 if i % 13 == 0 {
                     dir[i % 3] = 0.0;
                     dir = dir.normalize_or(hit.normal);
                 }
-                let tmax = if i % 4 == 0 { rng.next_f32() * 2.0 } else { f32::INFINITY };
-                Ray::new(hit.spawn_origin(dir), dir, tmax)
+                let origin = hit.spawn_origin(dir);
+                let tmax = if !bounded {
+                    if i % 4 == 0 { rng.next_f32() * 2.0 } else { f32::INFINITY }
+                } else {
+                    match geometry.intersect(&Ray::new(origin, dir, f32::INFINITY), &mut stack) {
+                        Some(h) => [h.t, h.t.next_down(), h.t.next_up(), h.t * 0.5, h.t * 2.0][i % 5],
+                        None => rng.next_f32() * 3.0,
+                    }
+                };
+                Ray::new(origin, dir, tmax)
             })
             .collect();
         let truth: Vec<bool> = rays.iter().map(|r| geometry.intersect_brute_force(r).is_some()).collect();
@@ -283,14 +317,14 @@ fn runs_match_brute_force(geometry: &SceneGeometry, rng: &mut SplitMix64) {
         for order in [RayOrder::Mixed, RayOrder::Grouped] {
             let mut batch = vec![false; rays.len()];
             geometry.occluded_many(&rays, order, &mut stack, &mut batch);
-            assert_eq!(batch, truth, "run {run}, {order:?}");
+            assert_eq!(batch, truth, "run {run}, {order:?}, offset {offset}");
         }
         let single: Vec<bool> = rays.iter().map(|r| geometry.occluded(r, &mut stack)).collect();
-        assert_eq!(single, truth, "run {run}");
+        assert_eq!(single, truth, "run {run}, offset {offset}");
         blocked += truth.iter().filter(|&&b| b).count();
         total += rays.len();
     }
-    assert!(total > 10_000 && blocked > total / 10 && blocked < total * 9 / 10, "{blocked} of {total} blocked");
+    assert!(total > runs * 30 && blocked > total / 10 && blocked < total * 9 / 10, "{blocked} of {total} blocked");
 }
 
 /// A hit's t, point, error bound, normal and object, as bits for exact comparisons.
@@ -486,7 +520,8 @@ fn spatially_split_triangles_give_the_brute_force_answers() {
         blocked += usize::from(slow.is_some());
     }
     assert!(on_room > 2_000 && blocked < 5_900, "{on_room} on the room, {blocked} blocked");
-    runs_match_brute_force(&geometry, &mut rng);
+    runs_match_brute_force(&geometry, Vec3::ZERO, &mut rng, false);
+    runs_match_brute_force(&geometry, Vec3::ZERO, &mut rng, true);
     let vertices: Vec<Vec3A> = room_triangles.iter().flatten().copied().collect();
     bundles_get_single_hits(&geometry, &vertices, &vertices[..6], &mut rng);
 }

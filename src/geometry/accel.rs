@@ -519,7 +519,10 @@ macro_rules! packet_kernels {
                         self.prefetch_packets(first, count)
                     })
                 };
-                unsafe { tree.occluded_packet(&packet, live, stack, leaf, single) }
+                // Bounded rays start below the nodes only one child of which their segments'
+                // box overlaps; where it overlaps no leaf, nothing can block them.
+                let Some(start) = (unsafe { tree.entry_node_of(in_lanes, live) }) else { return 0 };
+                unsafe { tree.occluded_packet(&packet, start, live, stack, leaf, single) }
             }
         }
 
@@ -652,7 +655,11 @@ macro_rules! packet_kernels {
                 };
                 // SAFETY: this function is compiled for the lane type's instruction set and
                 // AVX, which the caller's CPU has.
-                unsafe { top.occluded_packet(&RayPacket::new(&<$lanes_type>::rays(chunk)), live, stack, leaf, single) }
+                unsafe {
+                    let lanes = <$lanes_type>::rays(chunk);
+                    let Some(start) = top.entry_node_of(&lanes, live) else { return 0 };
+                    top.occluded_packet(&RayPacket::new(&lanes), start, live, stack, leaf, single)
+                }
             }
 
             /// The lanes of `lanes` whose ray in `rays` (world space) instance `inst` blocks:

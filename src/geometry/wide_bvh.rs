@@ -799,9 +799,11 @@ impl WideBvh<8> {
     /// traversal): each node is tested against all the packet's live rays at once (by `p`),
     /// and rays go on one at a time from a node fewer than [`PACKET_MIN_LANES`] of them enter.
     ///
-    /// `live` holds the lanes to answer. `leaf(first, count, lanes, stack)` tests a leaf
-    /// against `lanes` and returns those it blocks; `single(node, lane, stack)` answers one ray
-    /// from node `node`. Both may use `stack` above its length. Returns the blocked lanes.
+    /// `live` holds the lanes to answer, traced from node `start` (the root, or a node under
+    /// which lie all the leaves they can reach: [`WideBvh::entry_node_of`]).
+    /// `leaf(first, count, lanes, stack)` tests a leaf against `lanes` and returns those it
+    /// blocks; `single(node, lane, stack)` answers one ray from node `node`. Both may use
+    /// `stack` above its length. Returns the blocked lanes.
     ///
     /// # Safety
     /// The CPU must have the packet's instruction set (and AVX, for this eight-wide tree).
@@ -809,6 +811,7 @@ impl WideBvh<8> {
     pub(crate) unsafe fn occluded_packet(
         &self,
         p: &impl PacketNodeTest,
+        start: u32,
         live: u32,
         stack: &mut Vec<(u32, f32)>,
         mut leaf: impl FnMut(u32, u32, u32, &mut Vec<(u32, f32)>) -> u32,
@@ -822,7 +825,7 @@ impl WideBvh<8> {
         // packet, and only entries below `len` are ever read.
         let mut todo = [std::mem::MaybeUninit::<(u32, u32)>::uninit(); PACKET_STACK];
         let mut len = 1;
-        todo[0].write((0, live));
+        todo[0].write((start, live));
         // The lanes of `lanes` that `single` finds blocked, each ray going on alone from `node`.
         let mut alone = |node: u32, mut lanes: u32, stack: &mut Vec<(u32, f32)>| {
             let mut blocked = 0;
@@ -874,6 +877,62 @@ impl WideBvh<8> {
             }
         }
         live & !open
+    }
+
+    /// The node an any-hit packet traversal of the lanes `live` of `rays` may start from:
+    /// the root, or for bounded rays the deepest node under which lie all leaves whose boxes
+    /// overlap their segments' box ([`RayLanes::segments_box`]), found by going down while
+    /// exactly one child of a node overlaps it and that child is not a leaf. `None` where that
+    /// box overlaps no leaf, so nothing can block the rays. Only leaves whose boxes a ray's
+    /// segment can meet lie outside that subtree, so every ray gets the answer it gets from
+    /// the root; each packet saves the node tests of the way down, which all its rays take.
+    ///
+    /// # Safety
+    /// The CPU must have `L`'s instruction set and AVX2.
+    #[inline(always)]
+    pub(crate) unsafe fn entry_node_of<L: Lanes>(&self, rays: &RayLanes<L>, live: u32) -> Option<u32> {
+        // SAFETY: the caller's CPU has `L`'s instruction set and AVX2.
+        match unsafe { rays.segments_box(live) } {
+            Some((lo, hi)) => unsafe { self.entry_node(lo, hi) },
+            None => (!self.nodes.is_empty()).then_some(0),
+        }
+    }
+
+    /// The deepest node under which lie all leaves whose boxes overlap `lo..hi` (going down
+    /// while exactly one child overlaps it and is not a leaf), or `None` where no child of a
+    /// node on that way does.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2.
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    #[inline]
+    pub(crate) unsafe fn entry_node(&self, lo: glam::Vec3A, hi: glam::Vec3A) -> Option<u32> {
+        use std::arch::x86_64::*;
+        if self.nodes.is_empty() {
+            return None;
+        }
+        let mut node = 0u32;
+        loop {
+            let n = &self.nodes[node as usize];
+            // SAFETY: each row of `planes` is eight contiguous f32.
+            let load = |row: usize| unsafe { _mm256_loadu_ps(n.planes[row].as_ptr()) };
+            // An empty slot's inverted box overlaps nothing.
+            let mut overlaps = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
+            for a in 0..3 {
+                let below = _mm256_cmp_ps::<_CMP_LE_OQ>(load(a), _mm256_set1_ps(hi[a]));
+                let above = _mm256_cmp_ps::<_CMP_GE_OQ>(load(a + 3), _mm256_set1_ps(lo[a]));
+                overlaps = _mm256_and_ps(overlaps, _mm256_and_ps(below, above));
+            }
+            let overlap = _mm256_movemask_ps(overlaps) as u32;
+            if overlap == 0 {
+                return None;
+            }
+            let c = overlap.trailing_zeros() as usize;
+            if overlap & (overlap - 1) != 0 || n.count[c] > 0 {
+                return Some(node);
+            }
+            node = n.child[c];
+        }
     }
 
     /// Closest-hit traversal of a packet of rays together: each node is tested against all the
@@ -1243,6 +1302,7 @@ mod tests {
             let blocked = unsafe {
                 tree.occluded_packet(
                     &test(&L::rays(&rays), live),
+                    0,
                     live,
                     &mut stack,
                     |first, count, lanes, _| {
@@ -1280,6 +1340,63 @@ mod tests {
         }
         let (packet_leaves, single_leaves) = (packet_leaves.get(), single_leaves.get());
         assert!(packet_leaves > 1_000 && single_leaves > 1_000, "{packet_leaves} by packet, {single_leaves} alone");
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    /// The leaves of the subtree under node `node` of a wide tree.
+    fn leaves_under(tree: &Bvh8, node: u32) -> Leaves {
+        let n = &tree.nodes[node as usize];
+        let mut leaves = Leaves::new();
+        for c in 0..8 {
+            if n.count[c] > 0 {
+                leaves.insert((n.child[c], n.count[c]));
+            } else if n.planes[0][c] <= n.planes[3][c] {
+                leaves.extend(leaves_under(tree, n.child[c]));
+            }
+        }
+        leaves
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn the_entry_node_holds_every_leaf_a_box_overlaps() {
+        for (offset, size) in [(0.0, 1.0), (3.0e4, 1.0e-2)] {
+            let (bvh2, tree) = packet_test_scene(offset, size);
+            let Some(tree) = tree else {
+                eprintln!("no AVX2 on this CPU: packets are not used and not tested");
+                return;
+            };
+            let mut rng = SplitMix64::new(19);
+            let (mut deeper, mut empty) = (0, 0);
+            for q in 0..2_000 {
+                // Boxes from a point to a thousandth of the scene across, up to a third of it.
+                let extent = size * 20.0 * [0.0, 0.001, 0.05, 0.3][q % 4];
+                let corner = Vec3A::new(offset, 0.0, 0.0)
+                    + (Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 26.0 - 13.0) * size;
+                let (lo, hi) = (corner, corner + Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * extent);
+                let overlapping: Leaves = bvh2
+                    .iter()
+                    .filter(|n| n.prim_count > 0)
+                    .filter(|n| n.aabb().min.cmple(hi).all() && n.aabb().max.cmpge(lo).all())
+                    .map(|n| (n.first_index, n.prim_count))
+                    .collect();
+                // SAFETY: the eight-wide tree exists, so the CPU has AVX2.
+                match unsafe { tree.entry_node(lo, hi) } {
+                    None => {
+                        assert!(overlapping.is_empty(), "box {q}: no entry, yet it overlaps {overlapping:?}");
+                        empty += 1;
+                    }
+                    Some(node) => {
+                        let under = leaves_under(&tree, node);
+                        let missed: Vec<_> = overlapping.difference(&under).collect();
+                        assert!(missed.is_empty(), "box {q}: node {node} leaves out {missed:?}");
+                        deeper += (node != 0) as usize;
+                    }
+                }
+            }
+            // The test has teeth: many boxes start below the root, and some overlap nothing.
+            assert!(deeper > 300 && empty > 50, "offset {offset}: {deeper} below the root, {empty} empty");
+        }
     }
 
     /// Sum of the surface areas of a wide tree's nodes (each the union of its children's boxes).
