@@ -28,34 +28,51 @@ pub(crate) struct RayLanes<L> {
 }
 
 impl<L: Lanes> RayLanes<L> {
-    /// A box holding every point of the segments (origin to `tmax` along the direction) of
-    /// the lanes of `live`, grown by 2⁻¹⁸ of its largest coordinate (as split triangles' boxes
-    /// are): far more than the rounding of its corners and of any hit a triangle test finds
-    /// before `tmax`. `None` where a segment is unbounded.
+    /// A box holding every point within `bounds` of the segments (origin to `tmax` along the
+    /// direction) of the lanes of `live`, and their origins, grown by 2⁻¹⁸ of its largest
+    /// coordinate (as split triangles' boxes are): far more than the rounding of its corners
+    /// and of any hit a triangle test finds before `tmax`. `None` where a segment is unbounded
+    /// and leaves no finite `bounds`.
     ///
     /// # Safety
     /// The CPU must have `L`'s instruction set.
     #[inline(always)]
-    pub(crate) unsafe fn segments_box(&self, live: u32) -> Option<(Vec3A, Vec3A)> {
-        let (mut lo, mut hi) = ([[0.0f32; 16]; 3], [[0.0f32; 16]; 3]);
+    pub(crate) unsafe fn segments_box(&self, live: u32, bounds: &obvhs::aabb::Aabb) -> Option<(Vec3A, Vec3A)> {
+        let (mut lo, mut hi) = ([0.0f32; 3], [0.0f32; 3]);
         // SAFETY: the caller's CPU has `L`'s instruction set.
         unsafe {
-            if L::bits(self.tmax.lt(L::splat(f32::INFINITY))) & live != live {
-                return None;
+            let inf = L::splat(f32::INFINITY);
+            let mut length = self.tmax;
+            if L::bits(length.lt(inf)) & live != live {
+                // Unbounded segments cut where they leave `bounds`, past which nothing lies
+                // (bounded ones are left whole: cutting them seldom pays for its cost): at the
+                // least of the distances to the far plane on each axis (a NaN one, from a
+                // zero direction component on one of the box's planes, counts as unbounded),
+                // and no less than 0.
+                // (Loops, not closures: a closure is compiled without the caller's instruction set.)
+                for a in 0..3 {
+                    let mut exit = L::splat(f32::NEG_INFINITY);
+                    for p in [bounds.min[a], bounds.max[a]] {
+                        let t = L::splat(p).sub(self.origin[a]).mul(self.inv_dir[a]);
+                        exit = t.select(t.ne(t), inf).max_keep(exit);
+                    }
+                    length = exit.min_keep(length);
+                }
+                length = length.max_keep(L::splat(0.0));
+                if L::bits(length.lt(inf)) & live != live {
+                    return None;
+                }
             }
             let dead = L::mask(!live);
             for a in 0..3 {
                 // Finite origins, directions and lengths: each end is a number, or an
                 // infinity on overflow, which the check below rejects.
-                let (o, end) = (self.origin[a], self.origin[a].add(self.dir[a].mul(self.tmax)));
-                o.min_keep(end).select(dead, L::splat(f32::INFINITY)).store(&mut lo[a]);
-                o.max_keep(end).select(dead, L::splat(f32::NEG_INFINITY)).store(&mut hi[a]);
+                let (o, end) = (self.origin[a], self.origin[a].add(self.dir[a].mul(length)));
+                lo[a] = o.min_keep(end).select(dead, inf).least();
+                hi[a] = o.max_keep(end).select(dead, L::splat(f32::NEG_INFINITY)).greatest();
             }
         }
-        let fold = |rows: &[[f32; 16]; 3], f: fn(f32, f32) -> f32, from: f32| {
-            Vec3A::from_array(std::array::from_fn(|a| rows[a][..L::WIDTH].iter().fold(from, |m, &x| f(m, x))))
-        };
-        let (lo, hi) = (fold(&lo, f32::min, f32::INFINITY), fold(&hi, f32::max, f32::NEG_INFINITY));
+        let (lo, hi) = (Vec3A::from_array(lo), Vec3A::from_array(hi));
         if !(lo.is_finite() && hi.is_finite()) {
             return None;
         }
@@ -132,6 +149,10 @@ pub(crate) trait Lanes: Copy {
     unsafe fn or(a: Self::Mask, b: Self::Mask) -> Self::Mask;
     /// Lanes in `b` and not in `a`.
     unsafe fn andnot(a: Self::Mask, b: Self::Mask) -> Self::Mask;
+    /// The least lane (of numbers, none NaN).
+    unsafe fn least(self) -> f32;
+    /// The greatest lane (of numbers, none NaN).
+    unsafe fn greatest(self) -> f32;
     /// Bit `i` set for lane `i` in the mask.
     unsafe fn bits(m: Self::Mask) -> u32;
     /// The mask with lane `i` set for bit `i` of `bits`.
@@ -434,6 +455,20 @@ impl Lanes for Avx {
     }
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
+    unsafe fn least(self) -> f32 {
+        let m = _mm_min_ps(_mm256_castps256_ps128(self.0), _mm256_extractf128_ps::<1>(self.0));
+        let m = _mm_min_ps(m, _mm_movehl_ps(m, m));
+        _mm_cvtss_f32(_mm_min_ss(m, _mm_movehdup_ps(m)))
+    }
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    #[inline]
+    unsafe fn greatest(self) -> f32 {
+        let m = _mm_max_ps(_mm256_castps256_ps128(self.0), _mm256_extractf128_ps::<1>(self.0));
+        let m = _mm_max_ps(m, _mm_movehl_ps(m, m));
+        _mm_cvtss_f32(_mm_max_ss(m, _mm_movehdup_ps(m)))
+    }
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    #[inline]
     unsafe fn bits(m: __m256) -> u32 {
         _mm256_movemask_ps(m) as u32
     }
@@ -681,6 +716,16 @@ impl Lanes for Avx512 {
     }
     #[target_feature(enable = "avx512f")]
     #[inline]
+    unsafe fn least(self) -> f32 {
+        _mm512_reduce_min_ps(self.0)
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn greatest(self) -> f32 {
+        _mm512_reduce_max_ps(self.0)
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
     unsafe fn bits(m: __mmask16) -> u32 {
         m as u32
     }
@@ -784,10 +829,11 @@ mod tests {
         both_widths(places_in_order::<Avx>, places_in_order::<Avx512>);
     }
 
-    /// The segments' box holds, in exact arithmetic, every point `o + t·d` of every live
-    /// lane's segment for t up to `tmax·(1 + 2⁻²⁰)` (more than a triangle test's hit distance
-    /// can be rounded down by), near the origin and 3·10⁴ from it, and no dead lane's; it is
-    /// `None` where a live segment is unbounded.
+    /// The segments' box holds, in exact arithmetic, every live lane's origin and every point
+    /// `o + t·d` of its segment that lies in the bounds, for t up to `tmax·(1 + 2⁻²⁰)` (more
+    /// than a triangle test's hit distance can be rounded down by), near the origin and
+    /// 3·10⁴ from it; no dead lane's; and it is `None` only where a live segment is unbounded
+    /// and so are the bounds.
     #[test]
     fn the_segments_box_holds_every_live_segment() {
         both_widths(segments_in_the_box::<Avx>, segments_in_the_box::<Avx512>);
@@ -798,43 +844,79 @@ mod tests {
     /// # Safety
     /// The CPU must have `L`'s instruction set.
     unsafe fn segments_in_the_box<L: Lanes>() {
+        use glam::DVec3;
         let mut rng = SplitMix64::new(9);
-        let mut boxes = 0;
-        for p in 0..2_000 {
+        let (mut cut, mut whole) = (0, 0);
+        for p in 0..3_000 {
             let offset = if p % 2 == 0 { Vec3A::ZERO } else { Vec3A::new(3.0e4, -1.0e4, 5.0) };
+            let bounds = if p % 13 == 0 {
+                obvhs::aabb::Aabb::new(Vec3A::NEG_INFINITY, Vec3A::INFINITY)
+            } else {
+                obvhs::aabb::Aabb::new(offset - Vec3A::new(3.0, 1.0, 2.0), offset + Vec3A::new(2.0, 3.0, 1.0))
+            };
             let mut v = || Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
-            let origin = offset + v() * 0.01;
+            // Most packets leave from inside the bounds, some from outside.
+            let origin = offset + if p % 11 == 0 { Vec3A::new(5.0, 0.0, 0.0) } else { v() * 0.5 };
             let live = if p % 5 == 0 { 0b1010_0110_1101_0011 & ((1 << L::WIDTH) - 1) } else { (1 << L::WIDTH) - 1 };
             let rays: Vec<Ray> = (0..L::WIDTH)
                 .map(|k| {
-                    let tmax = if p % 7 == 3 && k == 5 { f32::INFINITY } else { 1e-3 + v().x.abs() * 2.0 };
+                    let unbounded = p % 3 == 0 || (p % 7 == 3 && k == 5);
+                    let tmax = if unbounded { f32::INFINITY } else { 1e-3 + v().x.abs() * 2.0 };
                     // Dead lanes far off: the box must not reach them.
                     let away = if live & (1 << k) == 0 { Vec3A::splat(100.0) } else { Vec3A::ZERO };
-                    Ray::new(origin + away + v() * 1e-4, v().normalize_or(Vec3A::X), tmax)
+                    let mut dir = v();
+                    if k == 2 {
+                        dir.y = 0.0;
+                    }
+                    Ray::new(origin + away + v() * 1e-4, dir.normalize_or(Vec3A::X), tmax)
                 })
                 .collect();
             // SAFETY: the caller's CPU has `L`'s instruction set.
-            let found = unsafe { L::rays(&rays).segments_box(live) };
-            let live_rays = rays.iter().enumerate().filter(|(k, _)| live & (1 << k) != 0).map(|(_, r)| r);
-            if live_rays.clone().any(|r| r.tmax.is_infinite()) {
-                assert!(found.is_none(), "packet {p}: an unbounded segment, yet a box");
+            let found = unsafe { L::rays(&rays).segments_box(live, &bounds) };
+            let live_rays: Vec<&Ray> =
+                rays.iter().enumerate().filter(|(k, _)| live & (1 << k) != 0).map(|(_, r)| r).collect();
+            let unbounded = live_rays.iter().any(|r| r.tmax.is_infinite());
+            if unbounded && !bounds.min.is_finite() {
+                assert!(found.is_none(), "packet {p}: unbounded segments and bounds, yet a box");
                 continue;
             }
-            let (lo, hi) = found.unwrap_or_else(|| panic!("packet {p}: bounded segments, yet no box"));
+            let (lo, hi) = found.unwrap_or_else(|| panic!("packet {p}: no box"));
             let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
-            for r in live_rays {
+            let inside = |x: DVec3| x.cmpge(lo).all() && x.cmple(hi).all();
+            let (b0, b1) = (bounds.min.as_dvec3(), bounds.max.as_dvec3());
+            for r in &live_rays {
                 let (o, d) = (r.origin.as_dvec3(), r.dir.as_dvec3());
-                for t in [0.0, f64::from(r.tmax), f64::from(r.tmax) * (1.0 + 2f64.powi(-20))] {
+                assert!(inside(o), "packet {p}: origin {o} outside {lo}..{hi}");
+                // Where the line leaves the bounds, exactly.
+                let exit = (0..3)
+                    .filter(|&a| d[a] != 0.0)
+                    .map(|a| ((b0[a] - o[a]) / d[a]).max((b1[a] - o[a]) / d[a]))
+                    .fold(f64::INFINITY, f64::min);
+                let end = f64::from(r.tmax).min(exit).max(0.0);
+                for t in [0.25, 0.5, 1.0, 1.0 + 2f64.powi(-20)].map(|f| f * end).into_iter().chain([f64::from(r.tmax)])
+                {
                     let x = o + d * t;
-                    assert!(x.cmpge(lo).all() && x.cmple(hi).all(), "packet {p}: {x} at t = {t} outside {lo}..{hi}");
+                    if t.is_finite() && x.cmpge(b0).all() && x.cmple(b1).all() {
+                        assert!(inside(x), "packet {p}: {x} at t = {t} outside {lo}..{hi}");
+                    }
                 }
             }
-            // The box fits the live segments (its padding is 0.12 at 3·10⁴).
-            let reach = rays.iter().map(|r| r.tmax).fold(0.0, f32::max) as f64 + 0.01;
-            assert!((hi - lo).max_element() < 2.0 * reach + 0.25, "packet {p}: {lo}..{hi} is loose");
-            boxes += 1;
+            // The box fits the live segments, cut by the bounds (its padding is 0.12 at 3·10⁴).
+            let reach = live_rays.iter().map(|r| r.tmax).fold(0.0, f32::max) as f64 + 0.01;
+            let mut fit = (lo - 0.25, hi + 0.25);
+            if unbounded {
+                fit = (b0.min(origin.as_dvec3()) - 0.25, b1.max(origin.as_dvec3()) + 0.25);
+                cut += 1;
+            } else {
+                whole += 1;
+            }
+            assert!(
+                (!unbounded || (lo.cmpge(fit.0).all() && hi.cmple(fit.1).all()))
+                    && (unbounded || (hi - lo).max_element() < 2.0 * reach + 0.25),
+                "packet {p}: {lo}..{hi} is loose"
+            );
         }
-        assert!(boxes > 1_500, "{boxes} bounded packets of 2,000");
+        assert!(cut > 800 && whole > 1_500, "{cut} cut and {whole} whole packets");
     }
 
     /// [`grouped_lanes_get_their_places_in_order`] for `L`.

@@ -303,11 +303,13 @@ fn breadth_first(bvh2: &[Bvh2Node]) -> Vec<usize> {
 #[derive(Clone, Debug)]
 pub struct WideBvh<const W: usize> {
     nodes: Vec<Node<W>>,
+    /// The root's box (the union of its children's): nothing lies outside it.
+    bounds: Aabb,
 }
 
 impl<const W: usize> Default for WideBvh<W> {
     fn default() -> Self {
-        WideBvh { nodes: Vec::new() }
+        WideBvh { nodes: Vec::new(), bounds: Aabb::empty() }
     }
 }
 
@@ -352,7 +354,7 @@ impl<const W: usize> WideBvh<W> {
             node.set(0, root.aabb());
             node.child[0] = root.first_index;
             node.count[0] = root.prim_count;
-            return WideBvh { nodes: vec![node] };
+            return WideBvh { nodes: vec![node], bounds: *root.aabb() };
         }
         // One wide node per BVH2 inner node at most, so the pushes below never reallocate.
         let mut nodes = crate::huge_pages::vec_on_huge_pages(bvh2.len() / 2 + 1);
@@ -376,7 +378,7 @@ impl<const W: usize> WideBvh<W> {
                 }
             }
         }
-        WideBvh { nodes }
+        WideBvh { nodes, bounds: *root.aabb() }
     }
 
     /// Replaces every leaf's (first, count) by `f(first, count)`, visiting leaves in node order.
@@ -879,20 +881,21 @@ impl WideBvh<8> {
         live & !open
     }
 
-    /// The node an any-hit packet traversal of the lanes `live` of `rays` may start from:
-    /// the root, or for bounded rays the deepest node under which lie all leaves whose boxes
-    /// overlap their segments' box ([`RayLanes::segments_box`]), found by going down while
-    /// exactly one child of a node overlaps it and that child is not a leaf. `None` where that
-    /// box overlaps no leaf, so nothing can block the rays. Only leaves whose boxes a ray's
-    /// segment can meet lie outside that subtree, so every ray gets the answer it gets from
-    /// the root; each packet saves the node tests of the way down, which all its rays take.
+    /// The node an any-hit packet traversal of the lanes `live` of `rays` may start from: the
+    /// deepest node under which lie all leaves whose boxes overlap their segments' box (cut
+    /// where they leave the tree's bounds: [`RayLanes::segments_box`]), found by going down
+    /// while exactly one child of a node overlaps it and that child is not a leaf (the root
+    /// where there is no such box). `None` where that box overlaps no leaf, so nothing can
+    /// block the rays. No leaf a ray's segment can meet lies outside that subtree, so every
+    /// ray gets the answer it gets from the root; each packet saves the node tests of the way
+    /// down, which all its rays would take.
     ///
     /// # Safety
     /// The CPU must have `L`'s instruction set and AVX2.
     #[inline(always)]
     pub(crate) unsafe fn entry_node_of<L: Lanes>(&self, rays: &RayLanes<L>, live: u32) -> Option<u32> {
         // SAFETY: the caller's CPU has `L`'s instruction set and AVX2.
-        match unsafe { rays.segments_box(live) } {
+        match unsafe { rays.segments_box(live, &self.bounds) } {
             Some((lo, hi)) => unsafe { self.entry_node(lo, hi) },
             None => (!self.nodes.is_empty()).then_some(0),
         }
