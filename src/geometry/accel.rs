@@ -519,8 +519,8 @@ macro_rules! packet_kernels {
                         self.prefetch_packets(first, count)
                     })
                 };
-                // Bounded rays start below the nodes only one child of which their segments'
-                // box overlaps; where it overlaps no leaf, nothing can block them.
+                // The packet starts at its entry node; where its segments' box overlaps no
+                // leaf, nothing can block its rays.
                 let Some(start) = (unsafe { tree.entry_node_of(in_lanes, live) }) else { return 0 };
                 unsafe { tree.occluded_packet(&packet, start, live, stack, leaf, single) }
             }

@@ -902,19 +902,16 @@ mod tests {
                 }
             }
             // The box fits the live segments, cut by the bounds (its padding is 0.12 at 3·10⁴).
-            let reach = live_rays.iter().map(|r| r.tmax).fold(0.0, f32::max) as f64 + 0.01;
-            let mut fit = (lo - 0.25, hi + 0.25);
             if unbounded {
-                fit = (b0.min(origin.as_dvec3()) - 0.25, b1.max(origin.as_dvec3()) + 0.25);
+                let (o, grown) = (origin.as_dvec3(), DVec3::splat(0.25));
+                let fits = lo.cmpge(b0.min(o) - grown).all() && hi.cmple(b1.max(o) + grown).all();
+                assert!(fits, "packet {p}: {lo}..{hi} reaches past the bounds");
                 cut += 1;
             } else {
+                let reach = live_rays.iter().map(|r| r.tmax).fold(0.0, f32::max) as f64 + 0.01;
+                assert!((hi - lo).max_element() < 2.0 * reach + 0.25, "packet {p}: {lo}..{hi} is loose");
                 whole += 1;
             }
-            assert!(
-                (!unbounded || (lo.cmpge(fit.0).all() && hi.cmple(fit.1).all()))
-                    && (unbounded || (hi - lo).max_element() < 2.0 * reach + 0.25),
-                "packet {p}: {lo}..{hi} is loose"
-            );
         }
         assert!(cut > 800 && whole > 1_500, "{cut} cut and {whole} whole packets");
     }

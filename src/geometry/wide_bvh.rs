@@ -1345,8 +1345,8 @@ mod tests {
         assert!(packet_leaves > 1_000 && single_leaves > 1_000, "{packet_leaves} by packet, {single_leaves} alone");
     }
 
-    #[cfg(target_arch = "x86_64")]
     /// The leaves of the subtree under node `node` of a wide tree.
+    #[cfg(target_arch = "x86_64")]
     fn leaves_under(tree: &Bvh8, node: u32) -> Leaves {
         let n = &tree.nodes[node as usize];
         let mut leaves = Leaves::new();
@@ -1360,6 +1360,9 @@ mod tests {
         leaves
     }
 
+    /// Random boxes, from points up to a third of the scene across, near the origin and 3·10⁴
+    /// from it: every leaf whose box overlaps one lies under its entry node, and a box with
+    /// no entry node overlaps no leaf.
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn the_entry_node_holds_every_leaf_a_box_overlaps() {
