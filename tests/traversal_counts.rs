@@ -22,13 +22,19 @@ fn ground(ao: bool) -> Renderer {
         ],
         indices: vec![[0, 2, 1], [0, 3, 2]],
     };
-    let s = RenderSettings { jitter: false, ..settings(16, 16, 64, SamplerKind::MultiJittered) };
+    seen_from(mesh, 16, Vec3::new(0.0, 4.0, 0.5), ao.then(|| occluder(0.0)))
+}
+
+/// `mesh` (white) seen from `eye` towards the origin (60°) at `size` × `size` pixels, one
+/// camera ray per pixel (no jitter) and 64 samples each, lit by `ao` alone.
+fn seen_from(mesh: Mesh, size: u32, eye: Vec3, ao: Option<AmbientOccluder>) -> Renderer {
+    let s = RenderSettings { jitter: false, ..settings(size, size, 64, SamplerKind::MultiJittered) };
     let mut r = Renderer::new(s);
     let w = r.world_mut();
     w.spawn((TriangleMesh(Arc::new(mesh)), white()));
-    w.spawn(Camera::look_at(Vec3::new(0.0, 4.0, 0.5), Vec3::ZERO, 60.0));
-    if ao {
-        w.spawn(occluder(0.0));
+    w.spawn(Camera::look_at(eye, Vec3::ZERO, 60.0));
+    if let Some(ao) = ao {
+        w.spawn(ao);
     }
     r
 }
@@ -93,15 +99,8 @@ fn short_ao_rays_start_at_the_node_of_their_own_cube() {
             }
             mesh.indices.extend(faces.iter().map(|f| f.map(|v| k + v)));
         }
-        let s = RenderSettings { jitter: false, ..settings(32, 32, 64, SamplerKind::MultiJittered) };
-        let mut r = Renderer::new(s);
-        let w = r.world_mut();
-        w.spawn((TriangleMesh(Arc::new(mesh)), white()));
-        w.spawn(Camera::look_at(Vec3::new(0.0, 22.0, 16.0), Vec3::ZERO, 60.0));
-        if ao {
-            w.spawn(AmbientOccluder { max_distance: 0.5, ..occluder(0.0) });
-        }
-        r
+        let ao = ao.then(|| AmbientOccluder { max_distance: 0.5, ..occluder(0.0) });
+        seen_from(mesh, 32, Vec3::new(0.0, 22.0, 16.0), ao)
     };
     let (with, without) = (frame(grid(true)), frame(grid(false)));
     let lanes = with.packet_lanes as u64;

@@ -497,6 +497,9 @@ macro_rules! packet_kernels {
             ) -> u32 {
                 // SAFETY (all blocks below): this function is compiled for the lane type's
                 // instruction set and AVX, which the caller's CPU has.
+                // The packet starts at its entry node; where its segments' box overlaps no
+                // leaf, nothing can block its rays, and nothing more is made.
+                let Some(start) = (unsafe { tree.entry_node_of(in_lanes, live) }) else { return 0 };
                 // Nodes are tested by fused multiply-adds at both widths ([`FusedPacket`]).
                 let packet = unsafe { FusedPacket::new(in_lanes, live) };
                 // The edge tests' constants, made when the packet first reaches a leaf.
@@ -519,9 +522,6 @@ macro_rules! packet_kernels {
                         self.prefetch_packets(first, count)
                     })
                 };
-                // The packet starts at its entry node; where its segments' box overlaps no
-                // leaf, nothing can block its rays.
-                let Some(start) = (unsafe { tree.entry_node_of(in_lanes, live) }) else { return 0 };
                 unsafe { tree.occluded_packet(&packet, start, live, stack, leaf, single) }
             }
         }
