@@ -658,7 +658,7 @@ macro_rules! packet_kernels {
                 unsafe {
                     let lanes = <$lanes_type>::rays(chunk);
                     let Some(start) = top.entry_node_of(&lanes, live) else { return 0 };
-                    top.occluded_packet(&RayPacket::new(&lanes), start, live, stack, leaf, single)
+                    top.occluded_packet(&FusedPacket::new(&lanes, live), start, live, stack, leaf, single)
                 }
             }
 
