@@ -753,7 +753,7 @@ const PACKET_STACK: usize = if cfg!(test) { 4 } else { 128 };
 /// packet test costs about as much per child as a single ray's test of all eight children, so
 /// the break-even is a few rays; 3 to 7 measured the same within noise (±5 %).
 #[cfg(target_arch = "x86_64")]
-const PACKET_MIN_LANES: u32 = 4;
+pub(crate) const PACKET_MIN_LANES: u32 = 4;
 
 #[cfg(target_arch = "x86_64")]
 impl Node<8> {
