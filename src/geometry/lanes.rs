@@ -110,8 +110,8 @@ pub(crate) trait Lanes: Copy {
     unsafe fn places(groups: &[u32; 4], start: &[u32; 4], none: u32) -> [u32; 16];
     /// `x[0..WIDTH]`.
     unsafe fn load(x: &[f32]) -> Self;
-    /// The lanes written to `out[0..WIDTH]`.
-    unsafe fn store(self, out: &mut [f32]);
+    /// Lane `j` (below `WIDTH`), read from where `self` lies in memory.
+    fn lane(&self, j: usize) -> f32;
     /// Adds lane k of `x`, `y` and `z` to `out[k]`, for a full vector of `out` (`WIDTH`
     /// elements); the fourth lane of each element gets z's lane, as [`Vec3A::new`] gives it.
     unsafe fn add_to(x: Self, y: Self, z: Self, out: &mut [Vec3A]);
@@ -330,12 +330,11 @@ impl Lanes for Avx {
         // SAFETY: eight floats, checked above.
         unsafe { Avx(_mm256_loadu_ps(x.as_ptr())) }
     }
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn store(self, out: &mut [f32]) {
-        let out = &mut out[..8];
-        // SAFETY: eight floats, checked above.
-        unsafe { _mm256_storeu_ps(out.as_mut_ptr(), self.0) }
+    #[inline(always)]
+    fn lane(&self, j: usize) -> f32 {
+        // SAFETY: an `__m256` is eight f32 in memory.
+        let floats = unsafe { &*(&raw const self.0).cast::<[f32; 8]>() };
+        floats[j]
     }
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
@@ -589,12 +588,11 @@ impl Lanes for Avx512 {
         // SAFETY: sixteen floats, checked above.
         unsafe { Avx512(_mm512_loadu_ps(x.as_ptr())) }
     }
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn store(self, out: &mut [f32]) {
-        let out = &mut out[..16];
-        // SAFETY: sixteen floats, checked above.
-        unsafe { _mm512_storeu_ps(out.as_mut_ptr(), self.0) }
+    #[inline(always)]
+    fn lane(&self, j: usize) -> f32 {
+        // SAFETY: an `__m512` is sixteen f32 in memory.
+        let floats = unsafe { &*(&raw const self.0).cast::<[f32; 16]>() };
+        floats[j]
     }
     #[target_feature(enable = "avx512f")]
     #[inline]
