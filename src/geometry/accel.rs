@@ -622,11 +622,13 @@ macro_rules! packet_kernels {
                 } else if let Tree::Eight(top) = &self.top {
                     // The top level's instances take the rays in memory (each moves them into
                     // its own frame): transposed out of the lanes in place.
-                    let mut rays = [Ray::new(Vec3A::ZERO, Vec3A::X, 0.0); 16];
-                    let order: [u32; 16] = std::array::from_fn(|k| k as u32);
+                    // (An array of the packet's width: one of sixteen, filled first, cost the
+                    // stores of its unused half.)
+                    let mut rays = [Ray::new(Vec3A::ZERO, Vec3A::X, 0.0); <$lanes_type>::WIDTH];
+                    let order: [u32; <$lanes_type>::WIDTH] = std::array::from_fn(|k| k as u32);
                     // SAFETY: this function is compiled for the lane type's instruction set.
                     unsafe { <$lanes_type>::write_rays(lanes, &mut rays, &order) };
-                    self.$scene_packet(top, &rays[..<$lanes_type>::WIDTH], live, stack)
+                    self.$scene_packet(top, &rays, live, stack)
                 } else {
                     lanes_where(live, &ray, |r| self.occluded(r, stack))
                 };
@@ -689,7 +691,7 @@ macro_rules! packet_kernels {
                     return blas.$lanes(tree, rays, lanes, stack);
                 }
                 // Lanes not traced keep a copy of a traced ray: they only fill the packet.
-                let mut local = [rays[lanes.trailing_zeros() as usize]; 16];
+                let mut local = [rays[lanes.trailing_zeros() as usize]; <$lanes_type>::WIDTH];
                 let mut live = 0;
                 for (k, ray) in rays.iter().enumerate() {
                     if lanes & (1 << k) != 0
