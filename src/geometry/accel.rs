@@ -588,7 +588,9 @@ macro_rules! packet_kernels {
                 blocked: &mut [bool],
             ) {
                 in_packets::<$lanes_type>(rays, order, blocked, |chunk, live| {
-                    self.$scene_packet(top, chunk, live, stack)
+                    // SAFETY: this function is compiled for the lane type's instruction set.
+                    let lanes = unsafe { <$lanes_type>::rays(chunk) };
+                    self.$scene_packet(top, &lanes, |k| chunk[k], live, stack)
                 });
             }
 
@@ -620,88 +622,88 @@ macro_rules! packet_kernels {
                         _ => lanes_where(live, &ray, |r| blas.occluded(r, stack)),
                     }
                 } else if let Tree::Eight(top) = &self.top {
-                    // The top level's instances take the rays in memory (each moves them into
-                    // its own frame): transposed out of the lanes in place.
-                    // (An array of the packet's width: one of sixteen, filled first, cost the
-                    // stores of its unused half.)
-                    let mut rays = [Ray::new(Vec3A::ZERO, Vec3A::X, 0.0); <$lanes_type>::WIDTH];
-                    let order: [u32; <$lanes_type>::WIDTH] = std::array::from_fn(|k| k as u32);
-                    // SAFETY: this function is compiled for the lane type's instruction set.
-                    unsafe { <$lanes_type>::write_rays(lanes, &mut rays, &order) };
-                    self.$scene_packet(top, &rays, live, stack)
+                    self.$scene_packet(top, lanes, &ray, live, stack)
                 } else {
                     lanes_where(live, &ray, |r| self.occluded(r, stack))
                 };
                 on_planes | traced
             }
 
-            /// The lanes of `live` whose ray in `chunk` (one packet, world space) anything
-            /// blocks, traced together through the top-level tree `top`.
+            /// The lanes of `live` whose ray anything blocks, for one packet of world-space
+            /// rays in lanes (`ray(k)` gives lane k's ray, for what takes rays one by one),
+            /// traced together through the top-level tree `top`.
             #[target_feature(enable = $feature)]
-            fn $scene_packet(&self, top: &Bvh8, chunk: &[Ray], live: u32, stack: &mut Vec<(u32, f32)>) -> u32 {
-                let leaf = |first: u32, count: u32, lanes: u32, stack: &mut Vec<(u32, f32)>| {
-                    let mut open = lanes;
+            fn $scene_packet(
+                &self,
+                top: &Bvh8,
+                lanes: &RayLanes<$lanes_type>,
+                ray: impl Fn(usize) -> Ray,
+                live: u32,
+                stack: &mut Vec<(u32, f32)>,
+            ) -> u32 {
+                let leaf = |first: u32, count: u32, entered: u32, stack: &mut Vec<(u32, f32)>| {
+                    let mut open = entered;
                     for inst in &self.instances[first as usize..(first + count) as usize] {
-                        open &= !self.$instance(inst, chunk, open, stack);
+                        open &= !self.$instance(inst, lanes, &ray, open, stack);
                         if open == 0 {
                             break;
                         }
                     }
-                    lanes & !open
+                    entered & !open
                 };
                 let single = |node, lane: usize, stack: &mut Vec<(u32, f32)>| {
-                    let ray = &chunk[lane];
-                    top.occluded_from(node, ray, stack, |first, count, stack| {
-                        self.instances_block(first, count, ray, stack)
+                    let ray = ray(lane);
+                    top.occluded_from(node, &ray, stack, |first, count, stack| {
+                        self.instances_block(first, count, &ray, stack)
                     })
                 };
                 // SAFETY: this function is compiled for the lane type's instruction set and
                 // AVX, which the caller's CPU has.
                 unsafe {
-                    let lanes = <$lanes_type>::rays(chunk);
-                    let Some(start) = top.entry_node_of(&lanes, live) else { return 0 };
+                    let Some(start) = top.entry_node_of(lanes, live) else { return 0 };
                     // The fused node test, as in a BLAS: many_spheres 2.7 % faster than the
                     // plain one here (same answers: the leaves decide).
-                    top.occluded_packet(&FusedPacket::new(&lanes, live), start, live, stack, leaf, single)
+                    top.occluded_packet(&FusedPacket::new(lanes, live), start, live, stack, leaf, single)
                 }
             }
 
-            /// The lanes of `lanes` whose ray in `rays` (world space) instance `inst` blocks:
-            /// as one packet in the instance's frame where its BLAS takes packets and at least
+            /// The lanes of `entered` whose ray (world space; in `lanes`, and `ray(k)` for lane k)
+            /// instance `inst` blocks: as one packet in the instance's frame (or the packet
+            /// itself, for an identity transform) where its BLAS takes packets and at least
             /// [`PACKET_MIN_LANES`] rays reach it. Fewer would go on alone from the packet's first
             /// node after the packet's set-up (its transpose, box and constants) for nothing:
             /// one by one they trace many_spheres 3.4 % faster than from two rays up, 1.5 %
             /// faster than from three.
             #[target_feature(enable = $feature)]
-            fn $instance(&self, inst: &Instance, rays: &[Ray], lanes: u32, stack: &mut Vec<(u32, f32)>) -> u32 {
+            fn $instance(
+                &self,
+                inst: &Instance,
+                lanes: &RayLanes<$lanes_type>,
+                ray: &impl Fn(usize) -> Ray,
+                entered: u32,
+                stack: &mut Vec<(u32, f32)>,
+            ) -> u32 {
                 let blas = &self.blases[inst.blas as usize];
                 let tree = match &blas.tree {
-                    Tree::Eight(tree) if !blas.packets.is_empty() && lanes.count_ones() >= PACKET_MIN_LANES => tree,
-                    _ => {
-                        let mut hit = 0;
-                        for (k, ray) in rays.iter().enumerate() {
-                            if lanes & (1 << k) != 0 && self.instance_blocks(inst, ray, stack) {
-                                hit |= 1 << k;
-                            }
-                        }
-                        return hit;
-                    }
+                    Tree::Eight(tree) if !blas.packets.is_empty() && entered.count_ones() >= PACKET_MIN_LANES => tree,
+                    _ => return lanes_where(entered, ray, |r| self.instance_blocks(inst, r, stack)),
                 };
                 if inst.identity {
-                    return blas.$lanes(tree, rays, lanes, stack);
+                    return blas.$lanes_of(tree, lanes, ray, entered, stack);
                 }
                 // Lanes not traced keep a copy of a traced ray: they only fill the packet.
-                let mut local = [rays[lanes.trailing_zeros() as usize]; <$lanes_type>::WIDTH];
+                let mut local = [ray(entered.trailing_zeros() as usize); <$lanes_type>::WIDTH];
                 let mut live = 0;
-                for (k, ray) in rays.iter().enumerate() {
-                    if lanes & (1 << k) != 0
-                        && let Some((ray, _)) = inst.local_ray(ray)
-                    {
-                        local[k] = ray;
+                let mut each = entered;
+                while each != 0 {
+                    let k = each.trailing_zeros() as usize;
+                    each &= each - 1;
+                    if let Some((moved, _)) = inst.local_ray(&ray(k)) {
+                        local[k] = moved;
                         live |= 1 << k;
                     }
                 }
-                blas.$lanes(tree, &local[..rays.len()], live, stack)
+                blas.$lanes(tree, &local, live, stack)
             }
         }
     };
