@@ -793,27 +793,8 @@ mod tests {
     use super::*;
     use crate::sampling::hash::SplitMix64;
 
-    /// A vector's lanes, for checking them one by one.
-    trait Spill: Lanes {
-        fn spill(self) -> Vec<f32>;
-    }
-
-    impl Spill for Avx {
-        fn spill(self) -> Vec<f32> {
-            // SAFETY: __m256 holds eight f32.
-            unsafe { std::mem::transmute::<__m256, [f32; 8]>(self.0) }.to_vec()
-        }
-    }
-
-    impl Spill for Avx512 {
-        fn spill(self) -> Vec<f32> {
-            // SAFETY: __m512 holds sixteen f32.
-            unsafe { std::mem::transmute::<__m512, [f32; 16]>(self.0) }.to_vec()
-        }
-    }
-
-    /// Every field of every ray lands in its own lane, bit for bit, for packets of one ray up to
-    /// a full one, lanes past the last ray repeating it; written back, each ray is itself again;
+    /// Every field of every ray lands in its own lane, bit for bit (as [`Lanes::lane`] reads
+    /// it), for packets of one ray up to a full one, lanes past the last ray repeating it; written back, each ray is itself again;
     /// lanes added to elements give each element its own lane.
     #[test]
     fn rays_are_transposed_into_their_lanes() {
@@ -949,7 +930,7 @@ mod tests {
     ///
     /// # Safety
     /// The CPU must have `L`'s instruction set.
-    unsafe fn rays_into_lanes<L: Spill>() {
+    unsafe fn rays_into_lanes<L: Lanes>() {
         let mut rng = SplitMix64::new(7);
         let mut v = || Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 8.0 - 4.0;
         for n in 1..=L::WIDTH {
@@ -959,7 +940,7 @@ mod tests {
             for a in 0..3 {
                 let fields = [(lanes.origin[a], "origin"), (lanes.dir[a], "dir"), (lanes.inv_dir[a], "inv_dir")];
                 for (got, name) in fields {
-                    for (k, x) in got.spill().into_iter().enumerate() {
+                    for (k, x) in (0..L::WIDTH).map(|k| (k, got.lane(k))) {
                         let ray = &rays[k.min(n - 1)];
                         let want = match name {
                             "origin" => ray.origin[a],
@@ -970,7 +951,7 @@ mod tests {
                     }
                 }
             }
-            for (k, t) in lanes.tmax.spill().into_iter().enumerate() {
+            for (k, t) in (0..L::WIDTH).map(|k| (k, lanes.tmax.lane(k))) {
                 assert_eq!(t, rays[k.min(n - 1)].tmax, "{n} rays: tmax of lane {k}");
             }
             // And back: lane k to out[at[k]], in reverse order, the lanes past n all to one.
