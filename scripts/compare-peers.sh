@@ -117,7 +117,8 @@ fi
 echo "AO Mrays/s: hemi trace = AO rays / trace-system wall time (camera and shadow rays and shading included);"
 echo "hemi kernel = AO rays / the trace time spent in the ambient occluder (its sampling, AO rays and sums:"
 echo "the part Mitsuba's number times), from cycle counts of every sixteenth pixel; hemi queries = AO rays / the"
-echo "part of that in the AO rays' BVH queries alone (traversal and triangle tests; no sampling, set-up or sums);"
+echo "part of that in the AO rays' BVH queries alone (traversal and triangle tests; no sampling, set-up or sums;"
+echo "timed in a quarter of those pixels);"
 echo "embree = ao_incl_gen_mrays_s (numpy ray generation + occlusion); mitsuba = ao_mrays_s (whole AO kernel, warm run)."
 if [ "$split" = 1 ]; then
     echo "AO kernel ms with rays 1e-7 long ('stub': sampling, set-up, sums, the walk to the origin's nodes) and"

@@ -226,6 +226,9 @@ pub struct Tracer {
     pub rays: RayCounts,
     /// Whether the pixel being traced is timed: light groups' cycles then go to `split`.
     pub timing: bool,
+    /// Whether the scene queries of the pixel being traced are timed too (only in a timed
+    /// pixel): their cycles then go to `split`.
+    pub timing_queries: bool,
     /// Cycle counts of the timed pixels ([`TraceSplit`]); the caller counts whole pixels.
     pub split: TraceSplit,
 }
@@ -332,7 +335,7 @@ impl Tracer {
         let start = self.timing.then(cycle_count);
         group.shade_points(self, scene, points, first_dim, skip_black, arriving);
         if let Some(start) = start {
-            self.split.add_term(group.term(), cycles_since(start));
+            self.split.add_term(group.term(), cycles_since(start), self.timing_queries);
         }
     }
 
@@ -386,8 +389,9 @@ impl Tracer {
             points.push(RunPoint::new(scene, hit, j, pixel, sample));
         }
         // The row's cycles, kept apart and then scaled to the timed pixels' share.
-        let (split, timing) = (std::mem::take(&mut self.split), self.timing);
-        self.timing = timed > 0;
+        // A row's shadow rays go in few queries: each is timed when any pixel is.
+        let (split, timing) = (std::mem::take(&mut self.split), (self.timing, self.timing_queries));
+        (self.timing, self.timing_queries) = (timed > 0, timed > 0);
         let mut arriving = std::mem::take(&mut self.arriving);
         for (g, &(first_dim, group)) in scene.fixed_groups().enumerate() {
             self.light_points(scene, group, first_dim, &points, skip_black, &mut arriving);
@@ -397,7 +401,7 @@ impl Tracer {
         }
         let row = std::mem::replace(&mut self.split, split);
         self.split.add(&row.scaled(timed, n as u64));
-        self.timing = timing;
+        (self.timing, self.timing_queries) = timing;
         self.arriving = arriving;
         self.row = points;
     }
@@ -499,7 +503,7 @@ impl Tracer {
             let start = self.timing.then(cycle_count);
             group.shade(self, scene, spawn, at, pixel, first, first_dim, &mut arriving, sums.then_some(&mut sum));
             if let Some(start) = start {
-                self.split.add_term(term, cycles_since(start));
+                self.split.add_term(term, cycles_since(start), self.timing_queries);
             }
             self.arriving_zero = sums && !sum.per_sample;
             add(term, reflectance, &arriving, sum);
@@ -535,7 +539,7 @@ impl Tracer {
             // A cosine run in one pass, where the CPU and sampler allow.
             if let Some(terms) = light.cosine_run().filter(|_| P::DIMS > 0) {
                 let (geometry, rays) = (scene.geometry, &mut self.direction_rays);
-                rays.timing = self.timing;
+                rays.timing = self.timing_queries;
                 let sample = (pixel, first, dim);
                 let (stack, sum) = (&mut self.stack, sum.as_deref_mut());
                 if let Some((traced, cycles)) =
@@ -559,7 +563,7 @@ impl Tracer {
                 // its samples' `DirectionRun::light_sample`s, without making them.
                 if let Some(terms) = light.sample_directions(at, &values, &mut self.directions) {
                     let (geometry, run) = (scene.geometry, &self.directions);
-                    self.direction_rays.timing = self.timing;
+                    self.direction_rays.timing = self.timing_queries;
                     let (traced, cycles) =
                         self.direction_rays.add(geometry, &mut self.stack, spawn, run, &terms, arriving);
                     self.rays.count(P::TERM, traced);
@@ -644,7 +648,7 @@ impl Tracer {
             }
         }
         self.shadow_blocked.resize(rays.len(), false);
-        let start = self.timing.then(cycle_count);
+        let start = self.timing_queries.then(cycle_count);
         scene.geometry.occluded_many(rays, RayOrder::Mixed, &mut self.stack, &mut self.shadow_blocked);
         if let Some(start) = start {
             self.split.add_queries(term, cycles_since(start));

@@ -16,7 +16,7 @@ use crate::{
     resources::{AOV_FLOATS, Accumulation, AovValues, FrameSamples, RenderSettings, SceneProblems, luminance},
     sampling::{SampleSets, dims},
     shading::{RayCounts, SampleResult, Scene, Tracer},
-    stats::{FrameStats, TraceSplit, cycle_count, cycles_since, timed_pixel},
+    stats::{FrameStats, TraceSplit, cycle_count, cycles_since, query_timed_pixel, timed_pixel},
 };
 
 /// A rectangle of pixels traced as one task.
@@ -208,6 +208,7 @@ fn trace_tile<C: CameraRays>(
         for x in tile.x0..tile.x1 {
             let pixel = y * job.width + x;
             tracer.timing = timed_pixel(pixel);
+            tracer.timing_queries = query_timed_pixel(pixel);
             let start = tracer.timing.then(cycle_count);
             let mut sum = Vec3::ZERO;
             let mut sq_sum = 0.0;
