@@ -151,6 +151,8 @@ pub(crate) trait U32Lanes: Copy {
     unsafe fn shl(self, n: Self) -> Self;
     /// `self | b`.
     unsafe fn or(self, b: Self) -> Self;
+    /// The first lanes' worth of `x` (which must hold that many).
+    unsafe fn load(x: &[u32]) -> Self;
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -207,6 +209,13 @@ macro_rules! u32_lanes {
             #[inline]
             unsafe fn or(self, b: Self) -> Self {
                 std::arch::x86_64::$or(self, b)
+            }
+            #[target_feature(enable = $feature)]
+            #[inline]
+            unsafe fn load(x: &[u32]) -> Self {
+                let x = &x[..size_of::<Self>() / 4];
+                // SAFETY: `x` holds a whole vector of u32, checked above.
+                unsafe { std::ptr::read_unaligned(x.as_ptr().cast::<Self>()) }
             }
         }
     };
