@@ -801,6 +801,29 @@ mod tests {
         }
     }
 
+    /// The slot tables of both packet widths, on every CPU (the patterns' own test below runs
+    /// each width only where the CPU has its lanes): each is a permutation of the samples, and
+    /// slot t holds a sample of quarter t / (n/4), its coarse column in that quarter of the m.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn quadrant_slot_tables_put_each_sample_once_in_its_quarter() {
+        for n in [16u32, 32, 64, 128, 256] {
+            let cmj = Cmj::new(n);
+            let (m, a) = (cmj.m.get(), cmj.m.get().trailing_zeros() - 2);
+            for (w, table) in cmj.quadrant_samples.iter().enumerate() {
+                let mut seen = vec![false; n as usize];
+                for (t, &s) in table[..n as usize].iter().enumerate() {
+                    assert!(s < n && !seen[s as usize], "n {n}, width {}: sample {s} twice or out of range", 8 << w);
+                    seen[s as usize] = true;
+                    // The shuffled sample number's bits: column within the quarter, quarter, row.
+                    let column = (s & ((1 << a) - 1)) | ((s >> a) & 3) << a;
+                    assert_eq!(column / (m / 4), t as u32 / (n / 4), "n {n}, width {}: slot {t}", 8 << w);
+                }
+                assert!(table[n as usize..].iter().all(|&s| s == 0), "n {n}: entries past n");
+            }
+        }
+    }
+
     /// A quadrant pattern's slots hold every sample of the pattern once, each at
     /// [`Cmj::sample`]'s point, quarter by quarter of x (so of the azimuth 2πx); and a mark on
     /// a slot reads back on exactly the sample whose point that slot holds. For each width
