@@ -390,15 +390,19 @@ pub(crate) fn traversal_line(counts: &TraversalCounts, rays: u64) -> String {
 mod tests {
     use super::*;
 
-    #[test]
-    fn a_sixteenth_of_every_tile_is_timed() {
+    /// How many pixels `picked` picks in each 16 × 16 tile of a 512 × 512 image.
+    fn picked_per_tile(picked: impl Fn(u32) -> bool) -> Vec<u32> {
         let width = 512;
         let mut per_tile = vec![0u32; 32 * 32];
-        for pixel in 0..width * width {
-            if timed_pixel(pixel) {
-                per_tile[((pixel / width / 16) * 32 + pixel % width / 16) as usize] += 1;
-            }
+        for pixel in (0..width * width).filter(|&p| picked(p)) {
+            per_tile[((pixel / width / 16) * 32 + pixel % width / 16) as usize] += 1;
         }
+        per_tile
+    }
+
+    #[test]
+    fn a_sixteenth_of_every_tile_is_timed() {
+        let per_tile = picked_per_tile(timed_pixel);
         // 16 of each tile's 256 pixels on average.
         assert_eq!(per_tile.iter().sum::<u32>(), 16_385);
         assert!(per_tile.iter().all(|&n| (12..=20).contains(&n)), "{per_tile:?}");
@@ -406,14 +410,10 @@ mod tests {
 
     #[test]
     fn a_quarter_of_the_timed_pixels_time_their_queries() {
-        let width = 512;
-        let mut per_tile = vec![0u32; 32 * 32];
-        for pixel in 0..width * width {
-            if query_timed_pixel(pixel) {
-                assert!(timed_pixel(pixel), "pixel {pixel}'s queries are timed, the pixel is not");
-                per_tile[((pixel / width / 16) * 32 + pixel % width / 16) as usize] += 1;
-            }
+        for pixel in (0..512 * 512).filter(|&p| query_timed_pixel(p)) {
+            assert!(timed_pixel(pixel), "pixel {pixel}'s queries are timed, the pixel is not");
         }
+        let per_tile = picked_per_tile(query_timed_pixel);
         // 4 of each tile's 256 pixels on average.
         assert_eq!(per_tile.iter().sum::<u32>(), 4_096);
         assert!(per_tile.iter().all(|&n| (2..=6).contains(&n)), "{per_tile:?}");
