@@ -93,7 +93,8 @@ pub(crate) struct DirectionRays {
     /// A cosine run's blocked samples, bit k of entry g for sample 16g + k.
     #[cfg(target_arch = "x86_64")]
     dark: Vec<u32>,
-    /// Whether [`DirectionRays::add`] times its scene query (in the tracer's timed pixels).
+    /// Whether [`DirectionRays::add`] times its scene query (in the pixels whose queries the
+    /// tracer times, [`crate::stats::query_timed_pixel`]).
     pub(crate) timing: bool,
 }
 

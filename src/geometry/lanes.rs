@@ -794,8 +794,9 @@ mod tests {
     use crate::sampling::hash::SplitMix64;
 
     /// Every field of every ray lands in its own lane, bit for bit (as [`Lanes::lane`] reads
-    /// it), for packets of one ray up to a full one, lanes past the last ray repeating it; written back, each ray is itself again;
-    /// lanes added to elements give each element its own lane.
+    /// it), for packets of one ray up to a full one, lanes past the last ray repeating it;
+    /// written back, each ray is itself again; lanes added to elements give each element its
+    /// own lane.
     #[test]
     fn rays_are_transposed_into_their_lanes() {
         both_widths(rays_into_lanes::<Avx>, rays_into_lanes::<Avx512>);

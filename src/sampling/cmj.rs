@@ -111,7 +111,7 @@ impl Cmj {
             quadrant_samples: [[0; 256]; 2],
         };
         #[cfg(target_arch = "x86_64")]
-        if cmj.has_small_grid16() && m.is_multiple_of(4) {
+        if cmj.has_quadrant_grid() {
             for (w, (width, column_bits)) in
                 [(8, SmallGrid8::PACKET_COLUMN_BITS), (16, SmallGrid16::PACKET_COLUMN_BITS)].into_iter().enumerate()
             {
@@ -247,11 +247,17 @@ impl Cmj {
     }
 
     /// Whether this CPU has AVX2 (see [`crate::cpu`]) and the patterns are
-    /// [`QuadrantPattern`]s: n a power of two on a grid of at most 16 × 16 whose m columns
-    /// split into quarters (n = 16 … 256).
+    /// [`QuadrantPattern`]s ([`Cmj::has_quadrant_grid`]).
     #[cfg(target_arch = "x86_64")]
     pub(crate) fn has_quadrants(&self) -> bool {
-        self.has_small_grid16() && self.m.get().is_multiple_of(4) && crate::cpu::avx2()
+        self.has_quadrant_grid() && crate::cpu::avx2()
+    }
+
+    /// Whether the grid suits [`QuadrantPattern`]s, whatever the CPU: n a power of two on a
+    /// grid of at most 16 × 16 whose m columns split into quarters (n = 16 … 256).
+    #[cfg(target_arch = "x86_64")]
+    fn has_quadrant_grid(&self) -> bool {
+        self.has_small_grid16() && self.m.get().is_multiple_of(4)
     }
 
     /// Whether n is a power of two on a grid of at most 16 × 16 ([`SmallGrid16`]'s patterns).
@@ -815,8 +821,9 @@ mod tests {
                 for (t, &s) in table[..n as usize].iter().enumerate() {
                     assert!(s < n && !seen[s as usize], "n {n}, width {}: sample {s} twice or out of range", 8 << w);
                     seen[s as usize] = true;
-                    // The shuffled sample number's bits: column within the quarter, quarter, row.
-                    let column = (s & ((1 << a) - 1)) | ((s >> a) & 3) << a;
+                    // The shuffled sample number's bits: column within the quarter, quarter, row;
+                    // the low a + 2 are the coarse column.
+                    let column = s & ((4 << a) - 1);
                     assert_eq!(column / (m / 4), t as u32 / (n / 4), "n {n}, width {}: slot {t}", 8 << w);
                 }
                 assert!(table[n as usize..].iter().all(|&s| s == 0), "n {n}: entries past n");
