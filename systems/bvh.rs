@@ -7,6 +7,8 @@
 //! - a moved mesh instance only rebuilds the top-level BVH over the instances;
 //! - static meshes used by one entity each (not [`Dynamic`], not deforming) are baked in world
 //!   space into one BLAS, rebuilt when one of them changes (or which meshes qualify does);
+//!   static meshes that several entities share are baked too where the render's samples pay
+//!   for the bake ([`bakes_shared`]), and instanced otherwise;
 //! - each sphere and cuboid is a small world-space BLAS, rebuilt when one of them changes;
 //! - a material change only updates the material table; an unchanged scene does nothing.
 
@@ -26,9 +28,20 @@ use crate::{
         shapes::PlanePrim,
         world_space,
     },
-    resources::SceneProblems,
+    resources::{RenderSettings, SceneProblems},
     stats::FrameStats,
 };
+
+/// Samples per placed triangle (`max_spp` × pixels ÷ the triangles that baking the shared
+/// meshes would place) from which those meshes are baked rather than instanced. On the peer
+/// scene many_spheres (512,000 triangles placed from one 1,280-triangle sphere, 512 × 512, two
+/// threads) baking took the BVH system from 4 to 250 ms and the AO kernel 10 % faster, so the
+/// frame broke even at about 64 spp (33 samples per triangle); this asks twice that.
+const SHARED_BAKE_SAMPLES_PER_TRIANGLE: u64 = 64;
+
+/// Most triangles baking the shared meshes may place (a baked triangle takes about 150 bytes of
+/// tree and triangle data; instanced, it takes none).
+const SHARED_BAKE_MAX_TRIANGLES: usize = 1 << 21;
 
 type Shaped = Or<(With<Sphere>, With<Plane>, With<Cuboid>, With<TriangleMesh>)>;
 type WorldShaped = Or<(With<Sphere>, With<Plane>, With<Cuboid>)>;
@@ -123,6 +136,8 @@ pub struct BvhCache {
     world: Vec<Arc<Blas>>,
     /// Entities baked into the world-space BLAS of static meshes.
     baked: HashSet<Entity>,
+    /// Whether that BLAS holds the shared meshes too ([`bakes_shared`]).
+    bakes_shared: bool,
     planes: Vec<PlanePrim>,
     world_problems: Vec<String>,
 }
@@ -142,13 +157,19 @@ pub fn update_bvh(
     mut removed: ShapeRemovals,
     recoloured: Query<(Entity, &Matte), (Changed<Matte>, Shaped)>,
     shapes: Query<ShapeQuery, Shaped>,
+    settings: Res<RenderSettings>,
     mut geometry: ResMut<SceneGeometry>,
     mut problems: ResMut<SceneProblems>,
     mut stats: ResMut<FrameStats>,
     mut cache: Local<BvhCache>,
 ) {
     let start = Instant::now();
-    let structural = !cache.built_once || !added.is_empty() || removed.any();
+    // New settings can change whether the shared meshes are worth baking.
+    let rebake = cache.built_once && settings.is_changed() && {
+        let entries: Vec<ShapeData> = shapes.iter().collect();
+        bakes_shared(&settings, &mesh_users(&entries), &entries) != cache.bakes_shared
+    };
+    let structural = !cache.built_once || !added.is_empty() || removed.any() || rebake;
     let note = if structural || !changed.is_empty() {
         cache.built_once = true;
         // Drop the old scene's references first so deforming BLASes refit in place.
@@ -159,7 +180,7 @@ pub fn update_bvh(
             || !world_changed.is_empty()
             || !baking_changed.is_empty()
             || meshes_moved.iter().any(|e| cache.baked.contains(&e));
-        let (built, found, work) = update(&shapes, &mut cache, rebuild_world);
+        let (built, found, work) = update(&shapes, &settings, &mut cache, rebuild_world);
         problems.geometry = found;
         *geometry = built;
         stats.bvh_built = work.any();
@@ -210,6 +231,7 @@ fn describe(entity: Entity, name: Option<&Name>, e: String) -> String {
 /// is an object whether or not it is valid, so object indices only move when entities do.
 fn update(
     shapes: &Query<ShapeQuery, Shaped>,
+    settings: &RenderSettings,
     cache: &mut BvhCache,
     rebuild_world: bool,
 ) -> (SceneGeometry, Vec<String>, BvhWork) {
@@ -221,7 +243,9 @@ fn update(
 
     if rebuild_world {
         let (mut world, mut planes, mut found) = (Vec::new(), Vec::new(), Vec::new());
-        let (baked, baked_blas) = bake_static_meshes(&entries, &mut found);
+        let users = mesh_users(&entries);
+        cache.bakes_shared = bakes_shared(settings, &users, &entries);
+        let (baked, baked_blas) = bake_static_meshes(&entries, &users, cache.bakes_shared, &mut found);
         world.extend(baked_blas);
         cache.baked = baked;
         for (object, &(entity, name, transform, matte, sphere, plane, cuboid, mesh, ..)) in entries.iter().enumerate() {
@@ -314,25 +338,53 @@ fn update(
     (SceneGeometry::from_instances(blases, instances, planes, objects), problems, work)
 }
 
-/// The mesh of an entry that is baked: static (no [`Dynamic`] marker, not deforming), its
-/// only shape component, and a mesh that `users` counts once.
-fn baked_mesh<'a>(entry: &ShapeData<'a>, users: &HashMap<usize, usize>) -> Option<&'a TriangleMesh> {
-    let &(_, _, _, _, sphere, plane, cuboid, mesh, deforming, dynamic) = entry;
-    let other_shape = sphere.is_some() || plane.is_some() || cuboid.is_some();
-    mesh.filter(|m| !(other_shape || dynamic || deforming.is_some() || users[&key(&m.0)] > 1))
-}
-
-/// Bakes the static meshes that one entity each uses (no [`Dynamic`] marker, not deforming,
-/// no other shape component) into one world-space BLAS: which entities went in, and the BLAS
-/// (`None` when there are none). Unusable meshes are reported and left out.
-fn bake_static_meshes<'a>(entries: &[ShapeData<'a>], found: &mut Vec<String>) -> (HashSet<Entity>, Option<Arc<Blas>>) {
+/// How many entities use each mesh (by [`key`]).
+fn mesh_users(entries: &[ShapeData]) -> HashMap<usize, usize> {
     let mut users: HashMap<usize, usize> = HashMap::new();
     for e in entries {
         if let Some(mesh) = e.7 {
             *users.entry(key(&mesh.0)).or_default() += 1;
         }
     }
-    let bakes = |entry: &ShapeData<'a>| baked_mesh(entry, &users);
+    users
+}
+
+/// The mesh of an entry that can be baked: static (no [`Dynamic`] marker, not deforming) and
+/// its only shape component; with whether other entities (counted in `users`) share it.
+fn static_mesh<'a>(entry: &ShapeData<'a>, users: &HashMap<usize, usize>) -> Option<(&'a TriangleMesh, bool)> {
+    let &(_, _, _, _, sphere, plane, cuboid, mesh, deforming, dynamic) = entry;
+    let other_shape = sphere.is_some() || plane.is_some() || cuboid.is_some();
+    mesh.filter(|_| !(other_shape || dynamic || deforming.is_some())).map(|m| (m, users[&key(&m.0)] > 1))
+}
+
+/// Whether the static meshes that several entities share are baked as well: when the render
+/// has a sample target (`max_spp`) that comes to at least [`SHARED_BAKE_SAMPLES_PER_TRIANGLE`]
+/// samples per triangle they would place, and they would place at most
+/// [`SHARED_BAKE_MAX_TRIANGLES`]. Without a target they stay instanced.
+fn bakes_shared(settings: &RenderSettings, users: &HashMap<usize, usize>, entries: &[ShapeData]) -> bool {
+    let shared: usize = entries
+        .iter()
+        .filter_map(|e| static_mesh(e, users))
+        .filter(|&(_, shared)| shared)
+        .map(|(m, _)| m.0.indices.len())
+        .sum();
+    let samples = |spp: u32| u64::from(settings.width) * u64::from(settings.height) * u64::from(spp);
+    shared > 0
+        && shared <= SHARED_BAKE_MAX_TRIANGLES
+        && settings.max_spp.is_some_and(|spp| samples(spp) >= SHARED_BAKE_SAMPLES_PER_TRIANGLE * shared as u64)
+}
+
+/// Bakes the static meshes (no [`Dynamic`] marker, not deforming, no other shape component)
+/// that one entity each uses, and with `shared` those that several do, into one world-space
+/// BLAS: which entities went in, and the BLAS (`None` when there are none). Unusable meshes
+/// are reported and left out.
+fn bake_static_meshes<'a>(
+    entries: &[ShapeData<'a>],
+    users: &HashMap<usize, usize>,
+    shared: bool,
+    found: &mut Vec<String>,
+) -> (HashSet<Entity>, Option<Arc<Blas>>) {
+    let bakes = |entry: &ShapeData<'a>| static_mesh(entry, users).filter(|&(_, s)| shared || !s).map(|(m, _)| m);
     // Every baked triangle goes straight into one vector, sized once.
     let mut all = world_space::Converted::default();
     all.prims.reserve(entries.iter().filter_map(bakes).map(|m| m.0.indices.len()).sum());

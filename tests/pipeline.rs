@@ -259,6 +259,41 @@ fn shared_meshes_are_instanced_by_many_entities() {
 }
 
 #[test]
+fn shared_meshes_are_baked_where_the_sample_target_pays_for_it() {
+    let mesh = Arc::new(hemi::scene::mesh_gen::uv_sphere(0.4, 8, 16));
+    let mut r = floor_scene(1, None);
+    let first = r.world_mut().spawn((TriangleMesh(mesh.clone()), Transform::from_xyz(-2.0, 0.4, -1.0))).id();
+    for i in 1..5 {
+        r.world_mut().spawn((TriangleMesh(mesh.clone()), Transform::from_xyz(i as f32 - 2.0, 0.4, -1.0)));
+    }
+    let instances = |r: &Renderer| r.world().resource::<SceneGeometry>().instances().len();
+    // The bake pays from 64 samples (16 × 16 pixels × max_spp) per triangle it places.
+    let enough = (64 * 5 * mesh.triangle_count()).div_ceil(16 * 16) as u32;
+    r.run_frame().unwrap();
+    assert_eq!(instances(&r), 6, "no sample target: the plane's sphere and five instances");
+    let instanced = r.image().linear.clone();
+
+    r.settings_mut().max_spp = Some(enough - 1);
+    assert!(!r.run_frame().unwrap().bvh_built, "a target too small to pay changes nothing");
+    r.settings_mut().max_spp = Some(enough);
+    let stats = r.run_frame().unwrap();
+    assert_eq!(stats.bvh_work.blas_built, 2, "the sphere and one tree for the five placements");
+    assert_eq!(instances(&r), 2);
+    // Baked or instanced, the first frame after the restart is the same up to rounding.
+    let differ =
+        r.image().linear.iter().zip(&instanced).filter(|(x, y)| (**x - **y).abs().max_element() > 1e-4).count();
+    assert!(differ <= 2, "{differ} of {} pixels differ", instanced.len());
+
+    r.world_mut().get_mut::<Transform>(first).unwrap().translation.y += 0.1;
+    let stats = r.run_frame().unwrap();
+    assert_eq!(stats.bvh_work.blas_built, 2, "a baked placement moved: the baked tree is rebuilt");
+    r.settings_mut().max_spp = Some(enough - 1);
+    let stats = r.run_frame().unwrap();
+    assert_eq!(stats.bvh_work.blas_built, 2, "instanced again: the sphere and the shared mesh's BLAS");
+    assert_eq!(instances(&r), 6);
+}
+
+#[test]
 fn moving_a_mesh_instance_rebuilds_only_the_top_level() {
     let mesh = Arc::new(hemi::scene::mesh_gen::uv_sphere(0.4, 8, 16));
     let mut r = floor_scene(1, None);
