@@ -609,27 +609,27 @@ impl<L: Lanes> RayPacket<L> {
 /// eight children (bit i for lane i).
 #[cfg(target_arch = "x86_64")]
 pub(crate) trait PacketNodeTest {
-    /// The lanes that enter each child of `n`.
+    /// Writes to `entered` the lanes that enter each child of `n`. (An out-parameter: a
+    /// returned array was copied to the caller's with one wide load of the eight narrow stores
+    /// just made, which the CPU cannot forward from its store buffer and so waits for.)
     ///
     /// # Safety
     /// The CPU must have the packet's lane instruction set.
-    unsafe fn enter(&self, n: &Node<8>) -> [u32; 8];
+    unsafe fn enter(&self, n: &Node<8>, entered: &mut [u32; 8]);
 }
 
 #[cfg(target_arch = "x86_64")]
 impl<L: Lanes> PacketNodeTest for RayPacket<L> {
     #[inline(always)]
-    unsafe fn enter(&self, n: &Node<8>) -> [u32; 8] {
+    unsafe fn enter(&self, n: &Node<8>, entered: &mut [u32; 8]) {
         // Every child's test first, with no branch between them: each is a chain of dependent
         // operations ending in a lane mask, and eight independent chains overlap where a branch
         // on each mask would stall on it (an empty slot is an inverted box, which no ray enters).
         // (Loops, not closures: a closure is compiled without the caller's instruction set.)
-        let mut entered = [0u32; 8];
         for (c, e) in entered.iter_mut().enumerate() {
             // SAFETY: the caller's CPU has `L`'s instruction set.
             *e = unsafe { n.test_packet(c, self, self.tmax) };
         }
-        entered
     }
 }
 
@@ -719,8 +719,7 @@ impl<L: FusedLanes> FusedPacket<L> {
 #[cfg(target_arch = "x86_64")]
 impl<L: FusedLanes> PacketNodeTest for FusedPacket<L> {
     #[inline(always)]
-    unsafe fn enter(&self, n: &Node<8>) -> [u32; 8] {
-        let mut entered = [0u32; 8];
+    unsafe fn enter(&self, n: &Node<8>, entered: &mut [u32; 8]) {
         // (Loops, not closures: a closure is compiled without the caller's instruction set.)
         // SAFETY (all blocks): the caller's CPU has `L`'s instruction set.
         let mut planes = unsafe { [(L::splat(0.0), L::splat(0.0)); 3] };
@@ -739,7 +738,6 @@ impl<L: FusedLanes> PacketNodeTest for FusedPacket<L> {
                 *e = unsafe { self.lanes_entering(planes) };
             }
         }
-        entered
     }
 }
 
@@ -826,6 +824,7 @@ impl WideBvh<8> {
         // (node, lanes that entered it). Left uninitialised: zeroing it cost a 1 KiB memset per
         // packet, and only entries below `len` are ever read.
         let mut todo = [std::mem::MaybeUninit::<(u32, u32)>::uninit(); PACKET_STACK];
+        let mut tested = [0u32; 8];
         let mut len = 1;
         todo[0].write((start, live));
         // The lanes of `lanes` that `single` finds blocked, each ray going on alone from `node`.
@@ -856,7 +855,7 @@ impl WideBvh<8> {
             count(Event::PacketNodeTest);
             let n = &self.nodes[node as usize];
             // SAFETY: the caller's CPU has the packet's instruction set.
-            let tested = unsafe { p.enter(n) };
+            unsafe { p.enter(n, &mut tested) };
             for (c, &t) in tested.iter().enumerate() {
                 // Only rays that entered this node, and are not yet blocked, go on to its children.
                 let entered = t & lanes & open;
