@@ -18,7 +18,8 @@ use crate::{
     geometry::lanes::{Avx, Avx512, Lanes, RayLanes},
     sampling::{
         cmj::{Cmj, GridLanes, QuadrantPattern, SmallGrid8, SmallGrid16},
-        warp::{cosine_hemisphere8, cosine_hemisphere16},
+        cosine_table::CosineTable,
+        warp::cosine_hemisphere16,
     },
 };
 use crate::{
@@ -69,6 +70,17 @@ fn quadrant_lanes(needs: u32, negative: [u32; 2]) -> QuadrantLanes {
 enum QuadrantOut<'a> {
     Each(&'a mut [Vec3A]),
     Sum(usize, &'a mut Vec3A),
+}
+
+/// A run of whole passes of quadrant patterns ([`SampleSets::quadrant_passes`]): the sets'
+/// patterns, the table of their cosine directions, the patterns' size n, and each pass's
+/// pattern number.
+#[cfg(target_arch = "x86_64")]
+struct QuadrantPasses<'a, P> {
+    cmj: &'a Cmj,
+    table: &'a CosineTable,
+    n: usize,
+    passes: P,
 }
 
 /// Scratch buffers for [`DirectionRays::add`], kept between runs.
@@ -157,9 +169,10 @@ impl DirectionRays {
     ) -> Option<(u64, u64)> {
         #[cfg(target_arch = "x86_64")]
         if let lanes @ (8 | 16) = geometry.packet_lanes()
-            && let Some((cmj, passes)) = sets.quadrant_passes(pixel, first, dim, arriving.len())
+            && let Some((cmj, table, passes)) = sets.quadrant_passes(pixel, first, dim, arriving.len())
+            && table.lanes() == lanes
         {
-            let passes = (cmj, sets.set_size() as usize, passes);
+            let passes = QuadrantPasses { cmj, table, n: sets.set_size() as usize, passes };
             let out = match sum {
                 Some(sum) => QuadrantOut::Sum(arriving.len(), &mut sum.light),
                 None => QuadrantOut::Each(arriving),
@@ -314,14 +327,13 @@ impl DirectionRays {
         (traced as u64, cycles)
     }
 
-    /// [`DirectionRays::add_cosine`] for runs of whole passes of quadrant patterns (`passes`:
-    /// the sets' patterns, their size n, and each pass's pattern number): each pass's n
-    /// samples made and traced `L::WIDTH` slots at a time in the pattern's quadrant order
+    /// [`DirectionRays::add_cosine`] for runs of whole passes of quadrant patterns: each
+    /// pass's n samples traced `L::WIDTH` slots at a time in the pattern's quadrant order
     /// ([`QuadrantPattern`]), so every packet is rays into one quarter of the hemisphere around
-    /// the shading normal (n/4 ≥ `L::WIDTH`), straight from the pattern to the query, with no
-    /// columns written and no sort; then each sample's answer is read back by its slot, in
-    /// sample order, or, for a sum, the blocked ones counted. Each sample gets the same ray,
-    /// answer and light as in [`DirectionRays::add`].
+    /// the shading normal (n/4 ≥ `L::WIDTH`), their local directions loaded from the table
+    /// ([`CosineTable`]) in that order, with no columns written and no sort; then each sample's
+    /// answer is read back by its slot, in sample order, or, for a sum, the blocked ones
+    /// counted. Each sample gets the same ray, answer and light as in [`DirectionRays::add`].
     ///
     /// # Safety
     /// The CPU must have `L`'s instruction set.
@@ -334,7 +346,7 @@ impl DirectionRays {
         stack: &mut Vec<(u32, f32)>,
         spawn: &SpawnOrigins,
         frame: &Onb,
-        (cmj, n, passes): (&Cmj, usize, impl Iterator<Item = u32>),
+        QuadrantPasses { cmj, table, n, passes }: QuadrantPasses<impl Iterator<Item = u32>>,
         terms: &DirectionTerms,
         mut out: QuadrantOut,
     ) -> (u64, u64) {
@@ -345,14 +357,13 @@ impl DirectionRays {
         let all = (1u32 << L::WIDTH) - 1;
         stack.clear();
         for (pass, p) in passes.enumerate() {
-            // SAFETY (every block below): the caller's CPU has `L`'s instruction set.
-            let pattern = unsafe { QuadrantPattern::<L::Grid>::new(cmj, p) };
             // Bit t % 16 of entry t / 16: slot t is blocked.
             let mut blocked = [0u32; 16];
             if tracing {
-                for packet in 0..pattern.packets() {
+                for (packet, local) in table.pattern(p).chunks_exact(3 * L::WIDTH).enumerate() {
+                    // SAFETY (every block below): the caller's CPU has `L`'s instruction set.
                     let (hit, took) = unsafe {
-                        let local = L::cosine_directions(&pattern, packet);
+                        let local = [0, 1, 2].map(|axis| L::load(&local[axis * L::WIDTH..]));
                         let lanes = spawned_lanes(to_world(frame, local), spawn, terms.max_distance);
                         occluded_lanes(geometry, stack, &lanes, all, self.timing)
                     };
@@ -366,6 +377,7 @@ impl DirectionRays {
                 dark += blocked.iter().map(|b| b.count_ones()).sum::<u32>();
                 continue;
             };
+            let pattern = unsafe { QuadrantPattern::<L::Grid>::new(cmj, p) };
             for (group, sums) in arriving[pass * n..][..n].chunks_mut(L::WIDTH).enumerate() {
                 unsafe { add_clear_or_floor::<L>(clear, floor, pattern.marked(group, &blocked), sums) };
             }
@@ -622,8 +634,6 @@ unsafe fn add_clear_or_floor<L: Lanes>(clear: Vec3A, floor: Vec3A, dark: u32, su
 trait PassLanes: Lanes {
     /// The pattern grid of this width.
     type Grid: GridLanes;
-    /// The cosine directions (x, y and z lanes, around +z) of the slots of packet `packet`.
-    unsafe fn cosine_directions(pattern: &QuadrantPattern<Self::Grid>, packet: usize) -> [Self; 3];
     /// [`SceneGeometry::occluded_lanes16`] or its eight-lane twin.
     unsafe fn occluded(
         geometry: &SceneGeometry,
@@ -641,7 +651,7 @@ trait PassLanes: Lanes {
         stack: &mut Vec<(u32, f32)>,
         spawn: &SpawnOrigins,
         frame: &Onb,
-        passes: (&Cmj, usize, impl Iterator<Item = u32>),
+        passes: QuadrantPasses<impl Iterator<Item = u32>>,
         terms: &DirectionTerms,
         out: QuadrantOut,
     ) -> (u64, u64);
@@ -651,18 +661,9 @@ trait PassLanes: Lanes {
 /// scene query.
 #[cfg(target_arch = "x86_64")]
 macro_rules! pass_lanes {
-    ($lanes:ident, $grid:ty, $feature:literal, $cosine:ident, $occluded:ident) => {
+    ($lanes:ident, $grid:ty, $feature:literal, $occluded:ident) => {
         impl PassLanes for $lanes {
             type Grid = $grid;
-            #[target_feature(enable = $feature)]
-            #[inline]
-            unsafe fn cosine_directions(pattern: &QuadrantPattern<$grid>, packet: usize) -> [Self; 3] {
-                // SAFETY: this function is compiled for the lanes' instruction set.
-                unsafe {
-                    let (x, y) = pattern.points(packet);
-                    $cosine(x, y).map($lanes)
-                }
-            }
             #[target_feature(enable = $feature)]
             #[inline]
             unsafe fn occluded(
@@ -682,7 +683,7 @@ macro_rules! pass_lanes {
                 stack: &mut Vec<(u32, f32)>,
                 spawn: &SpawnOrigins,
                 frame: &Onb,
-                passes: (&Cmj, usize, impl Iterator<Item = u32>),
+                passes: QuadrantPasses<impl Iterator<Item = u32>>,
                 terms: &DirectionTerms,
                 out: QuadrantOut,
             ) -> (u64, u64) {
@@ -694,9 +695,9 @@ macro_rules! pass_lanes {
 }
 
 #[cfg(target_arch = "x86_64")]
-pass_lanes!(Avx512, SmallGrid16, "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt", cosine_hemisphere16, occluded_lanes16);
+pass_lanes!(Avx512, SmallGrid16, "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt", occluded_lanes16);
 #[cfg(target_arch = "x86_64")]
-pass_lanes!(Avx, SmallGrid8, "avx2,fma,bmi1,bmi2,lzcnt,popcnt", cosine_hemisphere8, occluded_lanes8);
+pass_lanes!(Avx, SmallGrid8, "avx2,fma,bmi1,bmi2,lzcnt,popcnt", occluded_lanes8);
 
 /// Local directions (x, y and z lanes) in `frame`, in world space: `u·x + v·y + w·z`,
 /// component by component (the frame's `to_world`).

@@ -11,7 +11,7 @@ use crate::{
     light::{Light, register_light},
     lights::{AmbientOccluder, DirectionalLight, DiskLight, PointLight, SpotLight},
     resources::{Accumulation, FrameSamples, Image, RenderSettings, SceneProblems, Time},
-    sampling::SampleSets,
+    sampling::{SampleSets, SamplerKind},
     scene::{DEFAULT_BACKGROUND, spawn_default_scene},
     stats::FrameStats,
     systems::frame_schedule,
@@ -40,7 +40,9 @@ impl Renderer {
     /// An empty scene with these settings, traced on rayon's global thread pool.
     pub fn new(settings: RenderSettings) -> Self {
         let mut world = World::new();
-        world.insert_resource(SampleSets::for_settings(&settings));
+        // The smallest sets: the first frame's sample-set system makes the ones the settings
+        // call for (unless these are), so that their cost shows in that frame and its stats.
+        world.insert_resource(SampleSets::generate(SamplerKind::Regular, 1, settings.seed, 1, 1));
         world.insert_resource(settings);
         world.init_resource::<SceneGeometry>();
         world.init_resource::<Accumulation>();

@@ -13,7 +13,8 @@ pub fn update_sample_sets(settings: Res<RenderSettings>, mut sets: ResMut<Sample
         "unchanged".to_string()
     } else {
         *sets = SampleSets::for_settings(&settings);
-        format!("generated {} sets of {} {} samples", sets.num_sets(), sets.set_size(), sets.kind().name())
+        let tabled = if sets.has_cosine_table() { ", their cosine directions tabled" } else { "" };
+        format!("generated {} sets of {} {} samples{tabled}", sets.num_sets(), sets.set_size(), sets.kind().name())
     };
     stats.record("sample_sets", start.elapsed(), note);
 }

@@ -590,7 +590,6 @@ pub(crate) struct QuadrantPattern<'a, G> {
     bits: [u32; 2],
     /// Bits of a packet's slots that pick a column and a row.
     packet_bits: [u32; 2],
-    n: u32,
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -605,12 +604,7 @@ impl<'a, G: GridLanes> QuadrantPattern<'a, G> {
         let (bits, packet_bits) = quadrant_bits(cmj, G::WIDTH, G::PACKET_COLUMN_BITS);
         let samples = &cmj.quadrant_samples[usize::from(G::WIDTH == 16)];
         // SAFETY: the caller's CPU has `G`'s instruction set.
-        QuadrantPattern { grid: unsafe { G::new(cmj, p) }, samples, bits, packet_bits, n: cmj.n.get() }
-    }
-
-    /// Packets of `G::WIDTH` slots: n / `G::WIDTH`.
-    pub(crate) fn packets(&self) -> usize {
-        (self.n / G::WIDTH) as usize
+        QuadrantPattern { grid: unsafe { G::new(cmj, p) }, samples, bits, packet_bits }
     }
 
     /// The points of the slots of packet `packet` (`G::WIDTH` consecutive slots): x lanes, y
@@ -864,7 +858,7 @@ mod tests {
                     (x.to_vec(), y.to_vec())
                 };
                 let marked = |g, marks: &[u32; 16]| unsafe { pattern.marked(g, marks) };
-                slots_hold_their_samples(&cmj, p, 8, pattern.packets(), points, marked);
+                slots_hold_their_samples(&cmj, p, 8, points, marked);
                 if !crate::cpu::avx512() {
                     continue;
                 }
@@ -880,25 +874,24 @@ mod tests {
                     (x.to_vec(), y.to_vec())
                 };
                 let marked = |g, marks: &[u32; 16]| unsafe { pattern.marked(g, marks) };
-                slots_hold_their_samples(&cmj, p, 16, pattern.packets(), points, marked);
+                slots_hold_their_samples(&cmj, p, 16, points, marked);
             }
         }
     }
 
     /// The checks of the test above for one pattern `p` of `cmj` taken `width` slots at a time
-    /// in `packets` packets: `points(packet)` gives a packet's x and y, `marked(group, marks)`
+    /// (n / `width` packets): `points(packet)` gives a packet's x and y, `marked(group, marks)`
     /// the samples of a group that `marks` (bit t % 16 of word t / 16 for slot t) marks.
     #[cfg(target_arch = "x86_64")]
     fn slots_hold_their_samples(
         cmj: &Cmj,
         p: u32,
         width: usize,
-        packets: usize,
         points: impl Fn(usize) -> (Vec<f32>, Vec<f32>),
         marked: impl Fn(usize, &[u32; 16]) -> u32,
     ) {
         let n = cmj.n.get();
-        assert_eq!(packets * width, n as usize);
+        let packets = n as usize / width;
         // Each slot's point, bit for bit.
         let slots: Vec<[f32; 2]> = (0..packets)
             .flat_map(|packet| {

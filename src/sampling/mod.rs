@@ -6,10 +6,14 @@
 //! of a pixel belongs to pass `i / n`; for each (pixel, pass, dimension) a hash picks one set and
 //! a hashed permutation (Kensler 2013) orders it, so the `n` samples of a pass are a whole,
 //! stratified set, different in every pixel and dimension, and independent of tile order.
-//! Correlated multi-jittered (the default) and ZSobol points are computed per sample instead:
-//! no table, and a pattern of its own for every (pixel, pass, dimension).
+//! Correlated multi-jittered points (the default) are computed per sample instead, from one
+//! of [`SampleSets::PREFERRED_SETS`] patterns per seed that the same hash picks; where the
+//! occluder traces them in quadrant packets, their cosine directions are tabled once
+//! (`cosine_table`). ZSobol points are computed per sample, a pattern of their own for every
+//! (pixel, pass, dimension).
 
 pub mod cmj;
+pub(crate) mod cosine_table;
 pub mod generators;
 pub mod hash;
 pub mod sobol;
@@ -23,6 +27,8 @@ use crate::resources::RenderSettings;
 use glam::Vec2;
 
 use cmj::Cmj;
+#[cfg(target_arch = "x86_64")]
+use cosine_table::CosineTable;
 pub use generators::SamplerKind;
 use hash::{Modulus, SplitMix64, hash_sample, mix64, permute, seed_key};
 use sobol::ZSobol;
@@ -56,32 +62,50 @@ pub struct SampleSets {
     modulus: Modulus,
     /// The seed's hash key.
     key: u64,
+    /// The first of the seed's correlated multi-jittered patterns.
+    first_pattern: u32,
     points: Vec<Vec2>,
+    /// The local cosine directions of those patterns, for the packet width of this CPU.
+    #[cfg(target_arch = "x86_64")]
+    cosine: Option<CosineTable>,
 }
 
 impl SampleSets {
     /// Most points kept in memory across all sets (32 MiB).
     const MAX_POINTS: usize = 1 << 22;
-    /// Sets generated when memory allows. Pixels that draw the same set in a pass have
-    /// correlated errors (the book's 83 sets make that visible); with 4096 such pixels are few
-    /// and scattered, so the shared error looks like noise, not structure.
-    const PREFERRED_SETS: u32 = 4096;
+    /// Sets generated when memory allows, and the number of correlated multi-jittered patterns
+    /// per seed. Pixels that draw the same set in a pass have correlated errors (the book's 83
+    /// sets make that visible); with 4096 such pixels are few and scattered, so the shared
+    /// error looks like noise, not structure.
+    pub const PREFERRED_SETS: u32 = 4096;
 
     /// Generates the sets for `kind` with `n` points each, fixed by `seed`, for an image
     /// `width × height` (ZSobol orders pixels along a Morton curve of that size).
     pub fn generate(kind: SamplerKind, n: u32, seed: u64, width: u32, height: u32) -> Self {
         let n = n.max(1);
-        let num_sets = match kind {
+        let stored = match kind {
             SamplerKind::Regular => 1,
             k if !k.uses_stored_sets() => 0,
             _ => (Self::MAX_POINTS / n as usize).clamp(1, Self::PREFERRED_SETS as usize) as u32,
         };
         let mut rng = SplitMix64::new(seed ^ 0x5eed_5e75);
-        let mut points = Vec::with_capacity(n as usize * num_sets as usize);
-        for _ in 0..num_sets {
+        let mut points = Vec::with_capacity(n as usize * stored as usize);
+        for _ in 0..stored {
             kind.generate(n, &mut rng, &mut points);
         }
+        // CMJ's patterns are computed, not stored, but there are as many as stored sets.
+        let num_sets = if kind == SamplerKind::CorrelatedMultiJittered { Self::PREFERRED_SETS } else { stored };
         let zsobol = ZSobol::new(n, width.max(height));
+        let (cmj, key) = (Cmj::new(n), seed_key(seed));
+        let first_pattern = (key >> 32) as u32;
+        // Only the occluder's quadrant packets read the table, in the width the CPU's packets have.
+        #[cfg(target_arch = "x86_64")]
+        let cosine = (kind == SamplerKind::CorrelatedMultiJittered)
+            .then(|| {
+                let lanes = if crate::cpu::avx512() { 16 } else { 8 };
+                CosineTable::build(&cmj, n, first_pattern, Self::PREFERRED_SETS, lanes)
+            })
+            .flatten();
         SampleSets {
             kind,
             n,
@@ -89,11 +113,22 @@ impl SampleSets {
             seed,
             width: width.max(1),
             zsobol,
-            cmj: Cmj::new(n),
+            cmj,
             modulus: Modulus::new(n),
-            key: seed_key(seed),
+            key,
+            first_pattern,
             points,
+            #[cfg(target_arch = "x86_64")]
+            cosine,
         }
+    }
+
+    /// The correlated multi-jittered pattern of (pixel, pass, dimension): one of the seed's
+    /// [`SampleSets::PREFERRED_SETS`], picked by the hash that picks stored sets.
+    #[inline(always)]
+    fn cmj_pattern(&self, pixel: u32, pass: u32, dim: u32) -> u32 {
+        let h = hash_sample(pixel, pass, dim, self.key);
+        self.first_pattern.wrapping_add((((h >> 32) * u64::from(Self::PREFERRED_SETS)) >> 32) as u32)
     }
 
     /// The pattern of these sets.
@@ -106,9 +141,17 @@ impl SampleSets {
         self.n
     }
 
-    /// Number of distinct sets.
+    /// Number of distinct sets (CMJ patterns; 0 for ZSobol, whose every pixel has its own).
     pub fn num_sets(&self) -> u32 {
         self.num_sets
+    }
+
+    /// Whether the occluder's cosine directions are tabled (`cosine_table`).
+    pub fn has_cosine_table(&self) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        return self.cosine.is_some();
+        #[cfg(not(target_arch = "x86_64"))]
+        false
     }
 
     /// The sets the render settings call for.
@@ -123,9 +166,13 @@ impl SampleSets {
         self.kind == s.sampler && self.n == n && self.seed == s.seed && same_image
     }
 
-    /// Bytes held by the point sets.
+    /// Bytes held by the point sets and the cosine directions' table.
     pub fn memory_bytes(&self) -> usize {
-        self.points.len() * std::mem::size_of::<Vec2>()
+        #[cfg(target_arch = "x86_64")]
+        let table = self.cosine.as_ref().map_or(0, CosineTable::memory_bytes);
+        #[cfg(not(target_arch = "x86_64"))]
+        let table = 0;
+        self.points.len() * std::mem::size_of::<Vec2>() + table
     }
 
     /// The 2-D sample for (pixel, sample index, dimension): a pure function of its arguments
@@ -159,7 +206,7 @@ impl SampleSets {
             return false;
         }
         for (pass, i, run) in self.passes(first, xs.len()) {
-            let p = hash_sample(pixel, pass, dim, self.key) as u32;
+            let p = self.cmj_pattern(pixel, pass, dim);
             if !self.cmj.fill_columns(i, p, &mut xs[run.clone()], &mut ys[run.clone()]) {
                 // The first call decides for all (the pattern size is the same).
                 debug_assert_eq!(run.start, 0);
@@ -171,8 +218,9 @@ impl SampleSets {
 
     /// Where samples `first, first + 1, …` (`len` of them) of `pixel` in dimension `dim` are
     /// whole passes of correlated multi-jittered patterns that split into quadrants
-    /// ([`Cmj::has_quadrants`]): the sets' patterns and each pass's pattern number, in order
-    /// (pass k holds samples `k·n … k·n + n − 1` of the run). `None` elsewhere.
+    /// ([`Cmj::has_quadrants`]) and their cosine directions are tabled: the sets' patterns, the
+    /// table, and each pass's pattern number, in order (pass k holds samples `k·n … k·n + n − 1`
+    /// of the run). `None` elsewhere.
     #[cfg(target_arch = "x86_64")]
     pub(crate) fn quadrant_passes(
         &self,
@@ -180,15 +228,13 @@ impl SampleSets {
         first: u32,
         dim: u32,
         len: usize,
-    ) -> Option<(&Cmj, impl Iterator<Item = u32> + '_)> {
+    ) -> Option<(&Cmj, &CosineTable, impl Iterator<Item = u32> + '_)> {
         let n = self.n as usize;
         let whole = first.is_multiple_of(self.n) && len.is_multiple_of(n) && len > 0;
-        if self.kind != SamplerKind::CorrelatedMultiJittered || !whole || !self.cmj.has_quadrants() {
-            return None;
-        }
+        let table = self.cosine.as_ref().filter(|_| whole)?;
         // Whole passes: each run of `passes` is one pass, from its first sample.
-        let passes = self.passes(first, len).map(move |(pass, _, _)| hash_sample(pixel, pass, dim, self.key) as u32);
-        Some((&self.cmj, passes))
+        let passes = self.passes(first, len).map(move |(pass, _, _)| self.cmj_pattern(pixel, pass, dim));
+        Some((&self.cmj, table, passes))
     }
 
     /// The passes of samples `first, first + 1, …` (`len` of them): each pass, the index in
@@ -222,7 +268,7 @@ impl SampleSets {
                 }
             }
             SamplerKind::CorrelatedMultiJittered => {
-                let p = hash_sample(pixel, pass, dim, self.key) as u32;
+                let p = self.cmj_pattern(pixel, pass, dim);
                 match out {
                     // A lone sample skips the vector loop's set-up.
                     [one] => *one = Vec2::from(self.cmj.sample(first, p)),
@@ -253,6 +299,20 @@ mod tests {
                 assert_eq!(a.sample(p, i, d), b.sample(p, i, d), "{kind:?}");
             }
         }
+    }
+
+    /// Correlated multi-jittered passes draw their patterns from the seed's pool of
+    /// [`SampleSets::PREFERRED_SETS`]: over 20,000 (pixel, pass) pairs at most that many
+    /// distinct ones, nearly all of them drawn (4,065 expected); another seed has another pool.
+    #[test]
+    fn cmj_patterns_come_from_a_pool_per_seed() {
+        let pool = |seed| {
+            let sets = SampleSets::generate(SamplerKind::CorrelatedMultiJittered, 16, seed, 64, 64);
+            (0..20_000).map(|i| sets.cmj_pattern(i % 1000, i / 1000, 2)).collect::<std::collections::HashSet<u32>>()
+        };
+        let (a, b) = (pool(1), pool(2));
+        assert!((4000..=SampleSets::PREFERRED_SETS as usize).contains(&a.len()), "{} patterns", a.len());
+        assert!(a.is_disjoint(&b));
     }
 
     #[test]
