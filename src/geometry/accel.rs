@@ -382,6 +382,13 @@ fn packet_width() -> PacketWidth {
     if crate::cpu::avx512() { PacketWidth::Sixteen } else { PacketWidth::Eight }
 }
 
+/// Rays per packet on this CPU and environment (what [`SceneGeometry::packet_lanes`] gives
+/// eight-wide trees).
+#[cfg(target_arch = "x86_64")]
+pub(crate) fn cpu_packet_lanes() -> usize {
+    packet_width().lanes()
+}
+
 /// Defines, for one lane type and the instruction set it needs, the packet kernels: for
 /// occlusion, `Blas::$packets` and `SceneGeometry::$scene` (a run of rays by packets, within one
 /// BLAS or through the top level) and the per-packet `Blas::$lanes` (with `$lanes_of`, for a

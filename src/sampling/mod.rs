@@ -102,7 +102,7 @@ impl SampleSets {
         #[cfg(target_arch = "x86_64")]
         let cosine = (kind == SamplerKind::CorrelatedMultiJittered)
             .then(|| {
-                let lanes = if crate::cpu::avx512() { 16 } else { 8 };
+                let lanes = crate::geometry::accel::cpu_packet_lanes();
                 CosineTable::build(&cmj, n, first_pattern, Self::PREFERRED_SETS, lanes)
             })
             .flatten();
