@@ -12,7 +12,8 @@ use hemi::{
     geometry::{Object, Ray, SceneGeometry, world_space},
     math::Onb,
     prelude::*,
-    sampling::{SampleSets, hash::SplitMix64, warp::cosine_power_hemisphere},
+    random::SplitMix64,
+    sampling::{SampleSets, warp::cosine_power_hemisphere},
     scene::mesh_gen::torus_knot,
     systems::{accumulate, resolve, trace},
 };

@@ -26,7 +26,8 @@ use hemi::{
     geometry::{Ray, RayOrder, SceneGeometry, Shape},
     math::Onb,
     prelude::*,
-    sampling::{hash::SplitMix64, warp::cosine_power_hemisphere},
+    random::SplitMix64,
+    sampling::warp::cosine_power_hemisphere,
     scene::peer_scene::PeerScene,
 };
 

@@ -12,8 +12,7 @@ use crate::{
     resources::{Aov, RenderSettings},
     sampling::SamplerKind,
     scene::{gltf::SpawnOptions, peer_scene::PeerScene},
-    shading::RayCounts,
-    stats::mrays_per_second,
+    stats::{RayCounts, mrays_per_second},
 };
 
 /// hemi: ambient occlusion + direct lighting by CPU ray tracing on bevy_ecs.

@@ -6,7 +6,9 @@ use std::sync::Arc;
 use bevy_ecs::prelude::Component;
 use glam::{Affine3A, Quat, Vec3};
 
-pub use crate::lights::{AmbientOccluder, DirectionalLight, DiskLight, PointLight, SpotLight};
+pub use crate::light::{
+    ambient::AmbientOccluder, directional::DirectionalLight, disk::DiskLight, point::PointLight, spot::SpotLight,
+};
 
 /// Placement of an entity: scale, then rotation, then translation.
 #[derive(Component, Clone, Copy, Debug, PartialEq)]

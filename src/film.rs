@@ -188,7 +188,7 @@ mod tests {
             let edge = t[0].to_bits() + (b << BUCKET_SHIFT);
             values.extend([f32::from_bits(edge - 1), f32::from_bits(edge), f32::from_bits(edge + 1)]);
         }
-        let mut rng = crate::sampling::hash::SplitMix64::new(10);
+        let mut rng = crate::random::SplitMix64::new(10);
         values.extend((0..100_000).map(|_| rng.next_f32()));
         for v in values {
             assert_eq!(linear_to_srgb8(v), search(v), "v = {v:e}");
@@ -197,7 +197,7 @@ mod tests {
 
     #[test]
     fn table_encoding_equals_the_transfer_function() {
-        let mut rng = crate::sampling::hash::SplitMix64::new(9);
+        let mut rng = crate::random::SplitMix64::new(9);
         for i in 0..200_000 {
             let v = if i % 2 == 0 { rng.next_f32() } else { rng.next_f32() * 0.01 };
             let exact = linear_to_srgb(v) as f64 * 255.0;

@@ -4,7 +4,7 @@
 //! world whose systems run once per frame (see [`systems`]):
 //! scene changes → BVH → sample sets → trace → accumulate → resolve.
 //!
-//! Lights are an extension point ([`light`]): hemi's own ([`lights`]) are written exactly as a
+//! Lights are an extension point ([`light`]): hemi's own (beside it in [`light`]) are written exactly as a
 //! user's would be and registered through the same [`Renderer::add_light`] call.
 //!
 //! Scene objects, the camera, the ambient occluder and lights are ECS components
@@ -18,22 +18,22 @@ pub mod camera;
 pub mod cli;
 pub mod components;
 pub mod convergence;
-mod cpu;
-mod direction_rays;
 pub mod error;
 pub mod film;
+pub mod frame;
 pub mod geometry;
 mod huge_pages;
+pub mod integrator;
 pub mod light;
-pub mod lights;
 pub mod math;
 pub mod npy;
 pub mod plot;
+pub mod random;
 pub mod renderer;
 pub mod resources;
 pub mod sampling;
 pub mod scene;
-pub mod shading;
+mod simd;
 pub mod stats;
 #[path = "../systems/mod.rs"]
 pub mod systems;
@@ -52,11 +52,11 @@ pub mod prelude {
             OrthographicCamera, Plane, PointLight, Sphere, SpotLight, ThinLensCamera, Transform, TriangleMesh,
         },
         error::HemiError,
+        frame::FrameStage,
         light::{Light, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term},
         resources::{Image, RenderSettings, Time},
         sampling::SamplerKind,
         stats::FrameStats,
-        systems::FrameStage,
     };
     pub use bevy_ecs::{
         component::Component,

@@ -5,11 +5,12 @@ use std::path::Path;
 use bevy_ecs::prelude::*;
 
 use crate::{
+    components::{AmbientOccluder, DirectionalLight, DiskLight, PointLight, SpotLight},
     error::HemiError,
     film,
     geometry::SceneGeometry,
-    light::{Light, register_light},
-    lights::{AmbientOccluder, DirectionalLight, DiskLight, PointLight, SpotLight},
+    integrator::register_light,
+    light::Light,
     resources::{Accumulation, FrameSamples, Image, RenderSettings, SceneProblems, Time},
     sampling::{SampleSets, SamplerKind},
     scene::{DEFAULT_BACKGROUND, spawn_default_scene},
@@ -96,7 +97,7 @@ impl Renderer {
     }
 
     /// The frame schedule, to add systems of your own (e.g. animation before
-    /// [`crate::systems::FrameStage::SceneChanges`]).
+    /// [`crate::frame::FrameStage::SceneChanges`]).
     pub fn schedule_mut(&mut self) -> &mut Schedule {
         &mut self.schedule
     }

@@ -7,8 +7,41 @@ use bevy_ecs::prelude::Resource;
 use crate::{
     geometry::{TraversalCounts, accel::BvhWork},
     light::Term,
-    shading::RayCounts,
 };
+
+/// Rays traced, by kind.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RayCounts {
+    /// Camera rays.
+    pub primary: u64,
+    /// Visibility rays of ambient-term lights (the ambient occluder).
+    pub ao: u64,
+    /// Shadow rays of all other lights.
+    pub shadow: u64,
+}
+
+impl RayCounts {
+    /// All rays.
+    pub fn total(&self) -> u64 {
+        self.primary + self.ao + self.shadow
+    }
+
+    /// Counts `n` shadow rays of a light with term `term`.
+    #[inline]
+    pub(crate) fn count(&mut self, term: Term, n: u64) {
+        match term {
+            Term::Ambient => self.ao += n,
+            Term::Diffuse => self.shadow += n,
+        }
+    }
+
+    /// Adds another count to this one.
+    pub fn add(&mut self, other: &RayCounts) {
+        self.primary += other.primary;
+        self.ao += other.ao;
+        self.shadow += other.shadow;
+    }
+}
 
 /// A reading of the CPU's cycle counter (the time-stamp counter on x86_64, nanoseconds since
 /// the first call elsewhere): only differences and ratios of readings mean anything. On x86_64

@@ -20,27 +20,10 @@ pub mod trace;
 
 use bevy_ecs::prelude::*;
 
-use crate::animation::NodeGraph;
-
-/// The stages of a frame; add your own animation systems `.in_set(FrameStage::Animate)` (or
-/// anywhere `.before(FrameStage::SceneChanges)`).
-#[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum FrameStage {
-    /// Animation and skinning (time → node transforms → vertices).
-    Animate,
-    /// Change detection, validation and accumulation reset.
-    SceneChanges,
-    /// Acceleration structure upkeep.
-    Bvh,
-    /// Sample set upkeep.
-    SampleSets,
-    /// Ray tracing.
-    Trace,
-    /// Accumulation.
-    Accumulate,
-    /// Resolve to images.
-    Resolve,
-}
+use crate::{
+    animation::NodeGraph,
+    frame::{FrameStage, LightUpdates},
+};
 
 /// The schedule `Renderer::run_frame` runs once per frame.
 pub fn frame_schedule() -> Schedule {
@@ -64,7 +47,7 @@ pub fn frame_schedule() -> Schedule {
         )
             .chain()
             .in_set(FrameStage::Animate),
-        scene_changes::detect_scene_changes.in_set(FrameStage::SceneChanges),
+        scene_changes::detect_scene_changes.in_set(FrameStage::SceneChanges).after(LightUpdates),
         bvh::update_bvh.in_set(FrameStage::Bvh),
         sample_sets::update_sample_sets
             .run_if(resource_changed::<crate::resources::RenderSettings>)

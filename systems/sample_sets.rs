@@ -9,10 +9,11 @@ use crate::{resources::RenderSettings, sampling::SampleSets, stats::FrameStats};
 /// Regenerates [`SampleSets`] if they no longer match the settings.
 pub fn update_sample_sets(settings: Res<RenderSettings>, mut sets: ResMut<SampleSets>, mut stats: ResMut<FrameStats>) {
     let start = Instant::now();
-    let note = if sets.matches(&settings) {
+    let s = &*settings;
+    let note = if sets.matches(s.sampler, s.samples_per_set, s.seed, s.width, s.height) {
         "unchanged".to_string()
     } else {
-        *sets = SampleSets::for_settings(&settings);
+        *sets = SampleSets::generate(s.sampler, s.samples_per_set, s.seed, s.width, s.height);
         let tabled = if sets.has_cosine_table() { ", their cosine directions tabled" } else { "" };
         format!("generated {} sets of {} {} samples{tabled}", sets.num_sets(), sets.set_size(), sets.kind().name())
     };

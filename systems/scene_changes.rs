@@ -8,7 +8,7 @@ use bevy_ecs::{prelude::*, system::SystemParam};
 use crate::{
     camera::Cameras,
     components::{Camera, Cuboid, Matte, OrthographicCamera, Plane, Sphere, ThinLensCamera, Transform, TriangleMesh},
-    light::LightRegistry,
+    integrator::LightRegistry,
     resources::{Accumulation, RenderSettings, SceneProblems},
     stats::FrameStats,
 };
@@ -26,7 +26,7 @@ type SceneChanged = Or<(
 )>;
 
 /// Removals of any scene component (including despawns) since the last frame. Lights are
-/// watched by the systems their registration adds ([`crate::light::register_light`]).
+/// watched by the systems their registration adds ([`crate::integrator::register_light`]).
 #[derive(SystemParam)]
 pub struct SceneRemovals<'w, 's> {
     transform: RemovedComponents<'w, 's, Transform>,

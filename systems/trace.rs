@@ -12,11 +12,10 @@ use rayon::prelude::*;
 use crate::{
     camera::{ActiveCamera, CameraRays, Cameras},
     geometry::{SceneGeometry, TraversalCounts, counters},
-    light::{LightGroup, LightRegistry},
+    integrator::{LightGroup, LightRegistry, SampleResult, Scene, Tracer},
     resources::{AOV_FLOATS, Accumulation, AovValues, FrameSamples, RenderSettings, SceneProblems, luminance},
     sampling::{SampleSets, dims},
-    shading::{RayCounts, SampleResult, Scene, Tracer},
-    stats::{FrameStats, TraceSplit, cycle_count, cycles_since, query_timed_pixel, timed_pixel},
+    stats::{FrameStats, RayCounts, TraceSplit, cycle_count, cycles_since, query_timed_pixel, timed_pixel},
 };
 
 /// A rectangle of pixels traced as one task.

@@ -5,7 +5,7 @@ use glam::{Vec3, Vec3A};
 use hemi::{
     components::{Matte, Mesh, Plane, Transform},
     geometry::{Object, Prim, Ray, RayOrder, SceneGeometry, Shape, SurfaceHit, shapes::SpherePrim, world_space},
-    sampling::hash::SplitMix64,
+    random::SplitMix64,
     scene::mesh_gen::{torus_knot, uv_sphere},
 };
 

@@ -8,7 +8,7 @@ mod common;
 use std::f32::consts::{FRAC_PI_2, PI};
 
 use common::{occluder, settings, white};
-use hemi::{bevy_ecs::bundle::Bundle, camera::PinholeRays, light::register_light, prelude::*};
+use hemi::{bevy_ecs::bundle::Bundle, camera::PinholeRays, integrator::register_light, prelude::*};
 
 /// Floor point hit by a camera ray (the floor is y = 0).
 fn floor_hit(cam: &PinholeRays, x: u32, y: u32, u: Vec2) -> Vec3 {

@@ -6,7 +6,7 @@ mod common;
 use std::sync::Arc;
 
 use common::{check_analytic, occluder, settings, white};
-use hemi::{analytic::AnalyticScene, prelude::*, sampling::hash::SplitMix64, scene::mesh_gen};
+use hemi::{analytic::AnalyticScene, prelude::*, random::SplitMix64, scene::mesh_gen};
 
 /// The sphere-over-plane form factor holds from 1e-4 to 1e6 scale and up to 1e6 from the
 /// origin. (f32 quantises a unit-size scene 1e6 away to 1/16, which no renderer can undo, so

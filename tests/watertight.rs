@@ -8,7 +8,7 @@ use hemi::{
     components::{Matte, Mesh, Transform},
     geometry::{Object, Ray, SceneGeometry, world_space},
     prelude::Entity,
-    sampling::hash::SplitMix64,
+    random::SplitMix64,
     scene::mesh_gen::uv_sphere,
 };
 

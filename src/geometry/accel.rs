@@ -34,10 +34,11 @@ use super::{
 };
 #[cfg(target_arch = "x86_64")]
 use super::{
-    lanes::{Avx, Avx512, Lanes, RayLanes},
     tri4::RayTriPacket,
     wide_bvh::{Bvh8, FusedPacket, LaneHits, PACKET_MIN_LANES, RayPacket},
 };
+#[cfg(target_arch = "x86_64")]
+use crate::geometry::lanes::{Avx, Avx512, Lanes, RayLanes};
 use crate::{
     components::{Matte, Mesh},
     math::gamma,
@@ -174,7 +175,7 @@ trait TreeQuery {
         Node<W>: NodeTest<W>;
 }
 
-/// [`TreeQuery::run`] compiled for the eight-lane instruction sets ([`crate::cpu::avx2`]), so
+/// [`TreeQuery::run`] compiled for the eight-lane instruction sets ([`crate::simd::avx2`]), so
 /// that the eight-wide node test inlines.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
@@ -379,14 +380,7 @@ enum CameraPackets<'a> {
 /// The packet width this CPU and environment get.
 #[cfg(target_arch = "x86_64")]
 fn packet_width() -> PacketWidth {
-    if crate::cpu::avx512() { PacketWidth::Sixteen } else { PacketWidth::Eight }
-}
-
-/// Rays per packet on this CPU and environment (what [`SceneGeometry::packet_lanes`] gives
-/// eight-wide trees).
-#[cfg(target_arch = "x86_64")]
-pub(crate) fn cpu_packet_lanes() -> usize {
-    packet_width().lanes()
+    if crate::simd::packet_lanes() == 16 { PacketWidth::Sixteen } else { PacketWidth::Eight }
 }
 
 /// Defines, for one lane type and the instruction set it needs, the packet kernels: for
@@ -398,7 +392,7 @@ pub(crate) fn cpu_packet_lanes() -> usize {
 /// so that they are compiled for it too (a closure gets the instruction set of the function it
 /// is written in, and cannot be inlined into a function compiled for less: the kernels and the
 /// one-pass cosine runs, whose closures they call per lone ray, all take the x86-64-v3 set
-/// of [`crate::cpu::avx2`] as well). Callers must make sure the CPU has the instruction set.
+/// of [`crate::simd::avx2`] as well). Callers must make sure the CPU has the instruction set.
 #[cfg(target_arch = "x86_64")]
 macro_rules! packet_kernels {
     (

@@ -370,7 +370,7 @@ fn subtree_serial(refs: &mut [Ref], offset: usize) -> (Vec<Bvh2Node>, usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{geometry::accel::subtree_depth, sampling::hash::SplitMix64};
+    use crate::{geometry::accel::subtree_depth, random::SplitMix64};
 
     fn boxes(n: usize, seed: u64) -> Vec<Aabb> {
         let mut rng = SplitMix64::new(seed);

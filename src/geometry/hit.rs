@@ -150,7 +150,7 @@ mod tests {
     fn step_away_is_next_float_up_or_down() {
         let mut values = vec![0.0, -0.0, 1.0, -1.0, f32::INFINITY, f32::NEG_INFINITY, f32::NAN, -f32::NAN];
         values.extend([f32::MIN_POSITIVE, -f32::MIN_POSITIVE, 1e-45, -1e-45, f32::MAX, f32::MIN, 1e3, -2.5e-7]);
-        let mut rng = crate::sampling::hash::SplitMix64::new(5);
+        let mut rng = crate::random::SplitMix64::new(5);
         values.extend((0..1000).map(|_| f32::from_bits(rng.next_u64() as u32)));
         let offsets = [1e-7, -1e-7, 0.0, -0.0, f32::NAN];
         for (k, &v) in values.iter().enumerate() {

@@ -768,11 +768,11 @@ impl Lanes for Avx512 {
     }
 }
 
-/// Runs a test's eight-lane version where the CPU has AVX2 ([`crate::cpu::avx2`]) and its
+/// Runs a test's eight-lane version where the CPU has AVX2 ([`crate::simd::avx2`]) and its
 /// sixteen-lane version where it has AVX-512 as well, saying which it skips.
 #[cfg(test)]
 pub(crate) fn both_widths(eight: unsafe fn(), sixteen: unsafe fn()) {
-    if !crate::cpu::avx2() {
+    if !crate::simd::avx2() {
         eprintln!("no AVX2 on this CPU: packets are not used and not tested");
         return;
     }
@@ -791,7 +791,7 @@ mod tests {
     use glam::Vec3A;
 
     use super::*;
-    use crate::sampling::hash::SplitMix64;
+    use crate::random::SplitMix64;
 
     /// Every field of every ray lands in its own lane, bit for bit (as [`Lanes::lane`] reads
     /// it), for packets of one ray up to a full one, lanes past the last ray repeating it;

@@ -7,13 +7,13 @@
 
 use glam::{Vec3A, Vec4};
 
-#[cfg(target_arch = "x86_64")]
-use super::lanes::{Lanes, RayLanes};
 use super::{
     counters::{Event, count},
     ray::{Ray, Shear},
     shapes::Triangle,
 };
+#[cfg(target_arch = "x86_64")]
+use crate::geometry::lanes::{Lanes, RayLanes};
 
 /// Four triangles (fewer in a leaf's last packet: unused lanes have slot `u32::MAX`). Aligned
 /// to 32 bytes, so that in an array each 160-byte packet starts on or halfway into a 64-byte
@@ -273,7 +273,7 @@ unsafe fn cross_2d<L: Lanes>(a: (L, L), b: (L, L)) -> L {
 #[cfg(all(test, target_arch = "x86_64"))]
 mod tests {
     use super::*;
-    use crate::sampling::hash::SplitMix64;
+    use crate::random::SplitMix64;
 
     /// The packet edge test gives each ray exactly the single-ray test's lane classes, and the
     /// packet plane test exactly `finish`'s answer, for rays along every axis order, rays

@@ -14,12 +14,12 @@
 use glam::Vec4;
 use obvhs::{aabb::Aabb, bvh2::node::Bvh2Node};
 
-#[cfg(target_arch = "x86_64")]
-use super::lanes::{FusedLanes, Lanes, RayLanes};
 use super::{
     counters::{Event, count},
     ray::Ray,
 };
+#[cfg(target_arch = "x86_64")]
+use crate::geometry::lanes::{FusedLanes, Lanes, RayLanes};
 use crate::math::gamma;
 
 /// Asks the CPU to start loading `x`'s cache lines (a hint; no effect on results).
@@ -331,7 +331,7 @@ impl Bvh8 {
     /// eight-lane copies' instruction sets (x86-64-v3: AVX2, FMA, BMI1/2, LZCNT, POPCNT).
     pub fn from_bvh2(bvh2: &[Bvh2Node]) -> Option<Self> {
         #[cfg(target_arch = "x86_64")]
-        if crate::cpu::avx2() {
+        if crate::simd::avx2() {
             return Some(Self::collapse(bvh2));
         }
         let _ = bvh2;
@@ -1071,7 +1071,7 @@ mod tests {
     use obvhs::{BvhBuildParams, bvh2::builder::build_bvh2};
 
     use super::*;
-    use crate::sampling::hash::SplitMix64;
+    use crate::random::SplitMix64;
 
     /// Leaves as (first, count).
     type Leaves = BTreeSet<(u32, u32)>;

@@ -142,7 +142,7 @@ impl Cmj {
     pub fn fill(&self, first: u32, p: u32, out: &mut [Vec2]) {
         debug_assert!(first as u64 + out.len() as u64 <= self.n.get() as u64);
         #[cfg(target_arch = "x86_64")]
-        if crate::cpu::avx512() {
+        if crate::simd::avx512() {
             // SAFETY: the CPU has AVX-512F, checked just above.
             return unsafe { self.fill_avx512(first, p, out) };
         }
@@ -237,7 +237,7 @@ impl Cmj {
     /// most 16 × 16, where sixteen samples at a time go straight from lanes to the columns.
     pub(crate) fn fill_columns(&self, first: u32, p: u32, xs: &mut [f32], ys: &mut [f32]) -> bool {
         #[cfg(target_arch = "x86_64")]
-        if self.has_small_grid16() && crate::cpu::avx512() {
+        if self.has_small_grid16() && crate::simd::avx512() {
             // SAFETY: the CPU has AVX-512F, checked just above.
             unsafe { self.fill_columns_avx512(first, p, xs, ys) };
             return true;
@@ -250,7 +250,7 @@ impl Cmj {
     /// [`QuadrantPattern`]s ([`Cmj::has_quadrant_grid`]).
     #[cfg(target_arch = "x86_64")]
     pub(crate) fn has_quadrants(&self) -> bool {
-        self.has_quadrant_grid() && crate::cpu::avx2()
+        self.has_quadrant_grid() && crate::simd::avx2()
     }
 
     /// Whether the grid suits [`QuadrantPattern`]s, whatever the CPU: n a power of two on a
@@ -793,7 +793,7 @@ mod tests {
                         }
                     } else {
                         #[cfg(target_arch = "x86_64")]
-                        assert!(!(crate::cpu::avx512() && cmj.has_small_grid16()), "n {n}: columns refused");
+                        assert!(!(crate::simd::avx512() && cmj.has_small_grid16()), "n {n}: columns refused");
                         assert!(xs.iter().chain(&ys).all(|v| v.is_nan()), "refused, yet written");
                     }
                 }
@@ -837,7 +837,7 @@ mod tests {
         for n in [4u32, 8, 12, 16, 32, 64, 128, 256, 512] {
             let cmj = Cmj::new(n);
             let splits = [16, 32, 64, 128, 256].contains(&n);
-            if !crate::cpu::avx2() {
+            if !crate::simd::avx2() {
                 assert!(!cmj.has_quadrants(), "n {n}: quadrants without AVX2");
                 continue;
             }
@@ -859,7 +859,7 @@ mod tests {
                 };
                 let marked = |g, marks: &[u32; 16]| unsafe { pattern.marked(g, marks) };
                 slots_hold_their_samples(&cmj, p, 8, points, marked);
-                if !crate::cpu::avx512() {
+                if !crate::simd::avx512() {
                     continue;
                 }
                 // SAFETY (every block): the CPU has AVX-512F, checked just above.

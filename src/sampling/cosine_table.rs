@@ -38,8 +38,8 @@ impl CosineTable {
     pub(crate) fn build(cmj: &Cmj, n: u32, first: u32, count: u32, lanes: usize) -> Option<Self> {
         type Fill = unsafe fn(&Cmj, u32, &mut [f32]);
         let fill: Fill = match lanes {
-            16 if crate::cpu::avx512() => <SmallGrid16 as WarpLanes>::fill,
-            8 if crate::cpu::avx2() => <SmallGrid8 as WarpLanes>::fill,
+            16 if crate::simd::avx512() => <SmallGrid16 as WarpLanes>::fill,
+            8 if crate::simd::avx2() => <SmallGrid8 as WarpLanes>::fill,
             _ => return None,
         };
         if !cmj.has_quadrants() {
@@ -129,7 +129,7 @@ mod tests {
             let cmj = Cmj::new(n);
             for lanes in [8, 16] {
                 let Some(table) = CosineTable::build(&cmj, n, u32::MAX - 1, 4, lanes) else {
-                    let has = if lanes == 16 { crate::cpu::avx512() } else { crate::cpu::avx2() };
+                    let has = if lanes == 16 { crate::simd::avx512() } else { crate::simd::avx2() };
                     assert!(!has, "n {n}: no table for {lanes} lanes");
                     continue;
                 };

@@ -5,7 +5,7 @@
 
 use glam::Vec2;
 
-use super::hash::SplitMix64;
+use crate::random::SplitMix64;
 
 /// Which pattern a sample set follows.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]

@@ -23,14 +23,14 @@ use std::ops::Range;
 
 use bevy_ecs::prelude::Resource;
 
-use crate::resources::RenderSettings;
 use glam::Vec2;
 
+use crate::random::{SplitMix64, mix64};
 use cmj::Cmj;
 #[cfg(target_arch = "x86_64")]
 use cosine_table::CosineTable;
 pub use generators::SamplerKind;
-use hash::{Modulus, SplitMix64, hash_sample, mix64, permute, seed_key};
+use hash::{Modulus, hash_sample, permute, seed_key};
 use sobol::ZSobol;
 
 /// The largest f32 below 1: where sample coordinates are clamped so that they stay in [0, 1).
@@ -102,7 +102,7 @@ impl SampleSets {
         #[cfg(target_arch = "x86_64")]
         let cosine = (kind == SamplerKind::CorrelatedMultiJittered)
             .then(|| {
-                let lanes = crate::geometry::accel::cpu_packet_lanes();
+                let lanes = crate::simd::packet_lanes();
                 CosineTable::build(&cmj, n, first_pattern, Self::PREFERRED_SETS, lanes)
             })
             .flatten();
@@ -154,16 +154,11 @@ impl SampleSets {
         false
     }
 
-    /// The sets the render settings call for.
-    pub fn for_settings(s: &RenderSettings) -> Self {
-        Self::generate(s.sampler, s.samples_per_set, s.seed, s.width, s.height)
-    }
-
-    /// Whether these sets are the ones the render settings call for.
-    pub fn matches(&self, s: &RenderSettings) -> bool {
-        let n = s.samples_per_set.max(1);
-        let same_image = self.width == s.width.max(1) && self.zsobol == ZSobol::new(n, s.width.max(s.height));
-        self.kind == s.sampler && self.n == n && self.seed == s.seed && same_image
+    /// Whether these sets are the ones [`SampleSets::generate`] makes from the same arguments.
+    pub fn matches(&self, kind: SamplerKind, samples_per_set: u32, seed: u64, width: u32, height: u32) -> bool {
+        let n = samples_per_set.max(1);
+        let same_image = self.width == width.max(1) && self.zsobol == ZSobol::new(n, width.max(height));
+        self.kind == kind && self.n == n && self.seed == seed && same_image
     }
 
     /// Bytes held by the point sets and the cosine directions' table.
@@ -414,7 +409,7 @@ mod tests {
                 #[cfg(target_arch = "x86_64")]
                 assert_eq!(
                     sets.fill_columns(0, 0, 4, &mut [0.0], &mut [0.0]),
-                    kind == SamplerKind::CorrelatedMultiJittered && n != 12 && crate::cpu::avx512()
+                    kind == SamplerKind::CorrelatedMultiJittered && n != 12 && crate::simd::avx512()
                 );
                 for (pixel, first, len) in [(0u32, 0u32, 40usize), (5, 7, 1), (100, 15, 33), (850, 3, 16)] {
                     let mut out = vec![Vec2::NAN; len];

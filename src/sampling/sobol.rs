@@ -6,7 +6,7 @@
 //! (0,2)-sequence; base-4 digits of that index are permuted by a hash of the higher digits, so
 //! neighbouring pixels get well-distributed, decorrelated sub-sequences: the error is blue noise.
 
-use super::hash::mix64;
+use crate::random::mix64;
 
 /// 2-D Sobol' generator matrices (32-bit columns): dimension 0 is the van der Corput sequence,
 /// dimension 1 follows v_i = v_{i−1} ⊕ (v_{i−1} >> 1) (the (0,2)-sequence's second component).

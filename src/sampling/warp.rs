@@ -199,7 +199,7 @@ fn sin_cos_2pi_one(u: f32) -> (f32, f32) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sampling::hash::SplitMix64;
+    use crate::random::SplitMix64;
 
     fn uniform_points(n: usize, seed: u64) -> Vec<Vec2> {
         let mut rng = SplitMix64::new(seed);

@@ -418,7 +418,7 @@ fn subtree_serial<T: Fn(usize) -> [Vec3A; 3] + Sync>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sampling::hash::SplitMix64;
+    use crate::random::SplitMix64;
 
     /// A room: a floor and two walls of two triangles each, `beams` long diagonal beams across
     /// it, and `small` small triangles scattered inside.

@@ -29,3 +29,10 @@ pub(crate) fn avx512() -> bool {
         !off && std::arch::is_x86_feature_detected!("avx512f") && avx2()
     })
 }
+
+/// Rays per packet on this CPU and environment: sixteen where [`avx512`] allows, eight
+/// otherwise (what eight-wide trees trace, and the width the cosine table is laid out in).
+#[cfg(target_arch = "x86_64")]
+pub(crate) fn packet_lanes() -> usize {
+    if avx512() { 16 } else { 8 }
+}

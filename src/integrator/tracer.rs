@@ -1,52 +1,19 @@
-//! The per-sample integrator: a primary ray, then every registered light group at the hit
-//! (see [`crate::light`]). The core knows no light kinds; it applies the reflectance a light
-//! names, traces the shadow rays lights ask for, and counts them.
+//! The per-sample tracer: a primary ray, then every registered light group at the hit, with
+//! per-thread scratch space and ray counts.
 
 use glam::{Vec2, Vec3, Vec3A};
 
-use crate::{
-    components::Matte,
+use super::{
     direction_rays::DirectionRays,
-    geometry::{Ray, RayOrder, SceneGeometry, SpawnOrigins, SurfaceHit},
-    light::{DirectionRun, LightGroup, LightSample, LightSamples, PlacedLight, RunSum, ShadingPoint, Shadow, Term},
-    resources::AovValues,
-    sampling::{SampleSets, dims},
-    stats::{TraceSplit, cycle_count, cycles_since},
+    light_groups::{LightGroup, RunSum},
+    sample::{PrimaryHit, SampleOut, SampleResult},
 };
-
-/// Rays traced, by kind.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct RayCounts {
-    /// Camera rays.
-    pub primary: u64,
-    /// Visibility rays of ambient-term lights (the ambient occluder).
-    pub ao: u64,
-    /// Shadow rays of all other lights.
-    pub shadow: u64,
-}
-
-impl RayCounts {
-    /// All rays.
-    pub fn total(&self) -> u64 {
-        self.primary + self.ao + self.shadow
-    }
-
-    /// Counts `n` shadow rays of a light with term `term`.
-    #[inline]
-    fn count(&mut self, term: Term, n: u64) {
-        match term {
-            Term::Ambient => self.ao += n,
-            Term::Diffuse => self.shadow += n,
-        }
-    }
-
-    /// Adds another count to this one.
-    pub fn add(&mut self, other: &RayCounts) {
-        self.primary += other.primary;
-        self.ao += other.ao;
-        self.shadow += other.shadow;
-    }
-}
+use crate::{
+    geometry::{Ray, RayOrder, SceneGeometry, SpawnOrigins, SurfaceHit},
+    light::{DirectionRun, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term},
+    sampling::{SampleSets, dims},
+    stats::{RayCounts, TraceSplit, cycle_count, cycles_since},
+};
 
 /// Everything a sample needs to read, shared by all threads.
 pub struct Scene<'a> {
@@ -77,120 +44,6 @@ impl Scene<'_> {
     fn fixed_groups(&self) -> impl Iterator<Item = &(u32, &dyn LightGroup)> {
         self.lights.iter().filter(|(_, g)| g.dims() == 0)
     }
-}
-
-/// What one camera sample saw, for the beauty image and the AOVs.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct SampleResult {
-    /// Radiance (the beauty image).
-    pub radiance: Vec3,
-    /// Ambient light arriving (channel mean of Σ occluders' `ls·color·(min + (1 − min)·V·w)`):
-    /// for one white unit occluder with `min_amount` 0 the raw AO estimate of (1/π)∫V cos θ dω.
-    pub ao: f32,
-    /// Reflected radiance of the diffuse-term lights (point, spot, directional, disk, …).
-    pub direct: Vec3,
-    /// The material's `cd`.
-    pub albedo: Vec3,
-    /// Unit geometric normal facing the camera.
-    pub normal: Vec3,
-    /// Distance from the camera ray's origin to the hit.
-    pub depth: f32,
-    /// Whether the camera ray hit anything (AOVs are 0 where it did not).
-    pub hit: bool,
-}
-
-impl SampleResult {
-    /// A sample at a camera hit on `material`, before any light.
-    #[inline]
-    fn at_hit(primary: &PrimaryHit, material: &Matte) -> Self {
-        SampleResult {
-            albedo: material.cd,
-            normal: primary.hit.normal.into(),
-            depth: primary.depth,
-            hit: true,
-            ..Default::default()
-        }
-    }
-
-    /// Adds light `a` arriving from a light of `term`, reflected by `reflectance`.
-    #[inline]
-    fn add_light(&mut self, term: Term, reflectance: Vec3, a: Vec3) {
-        let reflected = reflectance * a;
-        self.radiance += reflected;
-        match term {
-            Term::Ambient => self.ao += a.element_sum() / 3.0,
-            Term::Diffuse => self.direct += reflected,
-        }
-    }
-
-    /// The AOVs in the [`AovValues`] layout.
-    #[inline]
-    pub fn aov_values(&self) -> AovValues {
-        let (d, a, n) = (self.direct, self.albedo, self.normal);
-        [self.ao, d.x, d.y, d.z, a.x, a.y, a.z, n.x, n.y, n.z, self.depth]
-    }
-}
-
-/// What [`Tracer::shade`] keeps of each of a run of samples at one hit: everything
-/// ([`SampleResult`], for AOVs) or the radiance alone (`Vec3A`, for the beauty image).
-pub trait SampleOut {
-    /// Samples in the run.
-    fn len(&self) -> usize;
-    /// Whether the run is empty.
-    fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-    /// Sets every sample to a camera hit on `material`, before any light.
-    fn start(&mut self, primary: &PrimaryHit, material: &Matte);
-    /// Adds light `arriving[j]` from a light of `term`, reflected by `reflectance`, to sample `j`.
-    fn add_light(&mut self, term: Term, reflectance: Vec3, arriving: &[Vec3A]);
-}
-
-impl SampleOut for [SampleResult] {
-    fn len(&self) -> usize {
-        self.len()
-    }
-
-    #[inline]
-    fn start(&mut self, primary: &PrimaryHit, material: &Matte) {
-        self.fill(SampleResult::at_hit(primary, material));
-    }
-
-    #[inline]
-    fn add_light(&mut self, term: Term, reflectance: Vec3, arriving: &[Vec3A]) {
-        for (o, &a) in self.iter_mut().zip(arriving) {
-            o.add_light(term, reflectance, a.into());
-        }
-    }
-}
-
-impl SampleOut for [Vec3A] {
-    fn len(&self) -> usize {
-        self.len()
-    }
-
-    #[inline]
-    fn start(&mut self, _: &PrimaryHit, _: &Matte) {
-        self.fill(Vec3A::ZERO);
-    }
-
-    /// `SampleResult::add_light`'s radiance, in one SIMD operation per step (same bits).
-    #[inline]
-    fn add_light(&mut self, _: Term, reflectance: Vec3, arriving: &[Vec3A]) {
-        let reflectance = Vec3A::from(reflectance);
-        for (o, &a) in self.iter_mut().zip(arriving) {
-            *o += reflectance * a;
-        }
-    }
-}
-
-/// A camera ray's first hit.
-#[derive(Clone, Copy, Debug)]
-pub struct PrimaryHit {
-    /// The surface hit.
-    pub hit: SurfaceHit,
-    /// Distance from the ray's origin.
-    pub depth: f32,
 }
 
 /// Per-thread scratch state and counters.

@@ -2,8 +2,8 @@
 //! change it is *placed* in world space ([`Light::place`]), and for every shading point the
 //! placed light ([`PlacedLight::sample`]) returns what arrives there and the shadow ray that
 //! decides whether it does. Registering a light type is one call,
-//! [`Renderer::add_light`](crate::Renderer::add_light) (or [`register_light`] on a bare world
-//! and schedule): it adds a system that notices changes to that component (restarting
+//! [`Renderer::add_light`](crate::Renderer::add_light) (or
+//! [`register_light`](crate::integrator::register_light) on a bare world and schedule): it adds a system that notices changes to that component (restarting
 //! accumulation), validates it and keeps the placed lights ready for the trace system.
 //!
 //! The core never looks at light kinds: it multiplies what a light returns by the material
@@ -15,18 +15,19 @@
 //! dealt out in registration order, then entity order, [`PlacedLight::DIMS`] per light, so
 //! every light's random numbers are a pure function of (pixel, sample index, dimension).
 
-use std::any::TypeId;
+pub mod ambient;
+pub mod directional;
+pub mod disk;
+pub mod point;
+pub mod spot;
 
-use bevy_ecs::prelude::*;
+use bevy_ecs::component::Component;
 use glam::{Vec2, Vec3, Vec3A, Vec4};
 
 use crate::{
     components::{Matte, Transform},
-    geometry::SpawnOrigins,
     math::Onb,
     sampling::SampleSets,
-    shading::{RunPoint, Scene, Tracer},
-    systems::{FrameStage, scene_changes::detect_scene_changes},
 };
 
 /// Checks a light's `ls` and `color`: finite and non-negative. `name` starts the message.
@@ -322,210 +323,4 @@ pub trait Light: Component + Sized {
     /// The light placed by `transform`, or `None` when it can never contribute (e.g. zero
     /// intensity): it is then skipped entirely.
     fn place(&self, transform: &Transform) -> Option<Self::Placed>;
-}
-
-/// The placed lights of one registered type, behind one virtual call per run of samples at a
-/// shading point.
-pub trait LightGroup: Send + Sync {
-    /// Lights in the group.
-    fn count(&self) -> usize;
-    /// Sample dimensions the group uses, in all.
-    fn dims(&self) -> u32;
-    /// The reflectance the group's light is multiplied by.
-    fn term(&self) -> Term;
-    /// Adds the group's light arriving at `at` (before the material's reflectance) for the
-    /// samples `first, first + 1, …` of `pixel`, one per element of `arriving`, tracing shadow
-    /// rays from `spawn` with `tracer`. The samples share the hit, so per-hit work is done once.
-    /// With `sum`, lights that can add their whole run at once add it there instead
-    /// ([`RunSum`]).
-    #[allow(clippy::too_many_arguments)]
-    fn shade(
-        &self,
-        tracer: &mut Tracer,
-        scene: &Scene,
-        spawn: &SpawnOrigins,
-        at: &ShadingPoint,
-        pixel: u32,
-        first: u32,
-        first_dim: u32,
-        arriving: &mut [Vec3A],
-        sum: Option<&mut RunSum>,
-    );
-    /// Adds the group's light arriving at each of `points` into `arriving`, one element per
-    /// point: a pixel's run of camera samples (their light samples computed ahead), or, for
-    /// groups that draw no samples ([`LightGroup::dims`] 0), the pixels of a row, each lit once
-    /// ([`Tracer::fixed_lights_row`]).
-    fn shade_points(
-        &self,
-        tracer: &mut Tracer,
-        scene: &Scene,
-        points: &[RunPoint],
-        first_dim: u32,
-        skip_black: bool,
-        arriving: &mut [Vec3A],
-    );
-}
-
-/// A run's light summed over its samples, for callers that need only the sum (the beauty
-/// image without adaptive sampling): lights that can add a whole run at once (cosine runs of
-/// whole quadrant passes, which count their blocked rays) add it to `light`; the others still
-/// add theirs sample by sample to the run's `arriving`, and set `per_sample`.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct RunSum {
-    /// Light arriving, summed over the run's samples.
-    pub light: Vec3A,
-    /// Whether some of the run's light went to `arriving` instead.
-    pub per_sample: bool,
-}
-
-struct Group<P>(Vec<P>);
-
-impl<P: PlacedLight> LightGroup for Group<P> {
-    fn count(&self) -> usize {
-        self.0.len()
-    }
-
-    fn dims(&self) -> u32 {
-        self.0.len() as u32 * P::DIMS
-    }
-
-    fn term(&self) -> Term {
-        P::TERM
-    }
-
-    #[inline]
-    fn shade(
-        &self,
-        tracer: &mut Tracer,
-        scene: &Scene,
-        spawn: &SpawnOrigins,
-        at: &ShadingPoint,
-        pixel: u32,
-        first: u32,
-        first_dim: u32,
-        arriving: &mut [Vec3A],
-        sum: Option<&mut RunSum>,
-    ) {
-        tracer.shade_lights(scene, spawn, at, &self.0, pixel, first, first_dim, arriving, sum)
-    }
-
-    fn shade_points(
-        &self,
-        tracer: &mut Tracer,
-        scene: &Scene,
-        points: &[RunPoint],
-        first_dim: u32,
-        skip_black: bool,
-        arriving: &mut [Vec3A],
-    ) {
-        tracer.shade_points_lights(scene, points, &self.0, first_dim, skip_black, arriving)
-    }
-}
-
-/// One registered light type.
-struct Slot {
-    type_id: TypeId,
-    name: &'static str,
-    group: Box<dyn LightGroup>,
-    problems: Vec<String>,
-}
-
-/// Registered light types, in registration order, with their placed lights and problems.
-#[derive(Resource, Default)]
-pub struct LightRegistry {
-    slots: Vec<Slot>,
-    changed: bool,
-}
-
-impl LightRegistry {
-    /// Whether `L` is registered.
-    pub fn contains<L: Light>(&self) -> bool {
-        self.slots.iter().any(|s| s.type_id == TypeId::of::<L>())
-    }
-
-    /// Placed light groups in registration order, each with its first sample dimension.
-    pub fn groups(&self) -> impl Iterator<Item = (u32, &dyn LightGroup)> {
-        let mut dim = crate::sampling::dims::LIGHTS;
-        self.slots.iter().map(move |s| {
-            let first = dim;
-            dim += s.group.dims();
-            (first, &*s.group)
-        })
-    }
-
-    /// Problems found in registered lights, in registration order.
-    pub fn problems(&self) -> impl Iterator<Item = &String> {
-        self.slots.iter().flat_map(|s| &s.problems)
-    }
-
-    /// "2 point light, 1 ambient occluder": the non-empty groups.
-    pub fn summary(&self) -> String {
-        let parts: Vec<String> = self
-            .slots
-            .iter()
-            .filter(|s| s.group.count() > 0)
-            .map(|s| format!("{} {}", s.group.count(), s.name))
-            .collect();
-        if parts.is_empty() { "no lights".into() } else { parts.join(", ") }
-    }
-
-    /// Whether any light was added, changed or removed since the last call; clears the flag.
-    pub fn take_changed(&mut self) -> bool {
-        std::mem::take(&mut self.changed)
-    }
-
-    fn slot_mut<L: Light>(&mut self) -> Option<&mut Slot> {
-        self.slots.iter_mut().find(|s| s.type_id == TypeId::of::<L>())
-    }
-}
-
-/// Registers light type `L` on a world and its frame schedule: its lights are validated,
-/// placed and traced from the next frame on, and any change to them restarts accumulation.
-/// Returns `false` (and does nothing) if `L` was already registered.
-pub fn register_light<L: Light>(world: &mut World, schedule: &mut Schedule) -> bool {
-    let mut registry = world.get_resource_or_init::<LightRegistry>();
-    if registry.contains::<L>() {
-        return false;
-    }
-    registry.slots.push(Slot {
-        type_id: TypeId::of::<L>(),
-        name: L::NAME,
-        group: Box::new(Group::<L::Placed>(Vec::new())),
-        problems: Vec::new(),
-    });
-    schedule.add_systems(update_lights::<L>.in_set(FrameStage::SceneChanges).before(detect_scene_changes));
-    true
-}
-
-/// Re-validates and re-places all lights of type `L` when any of them (or its transform) was
-/// added, changed or removed, and flags the change for the accumulation reset.
-fn update_lights<L: Light>(
-    lights: Query<(Entity, Ref<L>, Option<Ref<Transform>>)>,
-    mut removed: RemovedComponents<L>,
-    mut removed_transforms: RemovedComponents<Transform>,
-    mut registry: ResMut<LightRegistry>,
-) {
-    let removed_any = removed.read().count() > 0;
-    let moved_any = removed_transforms.read().any(|e| lights.contains(e));
-    let changed = lights.iter().any(|(_, l, t)| l.is_changed() || t.is_some_and(|t| t.is_changed()));
-    if !(removed_any || moved_any || changed) {
-        return;
-    }
-    let mut found: Vec<_> = lights.iter().collect();
-    found.sort_by_key(|(e, ..)| *e);
-    let mut placed = Vec::with_capacity(found.len());
-    let mut problems = Vec::new();
-    for (_, light, transform) in found {
-        let transform = transform.map_or(Transform::IDENTITY, |t| *t);
-        match light.validate(&transform) {
-            Ok(()) => placed.extend(light.place(&transform)),
-            Err(e) => problems.push(e),
-        }
-    }
-    let registry = &mut *registry;
-    registry.changed = true;
-    if let Some(slot) = registry.slot_mut::<L>() {
-        slot.group = Box::new(Group(placed));
-        slot.problems = problems;
-    }
 }

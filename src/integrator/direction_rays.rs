@@ -28,7 +28,8 @@ use crate::{
         hit::SpawnOrigins,
         ray::Ray,
     },
-    light::{DirectionRun, DirectionTerms, RunSum},
+    integrator::RunSum,
+    light::{DirectionRun, DirectionTerms},
     math::Onb,
     sampling::SampleSets,
     stats::{cycle_count, cycles_since},
@@ -212,7 +213,7 @@ impl DirectionRays {
     /// by lane compression; packets load their lanes straight from those columns.
     ///
     /// # Safety
-    /// The CPU must have AVX-512F and POPCNT ([`crate::cpu::avx512`]).
+    /// The CPU must have AVX-512F and POPCNT ([`crate::simd::avx512`]).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     unsafe fn add_cosine_avx512(
@@ -442,7 +443,7 @@ impl DirectionRays {
     /// [`DirectionRays::add`] for sixteen-lane packets.
     ///
     /// # Safety
-    /// The CPU must have AVX-512F and POPCNT ([`crate::cpu::avx512`]).
+    /// The CPU must have AVX-512F and POPCNT ([`crate::simd::avx512`]).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     unsafe fn add_avx512(

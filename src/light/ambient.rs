@@ -116,7 +116,7 @@ impl PlacedLight for PlacedOccluder {
 fn cosine_directions_wide(frame: &Onb, values: &[Vec2], run: &mut DirectionRun) -> bool {
     #[cfg(target_arch = "x86_64")]
     {
-        if crate::cpu::avx512() {
+        if crate::simd::avx512() {
             // SAFETY: the CPU has AVX-512F, checked just above.
             unsafe { cosine_directions_avx512(frame, values, run) };
             return true;
@@ -202,7 +202,7 @@ mod tests {
     use glam::Vec3A;
 
     use super::*;
-    use crate::{components::Matte, sampling::hash::SplitMix64};
+    use crate::{components::Matte, random::SplitMix64};
 
     #[test]
     fn a_run_gives_each_sample_s_bits() {

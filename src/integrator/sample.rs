@@ -1,0 +1,120 @@
+//! What a camera sample yields: its radiance and AOVs ([`SampleResult`]), or the radiance
+//! alone, written through one interface ([`SampleOut`]) so the tracer serves both.
+
+use glam::{Vec3, Vec3A};
+
+use crate::{components::Matte, geometry::SurfaceHit, light::Term, resources::AovValues};
+
+/// What one camera sample saw, for the beauty image and the AOVs.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SampleResult {
+    /// Radiance (the beauty image).
+    pub radiance: Vec3,
+    /// Ambient light arriving (channel mean of Σ occluders' `ls·color·(min + (1 − min)·V·w)`):
+    /// for one white unit occluder with `min_amount` 0 the raw AO estimate of (1/π)∫V cos θ dω.
+    pub ao: f32,
+    /// Reflected radiance of the diffuse-term lights (point, spot, directional, disk, …).
+    pub direct: Vec3,
+    /// The material's `cd`.
+    pub albedo: Vec3,
+    /// Unit geometric normal facing the camera.
+    pub normal: Vec3,
+    /// Distance from the camera ray's origin to the hit.
+    pub depth: f32,
+    /// Whether the camera ray hit anything (AOVs are 0 where it did not).
+    pub hit: bool,
+}
+
+impl SampleResult {
+    /// A sample at a camera hit on `material`, before any light.
+    #[inline]
+    pub(crate) fn at_hit(primary: &PrimaryHit, material: &Matte) -> Self {
+        SampleResult {
+            albedo: material.cd,
+            normal: primary.hit.normal.into(),
+            depth: primary.depth,
+            hit: true,
+            ..Default::default()
+        }
+    }
+
+    /// Adds light `a` arriving from a light of `term`, reflected by `reflectance`.
+    #[inline]
+    pub(crate) fn add_light(&mut self, term: Term, reflectance: Vec3, a: Vec3) {
+        let reflected = reflectance * a;
+        self.radiance += reflected;
+        match term {
+            Term::Ambient => self.ao += a.element_sum() / 3.0,
+            Term::Diffuse => self.direct += reflected,
+        }
+    }
+
+    /// The AOVs in the [`AovValues`] layout.
+    #[inline]
+    pub fn aov_values(&self) -> AovValues {
+        let (d, a, n) = (self.direct, self.albedo, self.normal);
+        [self.ao, d.x, d.y, d.z, a.x, a.y, a.z, n.x, n.y, n.z, self.depth]
+    }
+}
+
+/// What [`Tracer::shade`](super::Tracer::shade) keeps of each of a run of samples at one hit: everything
+/// ([`SampleResult`], for AOVs) or the radiance alone (`Vec3A`, for the beauty image).
+pub trait SampleOut {
+    /// Samples in the run.
+    fn len(&self) -> usize;
+    /// Whether the run is empty.
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// Sets every sample to a camera hit on `material`, before any light.
+    fn start(&mut self, primary: &PrimaryHit, material: &Matte);
+    /// Adds light `arriving[j]` from a light of `term`, reflected by `reflectance`, to sample `j`.
+    fn add_light(&mut self, term: Term, reflectance: Vec3, arriving: &[Vec3A]);
+}
+
+impl SampleOut for [SampleResult] {
+    fn len(&self) -> usize {
+        self.len()
+    }
+
+    #[inline]
+    fn start(&mut self, primary: &PrimaryHit, material: &Matte) {
+        self.fill(SampleResult::at_hit(primary, material));
+    }
+
+    #[inline]
+    fn add_light(&mut self, term: Term, reflectance: Vec3, arriving: &[Vec3A]) {
+        for (o, &a) in self.iter_mut().zip(arriving) {
+            o.add_light(term, reflectance, a.into());
+        }
+    }
+}
+
+impl SampleOut for [Vec3A] {
+    fn len(&self) -> usize {
+        self.len()
+    }
+
+    #[inline]
+    fn start(&mut self, _: &PrimaryHit, _: &Matte) {
+        self.fill(Vec3A::ZERO);
+    }
+
+    /// `SampleResult::add_light`'s radiance, in one SIMD operation per step (same bits).
+    #[inline]
+    fn add_light(&mut self, _: Term, reflectance: Vec3, arriving: &[Vec3A]) {
+        let reflectance = Vec3A::from(reflectance);
+        for (o, &a) in self.iter_mut().zip(arriving) {
+            *o += reflectance * a;
+        }
+    }
+}
+
+/// A camera ray's first hit.
+#[derive(Clone, Copy, Debug)]
+pub struct PrimaryHit {
+    /// The surface hit.
+    pub hit: SurfaceHit,
+    /// Distance from the ray's origin.
+    pub depth: f32,
+}
