@@ -525,3 +525,33 @@ fn spatially_split_triangles_give_the_brute_force_answers() {
     let vertices: Vec<Vec3A> = room_triangles.iter().flatten().copied().collect();
     bundles_get_single_hits(&geometry, &vertices, &vertices[..6], &mut rng);
 }
+
+/// Thousands of instances at one position (a crowd placed by copying one node, or
+/// EXT_mesh_gpu_instancing without offsets) build a top level of logarithmic depth, half a
+/// cluster per level, and every ray still gets the brute-force answer: the nearest copy of
+/// the cluster and the lone sphere off to the side.
+#[test]
+fn co_located_instances_build_a_shallow_top_level() {
+    use glam::Affine3A;
+    use hemi::geometry::accel::{Blas, Instance};
+    use std::sync::Arc;
+
+    let sphere = Prim { shape: Shape::Sphere(SpherePrim { center: Vec3A::ZERO, radius: 0.5 }), object: 0 };
+    let blas = Arc::new(Blas::build(vec![sphere]));
+    let local = blas.bounds().unwrap();
+    let n = 20_000;
+    let mut instances: Vec<Instance> = (0..n)
+        .map(|_| Instance::new(0, local, Affine3A::from_translation(Vec3::new(0.0, 0.0, 0.0)), Some(0)).unwrap())
+        .collect();
+    instances.push(Instance::new(0, local, Affine3A::from_translation(Vec3::new(3.0, 0.0, 0.0)), Some(0)).unwrap());
+    let objects = vec![Object { material: Matte::default(), entity: Entity::PLACEHOLDER }];
+    let geometry = SceneGeometry::from_instances(vec![blas], instances, Vec::new(), objects);
+    let balanced = (n as f64).log2().ceil() as usize + 2;
+    assert!(geometry.depth <= 2 * balanced, "top level {} deep for {n} co-located instances", geometry.depth);
+    let mut stack = Vec::new();
+    for (origin, expected) in [(Vec3A::new(0.0, 0.0, 5.0), Some(4.5)), (Vec3A::new(3.0, 0.0, 5.0), Some(4.5))] {
+        let ray = Ray::new(origin, Vec3A::NEG_Z, f32::INFINITY);
+        let hit = geometry.intersect(&ray, &mut stack).map(|h| (h.p - origin).length());
+        assert_eq!(hit.map(|t| (t * 1e3).round() / 1e3), expected);
+    }
+}

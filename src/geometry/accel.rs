@@ -1369,9 +1369,15 @@ impl SceneGeometry {
         let (tlas, instances) = if instances.is_empty() {
             (Vec::new(), instances)
         } else {
-            let aabbs: Vec<Aabb> = instances.iter().map(|i| i.bounds).collect();
-            let params = BvhBuildParams { max_prims_per_leaf: 1, ..BvhBuildParams::fast_build() };
-            let bvh = build_bvh2(&aabbs, params, &mut Duration::default());
+            // PLOC merges equal Morton codes pair by pair, so thousands of instances at one
+            // position would build in quadratic time; the binned builder halves such sets.
+            let bvh = if instances.len() < SMALL_SET {
+                let aabbs: Vec<Aabb> = instances.iter().map(|i| i.bounds).collect();
+                let params = BvhBuildParams { max_prims_per_leaf: 1, ..BvhBuildParams::fast_build() };
+                build_bvh2(&aabbs, params, &mut Duration::default())
+            } else {
+                binned_sah::build(instances.len(), |i| instances[i].bounds).0
+            };
             let ordered = bvh.primitive_indices.iter().map(|&i| instances[i as usize].clone()).collect();
             (bvh.nodes, ordered)
         };
