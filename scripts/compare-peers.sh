@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Runs hemi, Embree 4 (embreex) and Mitsuba 3 (llvm_ad_rgb) on the same peer scenes, one after
-# the other in one session, and prints AO-ray throughput, render time and the ratios.
+# the other in one run, and prints AO-ray throughput, render time and the ratios.
 #
 #   scripts/compare-peers.sh [--spp N] [--threads N] [--rounds N] [--split] [SCENE ...]   (default: all five)
 #

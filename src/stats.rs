@@ -46,9 +46,8 @@ impl RayCounts {
 /// A reading of the CPU's cycle counter (the time-stamp counter on x86_64, nanoseconds since
 /// the first call elsewhere): only differences and ratios of readings mean anything. On x86_64
 /// the counter is read once every earlier instruction has completed (LFENCE), so that work
-/// issued before a reading is not counted after it: unfenced, an AO query's readings took in
-/// the tail of the arithmetic that made its rays (sphere_plane's queries measured 71 Mrays/s
-/// unfenced, 78 fenced; Sponza 50 and 52), while the trace time stayed within noise.
+/// issued before a reading is not counted after it: unfenced, a query's readings would take in
+/// the tail of the arithmetic that made its rays.
 #[inline(always)]
 pub fn cycle_count() -> u64 {
     #[cfg(target_arch = "x86_64")]
@@ -87,9 +86,8 @@ pub fn timed_pixel(pixel: u32) -> bool {
 
 /// Whether the trace system also times each scene query of pixel `pixel`: a quarter of the
 /// [`timed_pixel`]s, by the same hash. Every query's readings are fenced, and an eight-ray AO
-/// packet query is short enough that timing each one in every timed pixel slowed
-/// sphere_plane's AO kernel by up to 4 %; the queries' share of a term is taken in these
-/// pixels alone.
+/// packet query is short enough that timing each one in every timed pixel would slow the
+/// kernel it measures; the queries' share of a term is taken in these pixels alone.
 #[inline(always)]
 pub fn query_timed_pixel(pixel: u32) -> bool {
     pixel.wrapping_mul(0x9E37_79B9) >> 26 == 0

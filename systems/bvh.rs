@@ -34,10 +34,9 @@ use crate::{
 };
 
 /// Samples per placed triangle (`max_spp` × pixels ÷ the triangles that baking the shared
-/// meshes would place) from which those meshes are baked rather than instanced. On the peer
-/// scene many_spheres (512,000 triangles placed from one 1,280-triangle sphere, 512 × 512, two
-/// threads) baking took the BVH system from 4 to 250 ms and the AO kernel 10 % faster, so the
-/// frame broke even at about 64 spp (33 samples per triangle); this asks twice that.
+/// meshes would place) from which those meshes are baked rather than instanced: a baked tree
+/// traces faster but costs build time, which pays only once enough samples use it (the
+/// break-even measured on many_spheres is in docs/benchmarks.md; this asks twice that).
 const SHARED_BAKE_SAMPLES_PER_TRIANGLE: u64 = 64;
 
 /// Most triangles baking the shared meshes may place (a baked triangle takes about 150 bytes of
@@ -289,7 +288,7 @@ fn update(
         })
     };
     // Each sphere and cuboid is its own small world-space BLAS, so the top level separates them
-    // from the meshes (one shared world BLAS traced the default scene's AO rays ~15 % slower).
+    // from the meshes (one shared world BLAS mixing them traced the default scene's AO rays slower).
     for world_blas in &cache.world {
         if let Some(bounds) = world_blas.bounds() {
             let i = index_of(world_blas, &mut blases);

@@ -3,9 +3,8 @@
 //! At each node the primitives' centroids are sorted into 32 bins along each axis (8 under 64
 //! primitives) and the boundary of lowest surface-area cost is taken. The cost counts a leaf's triangles by the
 //! packets of four they are tested in (a leaf of five costs as much as one of eight), so leaves
-//! come out as full packets and the wide tree needs fewer nodes: on the peer sphere_plane, 20 %
-//! fewer triangle packets and half the wide nodes of obvhs's PLOC build with leaf collapsing, at
-//! the same SAH cost.
+//! come out as full packets and the wide tree needs fewer nodes than obvhs's PLOC build with
+//! leaf collapsing gives at the same SAH cost (figures in docs/benchmarks.md).
 //!
 //! Subtrees of 8192 primitives or more are built in parallel, and the passes over nodes of
 //! 32768 or more in parallel chunks; the result does not depend on the thread count. Children come after their parents in the node array, the two
@@ -118,8 +117,8 @@ enum Split {
 fn bins_of(c: Vec3A, min: Vec3A, scale: Vec3A, bins: usize) -> [u32; 3] {
     let f = (c - min) * scale;
     // Three lanes at once, clamped before truncating; maxps returns its second operand when
-    // either is NaN, so NaN goes to 0. (The scalar saturating conversion took a third of the
-    // binning pass: the builder's `choose` 17.5 → 11.8 % of a one-spp dragon frame.)
+    // either is NaN, so NaN goes to 0. (The scalar saturating conversion is much slower and
+    // this runs once per primitive per node.)
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::*;
