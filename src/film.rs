@@ -86,51 +86,87 @@ impl OutputFormat {
     }
 }
 
-/// An output file opened (and so checked to be writable) before any rendering starts.
+/// An output file that never leaves a partial file under its name: everything is written to a
+/// temporary file beside it (same directory, so the final rename cannot cross file systems),
+/// flushed to disk, and renamed over `path` only when complete. A failed, killed or
+/// out-of-space run leaves an existing file at `path` untouched, and at most a hidden
+/// `.NAME.*.tmp` file beside it (removed on any failure the process survives).
+///
+/// Creating one checks early, before any rendering, that the format is known and the
+/// directory writable; missing parent directories are created.
 pub struct OutputFile {
     path: PathBuf,
     /// The image format its extension names (`None` for non-image files).
     format: Option<OutputFormat>,
-    file: File,
+    file: tempfile::NamedTempFile,
 }
 
 impl OutputFile {
-    /// Creates `path` for writing; fails early on an unknown extension or unwritable location.
+    /// Prepares to write the image file `path`; fails early on an unknown extension or an
+    /// unwritable location.
     pub fn create(path: &Path) -> Result<Self, HemiError> {
         let format = OutputFormat::from_path(path)?;
         Ok(OutputFile { format: Some(format), ..Self::create_any(path)? })
     }
 
-    /// Creates any output file (no image-format check), failing early if it is unwritable.
+    /// Prepares to write any output file (no image-format check), failing early if its
+    /// directory cannot be created or written.
     pub fn create_any(path: &Path) -> Result<Self, HemiError> {
-        let file = File::create(path).map_err(|e| io_error(path, "cannot create output file", e))?;
+        let name = path.file_name().ok_or_else(|| io_error(path, "cannot create output file", "no file name"))?;
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        std::fs::create_dir_all(dir).map_err(|e| io_error(path, "cannot create the output's folder", e))?;
+        let mut prefix = std::ffi::OsString::from(".");
+        prefix.push(name);
+        prefix.push(".");
+        let mut builder = tempfile::Builder::new();
+        builder.prefix(&prefix).suffix(".tmp");
+        // Temporary files are private (0600) by default; the finished file should get the
+        // permissions any new file gets (0666 less the umask), as `File::create` gives.
+        #[cfg(unix)]
+        builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
+        let file = builder.tempfile_in(dir).map_err(|e| io_error(path, "cannot create output file", e))?;
         Ok(OutputFile { path: path.to_path_buf(), format: None, file })
     }
 
-    /// Writes `image` in the format the file's extension names.
+    /// Writes `image` in the format the file's extension names, then puts the file in place.
     pub fn write(self, image: &Image) -> Result<(), HemiError> {
         let path = self.path.clone();
         let format = self.format.ok_or_else(|| io_error(&path, "cannot write image", "no .png or .exr extension"))?;
-        let mut out = BufWriter::new(self.file);
-        write_image(image, format, &mut out).map_err(|e| io_error(&path, "cannot write image", e))?;
-        out.flush().map_err(|e| io_error(&path, "cannot write image", e))
+        self.finish("cannot write image", |out| write_image(image, format, out).map_err(|e| e.to_string()))
     }
 
-    /// Writes text (e.g. JSON statistics).
+    /// Writes text (e.g. JSON statistics), then puts the file in place.
     pub fn write_text(self, text: &str) -> Result<(), HemiError> {
-        let path = self.path.clone();
-        let mut out = BufWriter::new(self.file);
-        out.write_all(text.as_bytes()).and_then(|()| out.flush()).map_err(|e| io_error(&path, "cannot write", e))
+        self.finish("cannot write", |out| out.write_all(text.as_bytes()).map_err(|e| e.to_string()))
     }
 
-    /// Writes an 8-bit RGB picture (plots and the like) as PNG.
+    /// Writes an 8-bit RGB picture (plots and the like) as PNG, then puts the file in place.
     pub fn write_rgb8(self, rgb: &RgbImage) -> Result<(), HemiError> {
-        let path = self.path.clone();
-        let mut out = BufWriter::new(self.file);
-        PngEncoder::new(&mut out)
-            .write_image(rgb, rgb.width(), rgb.height(), image::ExtendedColorType::Rgb8)
-            .map_err(|e| io_error(&path, "cannot write image", e))?;
-        out.flush().map_err(|e| io_error(&path, "cannot write image", e))
+        self.finish("cannot write image", |out| {
+            PngEncoder::new(out)
+                .write_image(rgb, rgb.width(), rgb.height(), image::ExtendedColorType::Rgb8)
+                .map_err(|e| e.to_string())
+        })
+    }
+
+    /// Runs `write` on a buffered writer over the temporary file, flushes it to disk and
+    /// renames it over the final path; on any error the temporary file is removed.
+    fn finish(
+        self,
+        what: &str,
+        write: impl FnOnce(&mut BufWriter<&mut File>) -> Result<(), String>,
+    ) -> Result<(), HemiError> {
+        let OutputFile { path, mut file, .. } = self;
+        let mut out = BufWriter::new(file.as_file_mut());
+        write(&mut out).map_err(|e| io_error(&path, what, e))?;
+        out.flush().map_err(|e| io_error(&path, what, e))?;
+        drop(out);
+        file.as_file().sync_all().map_err(|e| io_error(&path, what, e))?;
+        file.persist(&path).map_err(|e| io_error(&path, "cannot put the finished file in place", e.error))?;
+        Ok(())
     }
 }
 
@@ -219,5 +255,45 @@ mod tests {
         let back = image::load_from_memory_with_format(buf.get_ref(), ImageFormat::OpenExr).unwrap().into_rgb32f();
         let values: Vec<f32> = back.into_raw();
         assert_eq!(values, linear.iter().flat_map(|p| p.to_array()).collect::<Vec<_>>());
+    }
+
+    /// Files in `dir`, sorted.
+    fn listing(dir: &Path) -> Vec<String> {
+        let mut names: Vec<String> =
+            std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+        names.sort();
+        names
+    }
+
+    #[test]
+    fn a_failed_write_leaves_the_existing_file_and_no_temporary_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("out.json");
+        std::fs::write(&path, "good").unwrap();
+        let failed = OutputFile::create_any(&path).unwrap().finish("cannot write", |out| {
+            out.write_all(b"half of it").unwrap();
+            Err("disk full".into())
+        });
+        let message = failed.unwrap_err().to_string();
+        assert!(message.contains("out.json") && message.contains("disk full"), "{message}");
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "good");
+        assert_eq!(listing(dir.path()), ["out.json"]);
+    }
+
+    #[test]
+    fn a_finished_write_replaces_the_file_and_creates_missing_folders() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a/b/out.json");
+        let pending = OutputFile::create_any(&path).unwrap();
+        assert!(!path.exists(), "nothing under the final name before the write completes");
+        pending.write_text("new").unwrap();
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "new");
+        assert_eq!(listing(&dir.path().join("a/b")), ["out.json"]);
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let mode = std::fs::metadata(&path).unwrap().permissions().mode() & 0o777;
+            assert_ne!(mode & 0o044, 0, "readable by others as new files are (mode {mode:o})");
+        }
     }
 }
