@@ -23,11 +23,11 @@ use std::{io::Write, path::Path, process::ExitCode, time::Instant};
 
 use hemi::{
     camera::PinholeRays,
+    cli::peer_scene::PeerScene,
     geometry::{Ray, RayOrder, SceneGeometry, Shape},
     math::Onb,
     prelude::*,
     sampling::{hash::SplitMix64, warp::cosine_power_hemisphere},
-    scene::peer_scene::PeerScene,
 };
 
 fn main() -> ExitCode {

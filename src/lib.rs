@@ -15,9 +15,9 @@
 pub mod analytic;
 pub mod animation;
 pub mod camera;
+#[cfg(feature = "cli")]
 pub mod cli;
 pub mod components;
-pub mod convergence;
 mod cpu;
 mod direction_rays;
 pub mod error;
@@ -27,8 +27,6 @@ mod huge_pages;
 pub mod light;
 pub mod lights;
 pub mod math;
-pub mod npy;
-pub mod plot;
 pub mod renderer;
 pub mod resources;
 pub mod sampling;
