@@ -9,9 +9,10 @@
 //!
 //! Scene objects, the camera, the ambient occluder and lights are ECS components
 //! ([`components`]); spawn them into a [`Renderer`]'s world and call
-//! [`Renderer::run_frame`] as often as you like. A static scene converges progressively;
-//! any change to an entity or to the settings restarts accumulation automatically. [`prelude`]
-//! has what a program needs, bevy's derives included.
+//! [`Renderer::run_frame`] as often as you like, or [`Renderer::render`] to a sample count. A
+//! static scene converges progressively; any change to an entity's components or to the
+//! settings restarts accumulation automatically (writing a value equal to the old one is no
+//! change). [`prelude`] has what a program needs, bevy's derives included.
 //!
 //! The cargo feature `cli` (on by default) builds the `hemi` binary and its `cli` module; a
 //! library user who sets `default-features = false` compiles none of its dependencies.
