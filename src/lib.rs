@@ -52,7 +52,8 @@ pub use renderer::Renderer;
 /// It also brings the `bevy_ecs` crate itself into scope, which is what lets bevy's derive
 /// macros work in a crate whose only dependency is hemi: `#[derive(Component)]` expands to
 /// paths that start with `bevy_ecs::` whenever the crate's `Cargo.toml` names neither `bevy`
-/// nor `bevy_ecs`, and those paths then resolve through this re-export.
+/// nor `bevy_ecs`, and those paths then resolve through this re-export. A module that does not
+/// glob-import the prelude gets the same with `use hemi::bevy_ecs;`.
 ///
 /// ```
 /// use hemi::prelude::*;
