@@ -31,6 +31,9 @@ enum Command {
     Error(ErrorArgs),
     /// Compare AO with the peer renderers' references: bias and RMSE per scene.
     Compare(CompareArgs),
+    /// Open a window on the scene and watch it converge; move the camera, play the animation.
+    #[cfg(feature = "view")]
+    View(crate::viewer::command::ViewArgs),
 }
 
 /// Options of `hemi compare`.
@@ -145,6 +148,9 @@ struct RenderArgs {
     /// files `<stem>.<name>.exr` beside the image.
     #[arg(long, value_delimiter = ',', value_parser = parse_aov)]
     aov: Vec<Aov>,
+    /// Stream the progressive image to a running tev (its --hostname, e.g. 127.0.0.1:14158).
+    #[arg(long, value_name = "HOST:PORT")]
+    display_server: Option<String>,
 }
 
 fn parse_aov(s: &str) -> Result<Aov, String> {
@@ -243,6 +249,8 @@ where
         Command::Render(args) => render(args),
         Command::Error(args) => error_study(args),
         Command::Compare(args) => compare(args),
+        #[cfg(feature = "view")]
+        Command::View(args) => crate::viewer::command::run(args),
     }
 }
 
@@ -495,7 +503,10 @@ fn render(args: RenderArgs) -> Result<(), HemiError> {
     }
     let stats_file = args.stats_json.as_deref().map(OutputFile::create_any).transpose()?;
     let start = Instant::now();
-    let mut totals = Totals { json: stats_file.is_some().then(Vec::new), ..Default::default() };
+    let display =
+        args.display_server.as_deref().map(|a| crate::tev::DisplayServer::connect(a, &args.out.to_string_lossy()));
+    let mut totals =
+        Totals { json: stats_file.is_some().then(Vec::new), display: display.transpose()?, ..Default::default() };
     match frames {
         None => {
             renderer.set_time(args.time);
@@ -547,6 +558,8 @@ struct Totals {
     frames: u32,
     /// Per-frame JSON records, kept only for `--stats-json`.
     json: Option<Vec<serde_json::Value>>,
+    /// Where `--display-server` streams the image.
+    display: Option<crate::tev::DisplayServer>,
 }
 
 impl Totals {
@@ -601,6 +614,9 @@ fn render_image(renderer: &mut Renderer, spp: u32, print_stats: bool, totals: &m
             progress.suspend(|| print!("{}", stats.table()));
         }
         progress.set_position(stats.spp as u64);
+        if let Some(display) = &mut totals.display {
+            display.update(renderer.image(), renderer.converged());
+        }
     }
     progress.finish_and_clear();
     Ok(())

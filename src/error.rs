@@ -23,6 +23,8 @@ pub enum HemiError {
     },
     /// A command-line argument is unusable.
     Usage(String),
+    /// A window could not be opened or shown (no display).
+    Window(String),
 }
 
 impl fmt::Display for HemiError {
@@ -32,7 +34,7 @@ impl fmt::Display for HemiError {
             HemiError::Io { path, message } | HemiError::Load { path, message } => {
                 write!(f, "{}: {message}", path.display())
             }
-            HemiError::Usage(m) => write!(f, "{m}"),
+            HemiError::Usage(m) | HemiError::Window(m) => write!(f, "{m}"),
         }
     }
 }

@@ -37,6 +37,8 @@ mod simd;
 pub mod stats;
 #[path = "../systems/mod.rs"]
 pub mod systems;
+pub mod tev;
+pub mod viewer;
 
 pub use bevy_ecs;
 pub use error::HemiError;
