@@ -78,6 +78,14 @@ pub fn run(viewer: Viewer, options: WindowOptions) -> Result<(), HemiError> {
 }
 
 fn no_display(why: &str) -> HemiError {
+    let set = |v: &str| std::env::var_os(v).is_some_and(|s| !s.is_empty());
+    let why = if !set("DISPLAY") && !set("WAYLAND_DISPLAY") {
+        "no display: DISPLAY is not set".to_string()
+    } else {
+        // winit's errors start with the source location: keep what follows it.
+        let tail = why.find(".rs:").and_then(|i| why[i..].find(": ").map(|j| &why[i + j + 2..]));
+        tail.unwrap_or(why).trim_end_matches('.').to_string()
+    };
     HemiError::Window(format!("cannot open a window ({why}); use `hemi render` to render without a display"))
 }
 
