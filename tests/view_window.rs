@@ -64,7 +64,8 @@ fn a_gltf_scene_with_its_camera_matches_too() {
 fn turntable_and_overlay_run_and_write_per_frame_stats() {
     let stats = temp("turntable.json");
     let stats_arg = stats.display().to_string();
-    let args = ["--size", "160x90", "--turntable", "2", "--overlay", "--quit-after-frames", "6", "--stats-json", &stats_arg];
+    let args =
+        ["--size", "160x90", "--turntable", "2", "--overlay", "--quit-after-frames", "6", "--stats-json", &stats_arg];
     let Some(out) = xvfb(&args) else { return };
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();

@@ -285,12 +285,10 @@ impl Viewer {
                 }
                 Key::P => self.save_requested = true,
                 Key::Space => self.playing = !self.playing && self.animation_duration().is_some(),
-                Key::Left | Key::Right => {
-                    if self.animation_duration().is_some() {
-                        self.playing = false;
-                        let step = if key == Key::Left { -STEP_SECONDS } else { STEP_SECONDS };
-                        self.time = (self.time + step).max(0.0);
-                    }
+                Key::Left | Key::Right if self.animation_duration().is_some() => {
+                    self.playing = false;
+                    let step = if key == Key::Left { -STEP_SECONDS } else { STEP_SECONDS };
+                    self.time = (self.time + step).max(0.0);
                 }
                 _ => {}
             }
@@ -425,7 +423,7 @@ impl Viewer {
         }
         // Keep the current sets for when the view comes back to their size; take cached ones
         // for this size, or leave a placeholder for the sample-set system to replace.
-        let cached = self.sets.iter().position(|c| matches(c)).map(|i| self.sets.remove(i));
+        let cached = self.sets.iter().position(matches).map(|i| self.sets.remove(i));
         let fresh = cached.unwrap_or_else(|| SampleSets::generate(crate::sampling::SamplerKind::Regular, 1, 0, 1, 1));
         if let Some(old) = world.remove_resource::<SampleSets>() {
             if !old.matches(crate::sampling::SamplerKind::Regular, 1, 0, 1, 1) {
