@@ -142,10 +142,14 @@ fn pan_dolly_fly_frame_and_reset() {
 
     v.handle(InputEvent::KeyDown(Key::W));
     v.frame(Duration::from_millis(100)).unwrap();
-    v.handle(InputEvent::KeyUp(Key::W));
     let flown = camera(&v);
     let step = flown.eye - dollied.eye;
     assert!(step.length() > 0.0 && step.normalize().dot((dollied.target - dollied.eye).normalize()) > 0.99);
+    // A long pause before a frame (the window idles once converged) flies no farther.
+    v.frame(Duration::from_secs(10)).unwrap();
+    v.handle(InputEvent::KeyUp(Key::W));
+    let again = camera(&v).eye - flown.eye;
+    assert!((again.length() - step.length()).abs() < 1e-3 * step.length(), "{again} vs {step}");
 
     v.handle(InputEvent::KeyDown(Key::R));
     v.frame(Duration::from_millis(16)).unwrap();

@@ -53,6 +53,8 @@ use crate::{
 pub const STEP_SECONDS: f64 = 1.0 / 30.0;
 /// Stops one press of `[` or `]` changes the exposure by.
 pub const EXPOSURE_STEP: f32 = 0.5;
+/// Longest wall-clock step (seconds) one frame of flying stands for.
+pub const MAX_FLY_STEP: f32 = 0.1;
 /// Sample sets kept for the internal resolutions used lately.
 const CACHED_SETS: usize = 4;
 
@@ -350,7 +352,9 @@ impl Viewer {
         let moving = {
             let mut input = self.renderer.world_mut().resource_mut::<Input>();
             input.turntable += turn;
-            input.dt = dt_s as f32;
+            // Flying moves by the frame's time, but never by the idle time before a first
+            // key press (the window waits for events once the view has converged).
+            input.dt = (dt_s as f32).min(MAX_FLY_STEP);
             input.moves_camera()
         } || self.playing;
 
