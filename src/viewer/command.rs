@@ -21,7 +21,7 @@ pub struct ViewArgs {
     #[arg(long)]
     animation: Option<String>,
     /// Samples per pixel a still view converges to [default: 1024, or a peer scene's
-    /// ao.samples]; it is then exactly the image `hemi render --spp N` writes.
+    /// ao.samples]: the image `hemi render --spp N` writes (byte for byte with --spf).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
     spp: Option<u32>,
     /// Samples per frame of a still view [default: as many as fit --target-ms]; with k, the
