@@ -40,6 +40,8 @@ mod simd;
 pub mod stats;
 #[path = "../systems/mod.rs"]
 pub mod systems;
+#[cfg(feature = "cli")]
+pub mod viewer;
 
 pub use bevy_ecs;
 pub use error::HemiError;

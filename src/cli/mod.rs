@@ -12,6 +12,7 @@ pub mod peer_compare;
 pub mod peer_scene;
 pub mod plot;
 mod render;
+pub mod tev;
 
 use std::path::{Path, PathBuf};
 
@@ -41,6 +42,9 @@ enum Command {
     /// Compare AO with the peer renderers' references: bias and RMSE per scene.
     #[command(arg_required_else_help = true)]
     Compare(compare::CompareArgs),
+    /// Open a window on the scene and watch it converge; move the camera, play the animation.
+    #[cfg(feature = "view")]
+    View(crate::viewer::command::ViewArgs),
 }
 
 fn parse_aov(s: &str) -> Result<Aov, String> {
@@ -164,5 +168,7 @@ where
         Command::Render(args) => render::render(args),
         Command::Error(args) => error_study::error_study(args),
         Command::Compare(args) => compare::compare(args),
+        #[cfg(feature = "view")]
+        Command::View(args) => crate::viewer::command::run(args),
     }
 }

@@ -84,6 +84,9 @@ pub(super) struct RenderArgs {
     /// files `<stem>.<name>.exr` beside the image.
     #[arg(long, value_delimiter = ',', value_parser = parse_aov)]
     aov: Vec<Aov>,
+    /// Stream the progressive image to a running tev (its --hostname, e.g. 127.0.0.1:14158).
+    #[arg(long, value_name = "HOST:PORT")]
+    display_server: Option<String>,
 }
 
 /// The frames of `start..end` that shard `i/n` renders: every n-th, starting at the i-th.
@@ -225,7 +228,10 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
     }
     let stats_file = args.stats_json.as_deref().map(OutputFile::create_any).transpose()?;
     let start = Instant::now();
-    let mut totals = Totals { json: stats_file.is_some().then(Vec::new), ..Default::default() };
+    let display =
+        args.display_server.as_deref().map(|a| super::tev::DisplayServer::connect(a, &args.out.to_string_lossy()));
+    let mut totals =
+        Totals { json: stats_file.is_some().then(Vec::new), display: display.transpose()?, ..Default::default() };
     match frames {
         None => {
             renderer.set_time(args.time);
@@ -277,6 +283,8 @@ struct Totals {
     frames: u32,
     /// Per-frame JSON records, kept only for `--stats-json`.
     json: Option<Vec<serde_json::Value>>,
+    /// Where `--display-server` streams the image.
+    display: Option<super::tev::DisplayServer>,
 }
 
 impl Totals {
@@ -331,6 +339,9 @@ fn render_image(renderer: &mut Renderer, spp: u32, print_stats: bool, totals: &m
             progress.suspend(|| console::out(&stats.table()))?;
         }
         progress.set_position(stats.spp as u64);
+        if let Some(display) = &mut totals.display {
+            display.update(renderer.image(), renderer.converged());
+        }
     }
     progress.finish_and_clear();
     Ok(())
