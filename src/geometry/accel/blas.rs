@@ -18,7 +18,7 @@ use super::{
 };
 use crate::components::Mesh;
 #[cfg(target_arch = "x86_64")]
-use crate::geometry::lanes::Lanes;
+use crate::geometry::lanes::PacketLanes;
 #[cfg(target_arch = "x86_64")]
 use crate::geometry::tri4::RayTriPacket;
 use crate::geometry::{
@@ -32,9 +32,8 @@ use crate::geometry::{
 
 /// The BVH2 build settings for small sets (under [`SMALL_SET`] primitives): obvhs's medium
 /// preset with leaves of at most one packet, collapsed less eagerly (traversal cost 1.5 instead
-/// of 3): the peer Cornell box traced 44 % faster with them, while from 3.9k triangles up
-/// (Suzanne, Duck, bunny, teapot, FlightHelmet, dragon) they were 0–8 % slower. Larger sets
-/// get [`binned_sah::build`].
+/// of 3): small scenes trace much faster with them, while meshes of a few thousand triangles
+/// and more trace a little slower. Larger sets get [`binned_sah::build`].
 fn small_set_params() -> BvhBuildParams {
     BvhBuildParams { max_prims_per_leaf: 4, collapse_traversal_cost: 1.5, ..BvhBuildParams::medium_build() }
 }
@@ -70,10 +69,9 @@ impl Blas {
     /// [`binned_sah::build_with_spatial_splits`] from 1024 primitives up where all are
     /// triangles (the spatial splits only where enough of them are large), by
     /// [`binned_sah::build`] from 1024 up otherwise, else by obvhs's PLOC with its medium
-    /// preset and leaves of at most one packet. (obvhs's spatial pre-splits, tried with PLOC,
-    /// traced sphere_plane and Sponza 4–8 % slower and cost the dragon 60–90 ms of build; with
-    /// the binned builder they left Sponza's SAH cost where it was. Splits chosen node by node
-    /// trace Sponza's AO rays 16 % faster.)
+    /// preset and leaves of at most one packet. (obvhs's spatial pre-splits traced slower and
+    /// cost build time without lowering the SAH cost; splits chosen node by node pay off in
+    /// scenes of large triangles such as Sponza.)
     pub fn build(prims: Vec<Prim>) -> Self {
         Blas::build_with(prims, true)
     }
@@ -308,7 +306,7 @@ impl Blas {
     /// The CPU must have `L`'s instruction set.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
-    pub(super) unsafe fn packets_block_lanes<L: Lanes>(
+    pub(super) unsafe fn packets_block_lanes<L: PacketLanes>(
         &self,
         first: u32,
         count: u32,

@@ -7,13 +7,16 @@ use super::{
     tlas::Instance,
     tree::Tree,
 };
-#[cfg(target_arch = "x86_64")]
-use crate::geometry::lanes::{Avx, Avx512, Lanes, RayLanes};
 use crate::geometry::ray::{Ray, Shear};
 #[cfg(target_arch = "x86_64")]
 use crate::geometry::{
     tri4::RayTriPacket,
     wide_bvh::{Bvh8, FusedPacket, LaneHits, PACKET_MIN_LANES, RayPacket},
+};
+#[cfg(target_arch = "x86_64")]
+use crate::{
+    geometry::lanes::{PacketLanes, RayLanes},
+    simd::{Avx, Avx512, Lanes},
 };
 
 /// Rays per packet: sixteen where the CPU has AVX-512 (and `HEMI_NO_AVX512` is not `1`, see
@@ -334,8 +337,8 @@ macro_rules! packet_kernels {
                 // AVX, which the caller's CPU has.
                 unsafe {
                     let Some(start) = top.entry_node_of(lanes, live) else { return 0 };
-                    // The fused node test, as in a BLAS: many_spheres 2.7 % faster than the
-                    // plain one here (same answers: the leaves decide).
+                    // The fused node test, as in a BLAS: cheaper than the plain one here, with
+                    // the same answers (the leaves decide).
                     top.occluded_packet(&FusedPacket::new(lanes, live), start, live, stack, leaf, single)
                 }
             }
@@ -344,9 +347,8 @@ macro_rules! packet_kernels {
             /// instance `inst` blocks: as one packet in the instance's frame (or the packet
             /// itself, for an identity transform) where its BLAS takes packets and at least
             /// [`PACKET_MIN_LANES`] rays reach it. Fewer would go on alone from the packet's first
-            /// node after the packet's set-up (its transpose, box and constants) for nothing:
-            /// one by one they trace many_spheres 3.4 % faster than from two rays up, 1.5 %
-            /// faster than from three.
+            /// node after the packet's set-up (its transpose, box and constants) for nothing,
+            /// so that few rays trace faster one by one.
             #[target_feature(enable = $feature)]
             fn $instance(
                 &self,

@@ -2,9 +2,9 @@
 
 use glam::Vec3A;
 
-#[cfg(target_arch = "x86_64")]
-use crate::geometry::lanes::Lanes;
 use crate::geometry::ray::Ray;
+#[cfg(target_arch = "x86_64")]
+use crate::simd::Lanes;
 
 /// How a run of rays given to [`SceneGeometry::occluded_many`] is ordered, which decides how
 /// it is cut into packets. Either way every ray gets the answer of its own query.

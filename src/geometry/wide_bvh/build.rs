@@ -133,9 +133,8 @@ impl<const W: usize> WideBvh<W> {
     /// surface area heuristic's cost of the wide tree varies only with the inner nodes kept:
     /// they are chosen by dynamic programming to make the sum of their surface areas least
     /// (Ylitie et al. 2017, §4.1), where filling each node with the children of largest area
-    /// (what this did before) can keep more than it needs. Trace system at 64 spp against
-    /// that: the dragon −6 % (fastest and median of nine), Sponza 0 to −9 %, the other peer
-    /// scenes within noise; same images.
+    /// (what this did before) can keep more than it needs, and costs traversal time on deep
+    /// meshes such as the dragon and Sponza; the images are the same.
     fn collapse(bvh2: &[Bvh2Node]) -> Self {
         let Some(root) = bvh2.first() else { return WideBvh::default() };
         if root.prim_count > 0 {

@@ -1,11 +1,14 @@
 //! Packet traversal: rays in SIMD lanes sharing one walk of an eight-wide tree.
 
 use super::{NEAR_START, Node, NodeTest, RayBox, WideBvh, far_scale, plane_rows, prefetch};
-#[cfg(target_arch = "x86_64")]
-use crate::geometry::lanes::{FusedLanes, Lanes, RayLanes};
 use crate::geometry::{
     counters::{Event, count},
     ray::Ray,
+};
+#[cfg(target_arch = "x86_64")]
+use crate::{
+    geometry::lanes::RayLanes,
+    simd::{FusedLanes, Lanes},
 };
 
 /// A packet of rays in SIMD lanes ([`Lanes`]: eight with AVX, sixteen with AVX-512), for
@@ -187,7 +190,7 @@ const PACKET_STACK: usize = if cfg!(test) { 4 } else { 128 };
 
 /// Fewest live rays for which a node is tested with the packet; fewer go on ray by ray. A
 /// packet test costs about as much per child as a single ray's test of all eight children, so
-/// the break-even is a few rays; 3 to 7 measured the same within noise (±5 %).
+/// the break-even is a few rays; 3 to 7 measured the same within noise.
 #[cfg(target_arch = "x86_64")]
 pub(crate) const PACKET_MIN_LANES: u32 = 4;
 

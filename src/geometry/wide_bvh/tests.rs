@@ -85,7 +85,7 @@ fn a_ray_leaving_a_flat_box_it_starts_on_enters_no_leaf() {
 #[cfg(target_arch = "x86_64")]
 #[test]
 fn a_packet_visits_exactly_the_leaves_each_ray_enters() {
-    use crate::geometry::lanes::{Avx, Avx512};
+    use crate::simd::{Avx, Avx512};
     for (offset, size) in [(0.0, 1.0), (3.0e4, 1.0e-2)] {
         let (bvh2, tree) = packet_test_scene(offset, size);
         let Some(tree) = tree else {
@@ -96,7 +96,7 @@ fn a_packet_visits_exactly_the_leaves_each_ray_enters() {
         unsafe {
             packets_visit_the_leaves_rays_enter::<Avx, _>(&bvh2, &tree, offset, size, |r, _| RayPacket::new(r), true);
         }
-        if std::arch::is_x86_feature_detected!("avx512f") {
+        if crate::simd::cpu_isa() >= crate::simd::Isa::Avx512 {
             unsafe {
                 let general = |r: &RayLanes<Avx512>, _| RayPacket::new(r);
                 packets_visit_the_leaves_rays_enter::<Avx512, _>(&bvh2, &tree, offset, size, general, true);
@@ -110,7 +110,7 @@ fn a_packet_visits_exactly_the_leaves_each_ray_enters() {
 #[cfg(target_arch = "x86_64")]
 #[test]
 fn a_fused_packet_visits_every_leaf_each_ray_truly_enters() {
-    use crate::geometry::lanes::{Avx, Avx512};
+    use crate::simd::{Avx, Avx512};
     for (offset, size) in [(0.0, 1.0), (3.0e4, 1.0e-2)] {
         let (bvh2, tree) = packet_test_scene(offset, size);
         let Some(tree) = tree else {
@@ -122,7 +122,7 @@ fn a_fused_packet_visits_every_leaf_each_ray_truly_enters() {
             let fused = |r: &RayLanes<Avx>, live| FusedPacket::new(r, live);
             packets_visit_the_leaves_rays_enter::<Avx, _>(&bvh2, &tree, offset, size, fused, false);
         }
-        if !std::arch::is_x86_feature_detected!("avx512f") {
+        if crate::simd::cpu_isa() < crate::simd::Isa::Avx512 {
             eprintln!("no AVX-512 on this CPU: sixteen-lane fused packets are not used and not tested");
             continue;
         }
@@ -193,7 +193,7 @@ fn truly_entered(bvh2: &[Bvh2Node], ray: &Ray) -> Leaves {
 /// # Safety
 /// The CPU must have `L`'s instruction set and AVX.
 #[cfg(target_arch = "x86_64")]
-unsafe fn packets_visit_the_leaves_rays_enter<L: crate::geometry::lanes::Lanes, P: PacketNodeTest>(
+unsafe fn packets_visit_the_leaves_rays_enter<L: crate::geometry::lanes::PacketLanes, P: PacketNodeTest>(
     bvh2: &[Bvh2Node],
     tree: &Bvh8,
     offset: f32,

@@ -8,15 +8,15 @@ use super::{
     lanes::{PassLanes, add_clear_or_floor, along, occluded_lanes, spawned_lanes, to_world},
     quadrant_lanes, quadrant_starts,
 };
-#[cfg(target_arch = "x86_64")]
-use crate::{
-    geometry::lanes::{Avx512, Lanes},
-    sampling::{cmj::QuadrantPattern, warp::cosine_hemisphere16},
-};
 use crate::{
     geometry::{accel::SceneGeometry, hit::SpawnOrigins},
     light::DirectionTerms,
     math::Onb,
+};
+#[cfg(target_arch = "x86_64")]
+use crate::{
+    sampling::{cmj::QuadrantPattern, warp::cosine_hemisphere16},
+    simd::{Avx512, Lanes},
 };
 
 impl DirectionRays {

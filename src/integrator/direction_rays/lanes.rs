@@ -6,8 +6,9 @@ use glam::Vec3A;
 use super::{DirectionRays, QuadrantOut, QuadrantPasses, quadrant_lanes, quadrant_starts};
 #[cfg(target_arch = "x86_64")]
 use crate::{
-    geometry::lanes::{Avx, Avx512, Lanes, RayLanes},
+    geometry::lanes::{PacketLanes, RayLanes},
     sampling::cmj::{GridLanes, SmallGrid8, SmallGrid16},
+    simd::{Avx, Avx512, Lanes},
 };
 use crate::{
     geometry::{
@@ -66,16 +67,14 @@ impl DirectionRays {
     ///
     /// A packet of rays from one point into one quarter of the hemisphere (a wedge around the
     /// normal) stays together deeper than one from the world octants, whose pieces of a
-    /// hemisphere can be thin slivers, and fewer of its rays go on alone. Trace system at 64
-    /// spp against octants, fastest / median of nine (three copies of each binary): cornell
-    /// −8 % / −9 %, many_spheres −2 % / −3 %, Sponza −2 % / −3 %, sphere_plane −3 % / −1 %, the
-    /// dragon −1 % / +1 %.
+    /// hemisphere can be thin slivers, and fewer of its rays go on alone, which traces faster
+    /// than packets by octant on every peer scene but the dragon (the same there).
     ///
     /// # Safety
     /// The CPU must have `L`'s instruction set.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
-    unsafe fn add_lanes<L: Lanes>(
+    unsafe fn add_lanes<L: PacketLanes>(
         &mut self,
         geometry: &SceneGeometry,
         stack: &mut Vec<(u32, f32)>,
@@ -340,8 +339,8 @@ pub(super) unsafe fn occluded_lanes<L: PassLanes>(
     // A lane's ray, for rays that go on alone and tests that take one ray, read from the lanes
     // where they lie: writing all the rays out by a transpose (as the general path does) took
     // back all that this path saves on cornell (counter cycles, eight rounds, sixteen lanes),
-    // and a copy of the lanes as rows of sixteen floats, zeroed first, cost sphere_plane and
-    // cornell 5 % of the AO kernel, Sponza 2 %.
+    // and a copy of the lanes as rows of sixteen floats, zeroed first, cost a measurable
+    // share of the AO kernel.
     let [ox, oy, oz] = &lanes.origin;
     let [dx, dy, dz] = &lanes.dir;
     let [ix, iy, iz] = &lanes.inv_dir;

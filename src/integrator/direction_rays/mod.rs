@@ -21,11 +21,6 @@ use lanes::PassLanes;
 
 use glam::{BVec3A, Vec3A};
 
-#[cfg(target_arch = "x86_64")]
-use crate::{
-    geometry::lanes::{Avx, Avx512},
-    sampling::{cmj::Cmj, cosine_table::CosineTable},
-};
 use crate::{
     geometry::{
         accel::{RayOrder, SceneGeometry},
@@ -37,6 +32,11 @@ use crate::{
     math::Onb,
     sampling::SampleSets,
     stats::{cycle_count, cycles_since},
+};
+#[cfg(target_arch = "x86_64")]
+use crate::{
+    sampling::{cmj::Cmj, cosine_table::CosineTable},
+    simd::{Avx, Avx512},
 };
 
 /// The lanes of a group that need a ray, by the quadrant of their direction around the

@@ -30,11 +30,11 @@ fn fill_gives_the_samples_of_sample() {
     let mut fills: Vec<(&str, Fill)> = vec![("fill", Cmj::fill), ("portable", |c, f, p, o| c.fill_portable(f, p, o))];
     #[cfg(target_arch = "x86_64")]
     {
-        if std::arch::is_x86_feature_detected!("avx2") {
+        if crate::simd::cpu_isa() >= crate::simd::Isa::Avx2 {
             // SAFETY: the CPU has AVX2, checked just above.
             fills.push(("avx2", |c, f, p, o| unsafe { c.fill_avx2(f, p, o) }));
         }
-        if std::arch::is_x86_feature_detected!("avx512f") {
+        if crate::simd::cpu_isa() >= crate::simd::Isa::Avx512 {
             // SAFETY: the CPU has AVX-512F, checked just above.
             fills.push(("avx512", |c, f, p, o| unsafe { c.fill_avx512(f, p, o) }));
         }
