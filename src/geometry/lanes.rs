@@ -88,7 +88,7 @@ pub(crate) trait PacketLanes: Lanes {
     /// `rays` (one to `WIDTH`) in lanes 0, 1, …, lanes past the last repeating it: each field
     /// gathered by register shuffles, with no round trip through memory.
     unsafe fn rays(rays: &[Ray]) -> RayLanes<Self>;
-    /// The inverse of [`Lanes::rays`]: lane k's ray written to `out[at[k]]`, for every lane
+    /// The inverse of [`PacketLanes::rays`]: lane k's ray written to `out[at[k]]`, for every lane
     /// (`at` holds at least `WIDTH` indices; lanes may share one); the fourth lane of each
     /// vector is 0.
     unsafe fn write_rays(lanes: &RayLanes<Self>, out: &mut [Ray], at: &[u32]);

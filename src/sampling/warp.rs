@@ -203,7 +203,7 @@ crate::simd::multiversion! {
     /// `values`, into the columns `[x, y, z, weight]` (each `values.len()` rounded up to a
     /// multiple of sixteen long): [`cosine_power_hemisphere`] and the frame's `to_world`, sample
     /// by sample, in fixed-size groups whose loops the compiler vectorises (sixteen or eight
-    /// lanes wide where [`crate::simd::isa`] allows AVX-512 or AVX2). Each sample gets the
+    /// lanes wide where the CPU and environment allow AVX-512 or AVX2). Each sample gets the
     /// one-sample bits.
     pub fn cosine_directions(frame: &Onb, values: &[Vec2], columns: [&mut [f32]; 4]) {
         let [x_out, y_out, z_out, weight] = columns;

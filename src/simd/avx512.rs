@@ -1,4 +1,4 @@
-//! Sixteen lanes in an AVX-512 register ([`super::avx512`]).
+//! Sixteen lanes in an AVX-512 register ([`super::avx512()`]).
 
 use std::arch::x86_64::*;
 

@@ -7,9 +7,9 @@
 //! `portable` (every query then takes the code that needs no vector instruction set, as on
 //! other architectures).
 //!
-//! Lane types ([`Lanes`]) are eight lanes in an AVX register ([`Avx`]), sixteen in an AVX-512
+//! Lane types of f32 ([`Lanes`]) are eight lanes in an AVX register ([`Avx`]), sixteen in an AVX-512
 //! one ([`Avx512`]), or eight in plain arrays (`Portable`, no intrinsics, any target; the
-//! reference the other two are tested against).
+//! reference the other two are tested against); of u32, `U32Lanes` for the samplers' hashes.
 //! Kernels are written once, generic over the lane type, and compiled per instruction set in
 //! functions marked `#[target_feature]`: a closure or generic function only inlines into code
 //! compiled for the same instruction set. [`multiversion!`] generates such copies and their
@@ -25,6 +25,8 @@ mod portable;
 pub(crate) mod avx;
 #[cfg(target_arch = "x86_64")]
 pub(crate) mod avx512;
+#[cfg(target_arch = "x86_64")]
+mod u32_lanes;
 
 #[cfg(target_arch = "x86_64")]
 pub(crate) use avx::Avx;
@@ -33,6 +35,8 @@ pub(crate) use avx512::Avx512;
 pub(crate) use lanes::{FusedLanes, Lanes};
 #[allow(unused_imports)]
 pub(crate) use portable::Portable;
+#[cfg(target_arch = "x86_64")]
+pub(crate) use u32_lanes::U32Lanes;
 
 /// An instruction set hemi's vector copies are compiled for, from least to most.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
@@ -94,15 +98,63 @@ pub(crate) fn avx2() -> bool {
 }
 
 /// Whether the AVX-512 copies may run: [`isa`] is [`Isa::Avx512`] (which includes everything
-/// [`avx2`] asks for; the copies are compiled with it too).
+/// [`avx2()`] asks for; the copies are compiled with it too).
 pub(crate) fn avx512() -> bool {
     isa() >= Isa::Avx512
 }
 
-/// Rays per packet on this CPU and environment: sixteen where [`avx512`] allows, eight
+/// Rays per packet on this CPU and environment: sixteen where [`avx512()`] allows, eight
 /// otherwise (what eight-wide trees trace, and the width the cosine table is laid out in).
 pub(crate) fn packet_lanes() -> usize {
     if avx512() { 16 } else { 8 }
+}
+
+/// A kernel written once over the lane type `L`, which [`run_in`] compiles for `L`'s
+/// instruction set: the entry points marked `#[target_feature]` are generated here, once, and
+/// `run` (`#[inline(always)]` in each implementation) is inlined into them with everything it
+/// inlines in turn.
+pub(crate) trait Kernel<L> {
+    /// What the kernel returns.
+    type Output;
+    /// Runs the kernel.
+    ///
+    /// # Safety
+    /// The CPU must have `L`'s instruction set.
+    unsafe fn run(self) -> Self::Output;
+}
+
+/// Runs `kernel` in `lanes` lanes, compiled for that lane type's instruction set: [`Avx512`]
+/// for sixteen, [`Avx`] for eight; `None`, having done nothing, for other widths.
+///
+/// # Safety
+/// The CPU must have the instruction set of the lane type of that width ([`avx512()`],
+/// [`avx2()`]).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub(crate) unsafe fn run_in<K, O>(lanes: usize, kernel: K) -> Option<O>
+where
+    K: Kernel<Avx, Output = O> + Kernel<Avx512, Output = O>,
+{
+    /// [`Kernel::run`] compiled for AVX-512.
+    #[target_feature(enable = "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    unsafe fn avx512<K: Kernel<Avx512>>(kernel: K) -> K::Output {
+        // SAFETY: compiled for AVX-512, which the caller's CPU has.
+        unsafe { kernel.run() }
+    }
+    /// [`Kernel::run`] compiled for x86-64-v3.
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    unsafe fn avx2<K: Kernel<Avx>>(kernel: K) -> K::Output {
+        // SAFETY: compiled for x86-64-v3, which the caller's CPU has.
+        unsafe { kernel.run() }
+    }
+    // SAFETY: the caller's CPU has the instruction set of the lane type of this width.
+    unsafe {
+        match lanes {
+            16 => Some(avx512(kernel)),
+            8 => Some(avx2(kernel)),
+            _ => None,
+        }
+    }
 }
 
 /// Runs a test's eight-lane version where the CPU has AVX2 and its sixteen-lane version where

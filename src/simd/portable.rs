@@ -225,7 +225,7 @@ mod tests {
                 assert_eq!(Portable::bits(Portable::and(m, n)), Avx::bits(Avx::and(xa.lt(xb), xn)));
                 assert_eq!(Portable::bits(Portable::or(m, n)), Avx::bits(Avx::or(xa.lt(xb), xn)));
                 assert_eq!(Portable::bits(Portable::andnot(m, n)), Avx::bits(Avx::andnot(xa.lt(xb), xn)));
-                let k = (a[0].to_bits() & 0xff) as u32;
+                let k = a[0].to_bits() & 0xff;
                 assert_eq!(Portable::bits(Portable::mask(k)), Avx::bits(Avx::mask(k)));
                 if a.iter().all(|x| !x.is_nan()) {
                     assert_eq!(pa.least(), xa.least());

@@ -20,7 +20,7 @@ use crate::{
 };
 
 /// Rays per packet: sixteen where the CPU has AVX-512 (and `HEMI_NO_AVX512` is not `1`, see
-/// [`crate::cpu`]), eight with AVX only.
+/// [`crate::simd::isa`]), eight with AVX only.
 #[cfg(target_arch = "x86_64")]
 #[derive(Clone, Copy)]
 pub(super) enum PacketWidth {

@@ -6,8 +6,10 @@ use crate::geometry::ray::Ray;
 #[cfg(target_arch = "x86_64")]
 use crate::simd::Lanes;
 
-/// How a run of rays given to [`SceneGeometry::occluded_many`] is ordered, which decides how
-/// it is cut into packets. Either way every ray gets the answer of its own query.
+/// How a run of rays given to [`SceneGeometry::occluded_many`] is ordered, which decides how it
+/// is cut into packets. Either way every ray gets the answer of its own query.
+///
+/// [`SceneGeometry::occluded_many`]: super::SceneGeometry::occluded_many
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum RayOrder {
     /// Any order: within each block of 64, the rays are grouped by direction octant first.

@@ -26,7 +26,7 @@ impl DirectionRays {
     /// by lane compression; packets load their lanes straight from those columns.
     ///
     /// # Safety
-    /// The CPU must have AVX-512F and POPCNT ([`crate::simd::avx512`]).
+    /// The CPU must have AVX-512F and POPCNT ([`crate::simd::avx512()`]).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     pub(super) unsafe fn add_cosine_avx512(
@@ -145,7 +145,7 @@ impl DirectionRays {
     /// pass's n samples traced `L::WIDTH` slots at a time in the pattern's quadrant order
     /// ([`QuadrantPattern`]), so every packet is rays into one quarter of the hemisphere around
     /// the shading normal (n/4 ≥ `L::WIDTH`), their local directions loaded from the table
-    /// ([`CosineTable`]) in that order, with no columns written and no sort; then each sample's
+    /// ([`CosineTable`](crate::sampling::cosine_table::CosineTable)) in that order, with no columns written and no sort; then each sample's
     /// answer is read back by its slot, in sample order, or, for a sum, the blocked ones
     /// counted. Each sample gets the same ray, answer and light as in [`DirectionRays::add`].
     ///

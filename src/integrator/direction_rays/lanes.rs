@@ -8,7 +8,7 @@ use super::{DirectionRays, QuadrantOut, QuadrantPasses, quadrant_lanes, quadrant
 use crate::{
     geometry::lanes::{PacketLanes, RayLanes},
     sampling::cmj::{GridLanes, SmallGrid8, SmallGrid16},
-    simd::{Avx, Avx512, Lanes},
+    simd::{Avx, Avx512, Kernel, Lanes},
 };
 use crate::{
     geometry::{
@@ -21,45 +21,28 @@ use crate::{
     stats::{cycle_count, cycles_since},
 };
 
+/// [`DirectionRays::add`] in packets, as a kernel over the lane type ([`DirectionRays::add_lanes`]).
+pub(super) struct AddRun<'a> {
+    pub(super) rays: &'a mut DirectionRays,
+    pub(super) geometry: &'a SceneGeometry,
+    pub(super) stack: &'a mut Vec<(u32, f32)>,
+    pub(super) spawn: &'a SpawnOrigins,
+    pub(super) run: &'a DirectionRun,
+    pub(super) terms: &'a DirectionTerms,
+    pub(super) arriving: &'a mut [Vec3A],
+}
+
+impl<L: PacketLanes> Kernel<L> for AddRun<'_> {
+    type Output = (u64, u64);
+    #[inline(always)]
+    unsafe fn run(self) -> (u64, u64) {
+        let AddRun { rays, geometry, stack, spawn, run, terms, arriving } = self;
+        // SAFETY: the caller's CPU has `L`'s instruction set.
+        unsafe { rays.add_lanes::<L>(geometry, stack, spawn, run, terms, arriving) }
+    }
+}
+
 impl DirectionRays {
-    /// [`DirectionRays::add`] for sixteen-lane packets.
-    ///
-    /// # Safety
-    /// The CPU must have AVX-512F and POPCNT ([`crate::simd::avx512`]).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    pub(super) unsafe fn add_avx512(
-        &mut self,
-        geometry: &SceneGeometry,
-        stack: &mut Vec<(u32, f32)>,
-        spawn: &SpawnOrigins,
-        run: &DirectionRun,
-        terms: &DirectionTerms,
-        arriving: &mut [Vec3A],
-    ) -> (u64, u64) {
-        // SAFETY: this function is compiled for AVX-512F, which the caller's CPU has.
-        unsafe { self.add_lanes::<Avx512>(geometry, stack, spawn, run, terms, arriving) }
-    }
-
-    /// [`DirectionRays::add`] for eight-lane packets.
-    ///
-    /// # Safety
-    /// The CPU must have AVX.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    pub(super) unsafe fn add_avx(
-        &mut self,
-        geometry: &SceneGeometry,
-        stack: &mut Vec<(u32, f32)>,
-        spawn: &SpawnOrigins,
-        run: &DirectionRun,
-        terms: &DirectionTerms,
-        arriving: &mut [Vec3A],
-    ) -> (u64, u64) {
-        // SAFETY: this function is compiled for AVX, which the caller's CPU has.
-        unsafe { self.add_lanes::<Avx>(geometry, stack, spawn, run, terms, arriving) }
-    }
-
     /// [`DirectionRays::add`] `L::WIDTH` samples at a time: which need a ray and their
     /// quadrants around the surface normal by mask arithmetic, their rays made in lanes and
     /// transposed into place quadrant by quadrant, the answers added back without a branch
@@ -357,7 +340,7 @@ pub(super) unsafe fn occluded_lanes<L: PassLanes>(
 }
 
 /// Group `g`'s weights, and the light each lane brings when clear, per channel: the lanes of
-/// [`clear_and_floor`].
+/// [`clear_and_floor`](super::clear_and_floor).
 ///
 /// # Safety
 /// The CPU must have `L`'s instruction set.

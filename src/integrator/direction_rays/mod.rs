@@ -6,7 +6,7 @@
 //! ([`PlacedLight::cosine_run`]) can go from sample points to packets in one pass instead
 //! ([`DirectionRays::add_cosine`]), and where its samples are whole correlated multi-jittered
 //! patterns it needs no sort: the patterns' columns give each sample's quadrant of azimuth
-//! ([`QuadrantPattern`]).
+//! ([`QuadrantPattern`](crate::sampling::cmj::QuadrantPattern)).
 //!
 //! [`PlacedLight::sample_directions`]: crate::light::PlacedLight::sample_directions
 //! [`PlacedLight::cosine_run`]: crate::light::PlacedLight::cosine_run
@@ -139,12 +139,14 @@ impl DirectionRays {
         arriving: &mut [Vec3A],
     ) -> (u64, u64) {
         #[cfg(target_arch = "x86_64")]
-        match geometry.packet_lanes() {
-            // SAFETY: sixteen- and eight-lane packets are used only where AVX-512 (with POPCNT)
-            // and AVX were detected.
-            16 => return unsafe { self.add_avx512(geometry, stack, spawn, run, terms, arriving) },
-            8 => return unsafe { self.add_avx(geometry, stack, spawn, run, terms, arriving) },
-            _ => {}
+        {
+            let lanes = geometry.packet_lanes();
+            if matches!(lanes, 8 | 16) {
+                let kernel = lanes::AddRun { rays: self, geometry, stack, spawn, run, terms, arriving };
+                // SAFETY: sixteen- and eight-lane packets are used only where AVX-512 and
+                // x86-64-v3 were detected.
+                return unsafe { crate::simd::run_in(lanes, kernel) }.expect("eight or sixteen lanes");
+            }
         }
         self.add_each(geometry, stack, spawn, run, terms, arriving)
     }
@@ -183,7 +185,7 @@ impl DirectionRays {
                 None => QuadrantOut::Each(arriving),
             };
             // SAFETY: sixteen-lane packets are used only where AVX-512 was detected, eight-lane
-            // ones only where AVX2 was ([`crate::cpu`]), and quadrant patterns need AVX2.
+            // ones only where AVX2 was ([`crate::simd::isa`]), and quadrant patterns need AVX2.
             return Some(unsafe {
                 if lanes == 16 {
                     Avx512::add_quadrants(self, geometry, stack, spawn, frame, passes, terms, out)

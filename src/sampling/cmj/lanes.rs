@@ -4,9 +4,9 @@
 use super::{Cmj, Scrambles};
 use crate::sampling::ONE_MINUS_EPSILON;
 #[cfg(target_arch = "x86_64")]
-use crate::sampling::hash::{U32Lanes, permute_pow2_lanes};
+use crate::{sampling::hash::permute_pow2_lanes, simd::U32Lanes};
 
-/// The integer part of [`randfloat`] in each lane, with its operations.
+/// The integer part of [`randfloat`](super::randfloat) in each lane, with its operations.
 ///
 /// # Safety
 /// The CPU must have `V`'s instruction set.
@@ -29,7 +29,7 @@ unsafe fn randfloat_bits<V: U32Lanes>(i: V, p: u32) -> V {
     }
 }
 
-/// [`randfloat`] of each of sixteen lanes (AVX-512F), with its operations, so each lane gets its
+/// [`randfloat`](super::randfloat) of each of sixteen lanes (AVX-512F), with its operations, so each lane gets its
 /// value.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
@@ -42,7 +42,7 @@ fn randfloat_lanes(i: std::arch::x86_64::__m512i, p: u32) -> std::arch::x86_64::
     _mm512_min_ps(f, _mm512_set1_ps(ONE_MINUS_EPSILON))
 }
 
-/// [`randfloat`] of each of eight lanes (AVX2). AVX2 has no unsigned conversion: the high and
+/// [`randfloat`](super::randfloat) of each of eight lanes (AVX2). AVX2 has no unsigned conversion: the high and
 /// low halves convert exactly and their sum rounds once, which is the conversion's rounding.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]

@@ -97,31 +97,20 @@ impl Cmj {
     #[inline]
     pub fn fill(&self, first: u32, p: u32, out: &mut [Vec2]) {
         debug_assert!(first as u64 + out.len() as u64 <= self.n.get() as u64);
+        // Where n is a power of two and the grid at most 16 × 16, the column and row shuffles
+        // are worked out once per call and looked up by lane permutes.
         #[cfg(target_arch = "x86_64")]
-        if crate::simd::avx512() {
-            // SAFETY: the CPU has AVX-512F, checked just above.
-            return unsafe { self.fill_avx512(first, p, out) };
-        }
-        #[cfg(target_arch = "x86_64")]
-        if crate::simd::avx2() {
-            // SAFETY: the CPU has AVX2, checked just above.
-            return unsafe { self.fill_avx2(first, p, out) };
-        }
-        self.fill_portable(first, p, out);
-    }
-
-    /// [`Cmj::fill`] compiled for AVX2: eight lanes of 32-bit multiplies (SSE2 has no 32-bit
-    /// lane multiply, so the portable loop vectorises poorly). Same operations, same values.
-    /// Where n is a power of two and the grid at most 16 × 16, the column and row shuffles are
-    /// worked out once per call and looked up by lane permutes ([`SmallGrid8`]), as
-    /// [`Cmj::fill_small_grid_avx512`] does sixteen-wide.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn fill_avx2(&self, first: u32, p: u32, out: &mut [Vec2]) {
         if self.has_small_grid16() {
-            return self.fill_small_grid_avx2(first, p, out);
+            if crate::simd::avx512() {
+                // SAFETY: the CPU has AVX-512F, checked just above.
+                return unsafe { self.fill_small_grid_avx512(first, p, out) };
+            }
+            if crate::simd::avx2() {
+                // SAFETY: the CPU has AVX2, checked just above.
+                return unsafe { self.fill_small_grid_avx2(first, p, out) };
+            }
         }
-        self.fill_portable(first, p, out);
+        fill_in_lanes(self, first, p, out);
     }
 
     /// [`Cmj::fill_small_grid_avx512`] eight samples at a time in AVX2 lanes
@@ -150,19 +139,6 @@ impl Cmj {
         }
     }
 
-    /// [`Cmj::fill`] compiled for AVX-512F: sixteen lanes. Same operations, same values. Where
-    /// n is a power of two and the grid at most 16 × 16, the column and row shuffles are
-    /// worked out once per call, for all 16 columns and rows at once, and looked up by a lane
-    /// permute ([`Cmj::fill_small_grid_avx512`]).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f")]
-    fn fill_avx512(&self, first: u32, p: u32, out: &mut [Vec2]) {
-        if self.has_small_grid16() {
-            return self.fill_small_grid_avx512(first, p, out);
-        }
-        self.fill_portable(first, p, out);
-    }
-
     /// [`Cmj::fill`] for a power-of-two n on a grid of at most 16 × 16, sixteen samples at a
     /// time ([`SmallGrid16::points`]), stored as the `Vec2`s they are.
     #[cfg(target_arch = "x86_64")]
@@ -189,7 +165,7 @@ impl Cmj {
 
     /// Samples `first..first + xs.len()` (all < n) of pattern `p` as two columns, x into `xs`
     /// and y into `ys` (same length): [`Cmj::fill`]'s values. Returns false, writing nothing,
-    /// unless this CPU has AVX-512 (see [`crate::cpu`]) and n is a power of two on a grid of at
+    /// unless this CPU has AVX-512 (see [`crate::simd::isa`]) and n is a power of two on a grid of at
     /// most 16 × 16, where sixteen samples at a time go straight from lanes to the columns.
     pub(crate) fn fill_columns(&self, first: u32, p: u32, xs: &mut [f32], ys: &mut [f32]) -> bool {
         #[cfg(target_arch = "x86_64")]
@@ -202,7 +178,7 @@ impl Cmj {
         false
     }
 
-    /// Whether this CPU has AVX2 (see [`crate::cpu`]) and the patterns are
+    /// Whether this CPU has AVX2 (see [`crate::simd::isa`]) and the patterns are
     /// [`QuadrantPattern`]s ([`Cmj::has_quadrant_grid`]).
     #[cfg(target_arch = "x86_64")]
     pub(crate) fn has_quadrants(&self) -> bool {
@@ -270,6 +246,15 @@ impl Cmj {
         let y = (row as f32 + (sx as f32 + jy) * inv_m) * inv_k;
         let below_one = |v: f32| v.min(ONE_MINUS_EPSILON);
         [below_one(x), below_one(y)]
+    }
+}
+
+crate::simd::multiversion! {
+    /// [`Cmj::fill`]'s loop ([`Cmj::fill_portable`]), compiled for each instruction set: with
+    /// AVX2, eight lanes of 32-bit multiplies (SSE2 has no 32-bit lane multiply, so the
+    /// baseline copy vectorises poorly), with AVX-512 sixteen. Same operations, same values.
+    fn fill_in_lanes(cmj: &Cmj, first: u32, p: u32, out: &mut [Vec2]) {
+        cmj.fill_portable(first, p, out);
     }
 }
 

@@ -20,9 +20,9 @@ fn cmj_is_stratified_on_the_grid_and_both_axes() {
     }
 }
 
-/// Every fill path gives `sample`'s values: each vector copy this CPU has (AVX-512 and AVX2
-/// lanes for power-of-two grids up to 16 × 16, n ≤ 256; the vectorised loop above that,
-/// 1024 being 32 × 32), the portable loop, and the dispatch;
+/// Every fill path gives `sample`'s values: each small-grid vector copy this CPU has (AVX-512
+/// and AVX2 lanes for power-of-two grids up to 16 × 16, n ≤ 256), the portable loop, and the
+/// dispatch (the copy of the loop the environment picks, above 256 and for other n);
 /// one sample at a time for other n. So do the columns, wherever they are computed.
 #[test]
 fn fill_gives_the_samples_of_sample() {
@@ -32,11 +32,19 @@ fn fill_gives_the_samples_of_sample() {
     {
         if crate::simd::cpu_isa() >= crate::simd::Isa::Avx2 {
             // SAFETY: the CPU has AVX2, checked just above.
-            fills.push(("avx2", |c, f, p, o| unsafe { c.fill_avx2(f, p, o) }));
+            fills.push(("avx2", |c, f, p, o| {
+                if c.has_small_grid16() { unsafe { c.fill_small_grid_avx2(f, p, o) } } else { c.fill_portable(f, p, o) }
+            }));
         }
         if crate::simd::cpu_isa() >= crate::simd::Isa::Avx512 {
             // SAFETY: the CPU has AVX-512F, checked just above.
-            fills.push(("avx512", |c, f, p, o| unsafe { c.fill_avx512(f, p, o) }));
+            fills.push(("avx512", |c, f, p, o| {
+                if c.has_small_grid16() {
+                    unsafe { c.fill_small_grid_avx512(f, p, o) }
+                } else {
+                    c.fill_portable(f, p, o)
+                }
+            }));
         }
     }
     for n in [1u32, 2, 8, 12, 16, 32, 64, 128, 256, 1024] {
