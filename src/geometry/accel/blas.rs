@@ -12,9 +12,8 @@ use rayon::prelude::*;
 
 use super::{
     PAR_CHUNK, Prim, Shape, hit_prim,
-    kernels::{PacketWidth, packet_width},
     ray_order::RayOrder,
-    tree::{BlasClosest, OccludedEach, Occluder, Tree},
+    tree::{OccludedEach, Occluder, PacketWidth, Tree, TreeQuery, packet_width},
 };
 use crate::components::Mesh;
 #[cfg(target_arch = "x86_64")]
@@ -483,4 +482,22 @@ pub(crate) fn subtree_depth(nodes: &[Bvh2Node]) -> usize {
         }
     }
     max
+}
+
+/// Closest hit in a BLAS: (primitive slot, b1, b2).
+pub(super) struct BlasClosest<'a> {
+    pub(super) blas: &'a Blas,
+    pub(super) ray: &'a mut Ray,
+    pub(super) stack: &'a mut Vec<(u32, f32)>,
+}
+
+impl TreeQuery for BlasClosest<'_> {
+    type Output = Option<(u32, f32, f32)>;
+    #[inline(always)]
+    fn run<const W: usize>(self, tree: &WideBvh<W>) -> Self::Output
+    where
+        Node<W>: NodeTest<W>,
+    {
+        self.blas.closest_in(tree, self.ray, self.stack)
+    }
 }

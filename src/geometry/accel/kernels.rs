@@ -5,7 +5,7 @@ use super::{
     ray_order::{RayOrder, in_packets},
     scene::SceneGeometry,
     tlas::Instance,
-    tree::Tree,
+    tree::{ClosestHit, Tree},
 };
 use crate::geometry::ray::{Ray, Shear};
 #[cfg(target_arch = "x86_64")]
@@ -18,45 +18,6 @@ use crate::{
     geometry::lanes::{PacketLanes, RayLanes},
     simd::{Avx, Avx512, Lanes},
 };
-
-/// Rays per packet: sixteen where the CPU has AVX-512 (and `HEMI_NO_AVX512` is not `1`, see
-/// [`crate::simd::isa`]), eight with AVX only.
-#[cfg(target_arch = "x86_64")]
-#[derive(Clone, Copy)]
-pub(super) enum PacketWidth {
-    Eight,
-    Sixteen,
-}
-
-#[cfg(target_arch = "x86_64")]
-impl PacketWidth {
-    /// Rays per packet.
-    pub(super) fn lanes(self) -> usize {
-        match self {
-            PacketWidth::Eight => 8,
-            PacketWidth::Sixteen => 16,
-        }
-    }
-}
-
-/// A closest hit in a scene: (instance, primitive slot, b1, b2).
-pub(super) type ClosestHit = (u32, u32, f32, f32);
-
-/// Where [`SceneGeometry::intersect_many`] traces a packet.
-#[cfg(target_arch = "x86_64")]
-#[derive(Clone, Copy)]
-pub(super) enum CameraPackets<'a> {
-    /// Straight into a static scene's one world-space BLAS of triangle packets, and its tree.
-    World(&'a Blas, &'a Bvh8),
-    /// Through the top level (every instance in world space).
-    Top(&'a Bvh8),
-}
-
-/// The packet width this CPU and environment get.
-#[cfg(target_arch = "x86_64")]
-pub(super) fn packet_width() -> PacketWidth {
-    if crate::simd::packet_lanes() == 16 { PacketWidth::Sixteen } else { PacketWidth::Eight }
-}
 
 /// Defines, for one lane type and the instruction set it needs, the packet kernels: for
 /// occlusion, `Blas::$packets` and `SceneGeometry::$scene` (a run of rays by packets, within one

@@ -16,10 +16,9 @@ use obvhs::{
 use super::{
     Object, Prim, Shape,
     blas::{Blas, PACKET_RUN, SMALL_SET, subtree_depth},
-    kernels::{CameraPackets, ClosestHit, PacketWidth, packet_width},
     ray_order::RayOrder,
     tlas::Instance,
-    tree::{OccludedEach, Occluder, TopClosest, Tree},
+    tree::{ClosestHit, OccludedEach, Occluder, PacketWidth, Tree, TreeQuery, packet_width},
 };
 #[cfg(target_arch = "x86_64")]
 use crate::geometry::wide_bvh::LaneHits;
@@ -443,5 +442,33 @@ impl Occluder for SceneGeometry {
         Node<W>: NodeTest<W>,
     {
         top.occluded(ray, stack, |first, count, stack| self.instances_block(first, count, ray, stack))
+    }
+}
+
+/// Where [`SceneGeometry::intersect_many`] traces a packet.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+pub(super) enum CameraPackets<'a> {
+    /// Straight into a static scene's one world-space BLAS of triangle packets, and its tree.
+    World(&'a Blas, &'a crate::geometry::wide_bvh::Bvh8),
+    /// Through the top level (every instance in world space).
+    Top(&'a crate::geometry::wide_bvh::Bvh8),
+}
+
+/// Closest hit through the top level: (instance, primitive slot, b1, b2).
+pub(super) struct TopClosest<'a> {
+    pub(super) scene: &'a SceneGeometry,
+    pub(super) ray: &'a mut Ray,
+    pub(super) stack: &'a mut Vec<(u32, f32)>,
+}
+
+impl TreeQuery for TopClosest<'_> {
+    type Output = Option<ClosestHit>;
+    #[inline(always)]
+    fn run<const W: usize>(self, tree: &WideBvh<W>) -> Self::Output
+    where
+        Node<W>: NodeTest<W>,
+    {
+        self.scene.closest_through(tree, self.ray, self.stack)
     }
 }

@@ -3,7 +3,6 @@
 
 use obvhs::bvh2::node::Bvh2Node;
 
-use super::{blas::Blas, kernels::ClosestHit, scene::SceneGeometry};
 use crate::geometry::{
     ray::Ray,
     wide_bvh::{Bvh4, Node, NodeTest, WideBvh},
@@ -96,24 +95,6 @@ pub(super) fn query_avx<Q: TreeQuery>(tree: &crate::geometry::wide_bvh::Bvh8, qu
     query.run(tree)
 }
 
-/// Closest hit in a BLAS: (primitive slot, b1, b2).
-pub(super) struct BlasClosest<'a> {
-    pub(super) blas: &'a Blas,
-    pub(super) ray: &'a mut Ray,
-    pub(super) stack: &'a mut Vec<(u32, f32)>,
-}
-
-impl TreeQuery for BlasClosest<'_> {
-    type Output = Option<(u32, f32, f32)>;
-    #[inline(always)]
-    fn run<const W: usize>(self, tree: &WideBvh<W>) -> Self::Output
-    where
-        Node<W>: NodeTest<W>,
-    {
-        self.blas.closest_in(tree, self.ray, self.stack)
-    }
-}
-
 /// Occlusion of each of `rays` not yet known to be blocked (`blocked`, same length), by
 /// `target`'s traversal of the tree: one call, one dispatch to the tree's width.
 pub(super) struct OccludedEach<'a, T> {
@@ -144,28 +125,39 @@ impl<T: Occluder> TreeQuery for OccludedEach<'_, T> {
     }
 }
 
-/// Closest hit through the top level: (instance, primitive slot, b1, b2).
-pub(super) struct TopClosest<'a> {
-    pub(super) scene: &'a SceneGeometry,
-    pub(super) ray: &'a mut Ray,
-    pub(super) stack: &'a mut Vec<(u32, f32)>,
-}
-
-impl TreeQuery for TopClosest<'_> {
-    type Output = Option<ClosestHit>;
-    #[inline(always)]
-    fn run<const W: usize>(self, tree: &WideBvh<W>) -> Self::Output
-    where
-        Node<W>: NodeTest<W>,
-    {
-        self.scene.closest_through(tree, self.ray, self.stack)
-    }
-}
-
 /// The node width asked for: 4 when the environment variable `HEMI_BVH_WIDTH` is `4`,
 /// else 8 (which falls back to 4 without AVX). Read once per process.
 #[cfg(target_arch = "x86_64")]
 pub(super) fn bvh_width() -> usize {
     static WIDTH: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
     *WIDTH.get_or_init(|| if std::env::var("HEMI_BVH_WIDTH").is_ok_and(|w| w.trim() == "4") { 4 } else { 8 })
+}
+
+/// Rays per packet: sixteen where the CPU has AVX-512 (and `HEMI_NO_AVX512` is not `1`, see
+/// [`crate::simd::isa`]), eight with AVX only.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+pub(super) enum PacketWidth {
+    Eight,
+    Sixteen,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl PacketWidth {
+    /// Rays per packet.
+    pub(super) fn lanes(self) -> usize {
+        match self {
+            PacketWidth::Eight => 8,
+            PacketWidth::Sixteen => 16,
+        }
+    }
+}
+
+/// A closest hit in a scene: (instance, primitive slot, b1, b2).
+pub(super) type ClosestHit = (u32, u32, f32, f32);
+
+/// The packet width this CPU and environment get.
+#[cfg(target_arch = "x86_64")]
+pub(super) fn packet_width() -> PacketWidth {
+    if crate::simd::packet_lanes() == 16 { PacketWidth::Sixteen } else { PacketWidth::Eight }
 }
