@@ -93,12 +93,22 @@ impl OutputFormat {
 /// `.NAME.*.tmp` file beside it (removed on any failure the process survives).
 ///
 /// Creating one checks early, before any rendering, that the format is known and the
-/// directory writable; missing parent directories are created.
+/// directory writable; missing parent directories are created. A destination that exists and
+/// is not a regular file (`/dev/null`, a named pipe) is written in place: renaming over it
+/// would replace the device with a file.
 pub struct OutputFile {
     path: PathBuf,
     /// The image format its extension names (`None` for non-image files).
     format: Option<OutputFormat>,
-    file: tempfile::NamedTempFile,
+    target: Target,
+}
+
+/// Where an [`OutputFile`]'s bytes go until it is finished.
+enum Target {
+    /// A temporary file beside the destination, renamed over it when complete.
+    Temporary(tempfile::NamedTempFile),
+    /// The destination itself, a device or pipe opened for writing.
+    InPlace(File),
 }
 
 impl OutputFile {
@@ -112,6 +122,13 @@ impl OutputFile {
     /// Prepares to write any output file (no image-format check), failing early if its
     /// directory cannot be created or written.
     pub fn create_any(path: &Path) -> Result<Self, HemiError> {
+        if std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir()) {
+            let file = std::fs::OpenOptions::new()
+                .write(true)
+                .open(path)
+                .map_err(|e| io_error(path, "cannot open output for writing", e))?;
+            return Ok(OutputFile { path: path.to_path_buf(), format: None, target: Target::InPlace(file) });
+        }
         let name = path.file_name().ok_or_else(|| io_error(path, "cannot create output file", "no file name"))?;
         let dir = match path.parent() {
             Some(d) if !d.as_os_str().is_empty() => d,
@@ -128,7 +145,7 @@ impl OutputFile {
         #[cfg(unix)]
         builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
         let file = builder.tempfile_in(dir).map_err(|e| io_error(path, "cannot create output file", e))?;
-        Ok(OutputFile { path: path.to_path_buf(), format: None, file })
+        Ok(OutputFile { path: path.to_path_buf(), format: None, target: Target::Temporary(file) })
     }
 
     /// Writes `image` in the format the file's extension names, then puts the file in place.
@@ -159,14 +176,23 @@ impl OutputFile {
         what: &str,
         write: impl FnOnce(&mut BufWriter<&mut File>) -> Result<(), String>,
     ) -> Result<(), HemiError> {
-        let OutputFile { path, mut file, .. } = self;
-        let mut out = BufWriter::new(file.as_file_mut());
-        write(&mut out).map_err(|e| io_error(&path, what, e))?;
-        out.flush().map_err(|e| io_error(&path, what, e))?;
-        drop(out);
-        file.as_file().sync_all().map_err(|e| io_error(&path, what, e))?;
-        file.persist(&path).map_err(|e| io_error(&path, "cannot put the finished file in place", e.error))?;
-        Ok(())
+        let OutputFile { path, target, .. } = self;
+        match target {
+            Target::InPlace(mut file) => {
+                let mut out = BufWriter::new(&mut file);
+                write(&mut out).map_err(|e| io_error(&path, what, e))?;
+                out.flush().map_err(|e| io_error(&path, what, e))
+            }
+            Target::Temporary(mut file) => {
+                let mut out = BufWriter::new(file.as_file_mut());
+                write(&mut out).map_err(|e| io_error(&path, what, e))?;
+                out.flush().map_err(|e| io_error(&path, what, e))?;
+                drop(out);
+                file.as_file().sync_all().map_err(|e| io_error(&path, what, e))?;
+                file.persist(&path).map_err(|e| io_error(&path, "cannot put the finished file in place", e.error))?;
+                Ok(())
+            }
+        }
     }
 }
 
@@ -295,5 +321,15 @@ mod tests {
             let mode = std::fs::metadata(&path).unwrap().permissions().mode() & 0o777;
             assert_ne!(mode & 0o044, 0, "readable by others as new files are (mode {mode:o})");
         }
+    }
+
+    /// `--out /dev/null` must not rename a file over the device.
+    #[cfg(unix)]
+    #[test]
+    fn a_device_is_written_in_place() {
+        use std::os::unix::fs::FileTypeExt;
+        let null = Path::new("/dev/null");
+        OutputFile::create_any(null).unwrap().write_text("discarded").unwrap();
+        assert!(std::fs::metadata(null).unwrap().file_type().is_char_device());
     }
 }
