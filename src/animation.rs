@@ -56,16 +56,20 @@ pub struct Clip {
     pub duration: f32,
 }
 
-/// Where key `t` falls: (key index, fraction to the next key, interval length).
+/// Where key `t` falls: (key index, fraction to the next key, interval length). A time that
+/// is not a number holds the first key; no input indexes outside `times` (an empty list
+/// gives key 0, which its caller never has).
 fn locate(times: &[f32], t: f32) -> (usize, f32, f32) {
+    let (Some(&first), Some(&end)) = (times.first(), times.last()) else { return (0, 0.0, 0.0) };
     let last = times.len() - 1;
-    if t <= times[0] {
+    if t.is_nan() || t <= first {
         return (0, 0.0, 0.0);
     }
-    if t >= times[last] {
+    if t >= end {
         return (last, 0.0, 0.0);
     }
-    let k = times.partition_point(|&x| x <= t) - 1;
+    // first < t < end, so 1 <= partition_point <= last; the clamp is for unsorted input.
+    let k = times.partition_point(|&x| x <= t).clamp(1, last) - 1;
     let dt = times[k + 1] - times[k];
     let s = if dt > 0.0 { (t - times[k]) / dt } else { 0.0 };
     (k, s, dt)

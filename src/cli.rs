@@ -110,7 +110,7 @@ struct RenderArgs {
     time: f32,
     /// Total samples per pixel, reached progressively over frames [default: 16, or a peer
     /// scene's ao.samples].
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=RenderSettings::MAX_SPP as i64))]
     spp: Option<u32>,
     /// Samples per pixel traced by each frame [default: all of --spp in one frame, up to 4096;
     /// 16 with --target-error, so pixels retire early]. Larger frames amortise the camera ray
@@ -498,7 +498,7 @@ fn render(args: RenderArgs) -> Result<(), HemiError> {
     let mut totals = Totals { json: stats_file.is_some().then(Vec::new), ..Default::default() };
     match frames {
         None => {
-            renderer.set_time(args.time);
+            renderer.set_time(args.time)?;
             render_image(&mut renderer, spp, args.stats, &mut totals)?;
             OutputFile::create(&args.out)?.write(renderer.image())?;
             write_aovs(renderer.image(), &args.out, &args.aov)?;
@@ -516,7 +516,7 @@ fn render(args: RenderArgs) -> Result<(), HemiError> {
             for &frame in &list {
                 let out = frame_path(&args.out, frame).unwrap_or_else(|| args.out.clone());
                 let file = OutputFile::create(&out)?;
-                renderer.set_time((frame as f64 / args.fps) as f32);
+                renderer.set_time((frame as f64 / args.fps) as f32)?;
                 render_image(&mut renderer, spp, args.stats, &mut totals)?;
                 file.write(renderer.image())?;
                 write_aovs(renderer.image(), &out, &args.aov)?;
