@@ -279,6 +279,27 @@ mod tests {
     }
 
     #[test]
+    fn times_that_are_not_numbers_or_out_of_order_never_index_outside_the_keys() {
+        let v = vec![Vec3::X, Vec3::Y, Vec3::Z];
+        let lin = channel(Interpolation::Linear, vec![0.0, 1.0, 3.0], v.clone());
+        assert_eq!(lin.sample_vec(&v, f32::NAN), v[0]);
+        assert_eq!(lin.sample_vec(&v, f32::INFINITY), v[2]);
+        assert_eq!(lin.sample_vec(&v, f32::NEG_INFINITY), v[0]);
+        assert_eq!(locate(&[], 1.0), (0, 0.0, 0.0));
+        // Unsorted keys (the loader refuses them, a hand-built channel may not).
+        for t in [0.5, 1.5, 2.5, 5.0] {
+            let (k, _, _) = locate(&[1.0, 0.0, 3.0, 2.0], t);
+            assert!(k <= 3, "{t}: {k}");
+        }
+        let clip = Clip { name: "c".into(), channels: vec![lin], duration: 3.0 };
+        let mut locals = vec![Transform::IDENTITY];
+        for t in [f32::NAN, f32::INFINITY, f32::MAX, -f32::MAX] {
+            clip.apply(t, &mut locals);
+            assert!(locals[0].translation.is_finite(), "{t}");
+        }
+    }
+
+    #[test]
     fn cubic_spline_hits_keys_and_follows_tangents() {
         // Keys 0 → 1 over one second with zero tangents: smoothstep.
         let v = vec![Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, Vec3::ONE, Vec3::ZERO];

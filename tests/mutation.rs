@@ -221,7 +221,7 @@ fn split_glb(glb: &[u8]) -> (Value, Vec<u8>) {
 
 fn join_glb(json: &Value, rest: &[u8]) -> Vec<u8> {
     let mut text = serde_json::to_vec(json).unwrap();
-    while text.len() % 4 != 0 {
+    while !text.len().is_multiple_of(4) {
         text.push(b' ');
     }
     let mut out = b"glTF".to_vec();

@@ -27,22 +27,26 @@ pub struct LoadOptions {
 }
 
 /// Reads a whole regular file of at most `limit` bytes (and at most the size it had when
-/// opened). Errors are one line, without the path (callers name the file).
+/// opened). Errors are one line: `cannot read: why` (callers name the file).
 pub fn read_file(path: &Path, limit: u64) -> Result<Vec<u8>, String> {
-    let meta = std::fs::metadata(path).map_err(|e| format!("cannot read: {e}"))?;
+    read_file_inner(path, limit).map_err(|e| format!("cannot read: {e}"))
+}
+
+fn read_file_inner(path: &Path, limit: u64) -> Result<Vec<u8>, String> {
+    let meta = std::fs::metadata(path).map_err(|e| e.to_string())?;
     if !meta.is_file() {
         let kind = if meta.is_dir() { "a directory" } else { "a device, pipe or socket" };
-        return Err(format!("cannot read: it is {kind}, not a regular file"));
+        return Err(format!("it is {kind}, not a regular file"));
     }
     let size = meta.len();
     if size > limit {
-        return Err(format!("cannot read: it is {size} bytes, more than the limit of {limit}"));
+        return Err(format!("it is {size} bytes, more than the limit of {limit}"));
     }
-    let file = std::fs::File::open(path).map_err(|e| format!("cannot read: {e}"))?;
+    let file = std::fs::File::open(path).map_err(|e| e.to_string())?;
     let mut bytes = Vec::with_capacity(size as usize);
-    file.take(size + 1).read_to_end(&mut bytes).map_err(|e| format!("cannot read: {e}"))?;
+    file.take(size + 1).read_to_end(&mut bytes).map_err(|e| e.to_string())?;
     if bytes.len() as u64 > size {
-        return Err(format!("cannot read: it grew past its size of {size} bytes while being read"));
+        return Err(format!("it grew past its size of {size} bytes while being read"));
     }
     Ok(bytes)
 }
@@ -79,7 +83,7 @@ pub fn read_uri(uri: &str, base: &Path, options: &LoadOptions) -> Result<Vec<u8>
         return decode_base64(payload).ok_or_else(|| "data URI holds invalid base64".to_string());
     }
     let path = resolve(uri, base, options)?;
-    read_file(&path, MAX_FILE_BYTES).map_err(|e| format!("'{}': {e}", path.display()))
+    read_file_inner(&path, MAX_FILE_BYTES).map_err(|e| format!("cannot read '{}': {e}", path.display()))
 }
 
 /// Where a relative URI points, refused when it has a scheme other than `data:` or, without
