@@ -123,6 +123,40 @@ fn sparse_accessors_without_data_cannot_ask_for_gigabytes() {
     assert!(e.contains("sparse count 4 must be between 1 and the accessor's count 3"), "{e}");
 }
 
+/// The sparse bomb through the binary, whose address space is limited to 1 GiB (the file
+/// asks for 3 GiB): it must fail with its one-line error, not die of the limit.
+#[cfg(target_os = "linux")]
+#[test]
+fn the_sparse_bomb_is_refused_within_a_small_address_space() {
+    use std::os::unix::process::CommandExt;
+    let mut v = animated_triangle(TRI, TURN);
+    v["accessors"][0] = json!({
+        "componentType": 5126, "count": 1u64 << 28, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 1],
+        "sparse": {"count": 1, "indices": {"bufferView": 1, "componentType": 5125}, "values": {"bufferView": 0}}
+    });
+    let d = dir("bomb");
+    let path = write(&d, "bomb.gltf", &v);
+    let mut command = std::process::Command::new(env!("CARGO_BIN_EXE_hemi"));
+    command.arg("render").arg(&path).arg("--out").arg(d.join("bomb.png"));
+    // SAFETY: setrlimit is async-signal-safe and only changes the child's own limit.
+    unsafe {
+        command.pre_exec(|| {
+            let limit = libc::rlimit { rlim_cur: 1 << 30, rlim_max: 1 << 30 };
+            if libc::setrlimit(libc::RLIMIT_AS, &limit) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            Ok(())
+        });
+    }
+    let start = Instant::now();
+    let out = command.output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.contains("bomb.gltf: accessor 0 (POSITION of mesh 0 ('Body'), primitive 0)"), "{err}");
+    assert!(start.elapsed().as_secs_f64() < 5.0);
+}
+
 #[test]
 fn counts_and_ranges_are_checked_against_the_buffer_view() {
     let mut v = animated_triangle(TRI, TURN);
