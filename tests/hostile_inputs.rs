@@ -204,6 +204,19 @@ fn indices_the_gltf_crate_would_panic_on_are_refused_by_name() {
 }
 
 #[test]
+fn cameras_and_spot_lights_without_their_parameters_are_refused() {
+    let mut v = animated_triangle(TRI, TURN);
+    v["cameras"] = json!([{"type": "perspective", "orthographic": {"xmag": 1, "ymag": 1, "zfar": 10, "znear": 1}}]);
+    let e = load_error("camera.gltf", &v);
+    assert!(e.ends_with("camera 0: the parameters of its type are missing"), "{e}");
+    let mut v = animated_triangle(TRI, TURN);
+    v["extensionsUsed"] = json!(["KHR_lights_punctual"]);
+    v["extensions"] = json!({"KHR_lights_punctual": {"lights": [{"type": "spot", "name": "lamp"}]}});
+    let e = load_error("spot.gltf", &v);
+    assert!(e.ends_with("KHR_lights_punctual light 0 ('lamp'): a spot light without 'spot'"), "{e}");
+}
+
+#[test]
 fn a_stride_smaller_than_the_element_is_refused_by_name() {
     let mut v = animated_triangle(TRI, TURN);
     v["bufferViews"][0]["byteStride"] = json!(4);

@@ -146,6 +146,9 @@ fn mutate_json(v: &mut Value, rng: &mut Rng) {
         json!("weights"),
         json!("MAT4"),
         json!("VEC2"),
+        json!("perspective"),
+        json!("orthographic"),
+        json!("spot"),
     ];
     match target {
         Value::Number(n) => {

@@ -4,8 +4,9 @@
 //! holds:
 //!
 //! * [`references`]: every index (scene, node, mesh, accessor, buffer view, buffer, material,
-//!   texture, image, sampler, skin, camera, light, animation sampler and target) is in range;
-//!   the gltf crate's own validation indexes some of these unchecked;
+//!   texture, image, sampler, skin, camera, light, animation sampler and target) is in range,
+//!   and cameras and spot lights have their parameters; the gltf crate's own validation
+//!   indexes some of these unchecked and its wrappers unwrap the rest;
 //! * [`rules`]: the gltf crate's validation, first problem as one line;
 //! * [`data`]: every buffer view lies inside its buffer and every accessor (and its sparse
 //!   indices and values) inside its buffer view, with a stride no smaller than its element;
@@ -193,6 +194,24 @@ pub fn references(root: &Root) -> Result<(), String> {
     }
     for (i, view) in root.buffer_views.iter().enumerate() {
         check(format!("buffer view {i}"), view.buffer.value(), root.buffers.len(), "buffer")?;
+    }
+    // The crate's wrappers also assume that a camera or light has the parameters of its type.
+    for (i, camera) in root.cameras.iter().enumerate() {
+        let has = match camera.type_ {
+            Checked::Valid(json::camera::Type::Perspective) => camera.perspective.is_some(),
+            Checked::Valid(json::camera::Type::Orthographic) => camera.orthographic.is_some(),
+            Checked::Invalid => true,
+        };
+        if !has {
+            return Err(format!("camera {i}{}: the parameters of its type are missing", name_of(&camera.name)));
+        }
+    }
+    let lights = root.extensions.as_ref().and_then(|e| e.khr_lights_punctual.as_ref());
+    for (i, light) in lights.iter().flat_map(|l| l.lights.iter()).enumerate() {
+        use json::extensions::scene::khr_lights_punctual::Type as Kind;
+        if light.type_ == Checked::Valid(Kind::Spot) && light.spot.is_none() {
+            return Err(format!("KHR_lights_punctual light {i}{}: a spot light without 'spot'", name_of(&light.name)));
+        }
     }
     Ok(())
 }
