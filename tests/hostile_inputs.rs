@@ -229,10 +229,22 @@ fn a_stride_smaller_than_the_element_is_refused_by_name() {
 
 #[test]
 fn files_that_are_not_regular_are_refused() {
-    for path in ["/dev/zero", "/dev/null", "/proc/self", "/"] {
-        let e = gltf::load(Path::new(path)).unwrap_err().to_string();
-        assert!(e.starts_with(path) && e.contains("not a regular file"), "{e}");
-        let e = PeerScene::load(Path::new(path)).unwrap_err().to_string();
+    let mut paths = vec![PathBuf::from("/dev/zero"), PathBuf::from("/dev/urandom"), PathBuf::from("/proc/self")];
+    paths.push(dir("not-regular"));
+    // A named pipe: opening it would wait for a writer for ever.
+    #[cfg(target_os = "linux")]
+    {
+        let fifo = dir("not-regular").join("pipe.glb");
+        let _ = std::fs::remove_file(&fifo);
+        let c = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
+        // SAFETY: mkfifo reads the NUL-terminated path it is given.
+        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+        paths.push(fifo);
+    }
+    for path in paths {
+        let e = gltf::load(&path).unwrap_err().to_string();
+        assert!(e.starts_with(path.to_str().unwrap()) && e.contains("not a regular file"), "{e}");
+        let e = PeerScene::load(&path).unwrap_err().to_string();
         assert!(e.contains("not a regular file"), "{e}");
     }
 }
