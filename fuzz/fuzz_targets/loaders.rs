@@ -3,6 +3,8 @@
 //! `-rss_limit_mb` and `-malloc_limit_mb` catch the last).
 //!
 //! The first byte picks the loader (even: glTF/GLB, odd: peer scene); the rest is the file.
+//! Seed the corpus from the shared assets with `fuzz/seed.sh`, then from the repository root:
+//! `cargo +nightly fuzz run loaders -- -rss_limit_mb=2048 -malloc_limit_mb=1024 -timeout=10`.
 #![no_main]
 
 use std::path::Path;
