@@ -81,7 +81,7 @@ fn split(stats: &FrameStats) -> (Duration, Duration, Duration) {
 fn box_animated(bencher: Bencher) {
     let mut r = gltf_scene("BoxAnimated/glTF-Binary/BoxAnimated.glb");
     measure(bencher, "BoxAnimated", |f| {
-        r.set_time(f as f32 / 24.0);
+        r.set_time(f as f32 / 24.0).unwrap();
         split(r.run_frame().unwrap())
     });
 }
@@ -91,7 +91,7 @@ fn box_animated(bencher: Bencher) {
 fn fox(bencher: Bencher) {
     let mut r = gltf_scene("Fox/glTF-Binary/Fox.glb");
     measure(bencher, "Fox", |f| {
-        r.set_time(f as f32 / 24.0);
+        r.set_time(f as f32 / 24.0).unwrap();
         split(r.run_frame().unwrap())
     });
 }

@@ -47,7 +47,7 @@ fn main() -> Result<(), HemiError> {
     world.spawn((Plane::default(), Matte::new(Vec3::splat(0.75))));
 
     // 0.3 s in: the cube has turned by 27 degrees.
-    renderer.set_time(0.3);
+    renderer.set_time(0.3)?;
     renderer.render(16)?;
     renderer.save(out.as_ref())?;
     println!("wrote {out}: {} spp", renderer.spp());

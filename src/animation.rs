@@ -56,16 +56,20 @@ pub struct Clip {
     pub duration: f32,
 }
 
-/// Where key `t` falls: (key index, fraction to the next key, interval length).
+/// Where key `t` falls: (key index, fraction to the next key, interval length). A time that
+/// is not a number holds the first key; no input indexes outside `times` (an empty list
+/// gives key 0, which its caller never has).
 fn locate(times: &[f32], t: f32) -> (usize, f32, f32) {
+    let (Some(&first), Some(&end)) = (times.first(), times.last()) else { return (0, 0.0, 0.0) };
     let last = times.len() - 1;
-    if t <= times[0] {
+    if t.is_nan() || t <= first {
         return (0, 0.0, 0.0);
     }
-    if t >= times[last] {
+    if t >= end {
         return (last, 0.0, 0.0);
     }
-    let k = times.partition_point(|&x| x <= t) - 1;
+    // first < t < end, so 1 <= partition_point <= last; the clamp is for unsorted input.
+    let k = times.partition_point(|&x| x <= t).clamp(1, last) - 1;
     let dt = times[k + 1] - times[k];
     let s = if dt > 0.0 { (t - times[k]) / dt } else { 0.0 };
     (k, s, dt)
@@ -272,6 +276,27 @@ mod tests {
         assert_eq!(lin.sample_vec(&v, 9.0), v[2]);
         let step = channel(Interpolation::Step, vec![0.0, 1.0, 3.0], v.clone());
         assert_eq!(step.sample_vec(&v, 2.9), v[1]);
+    }
+
+    #[test]
+    fn times_that_are_not_numbers_or_out_of_order_never_index_outside_the_keys() {
+        let v = vec![Vec3::X, Vec3::Y, Vec3::Z];
+        let lin = channel(Interpolation::Linear, vec![0.0, 1.0, 3.0], v.clone());
+        assert_eq!(lin.sample_vec(&v, f32::NAN), v[0]);
+        assert_eq!(lin.sample_vec(&v, f32::INFINITY), v[2]);
+        assert_eq!(lin.sample_vec(&v, f32::NEG_INFINITY), v[0]);
+        assert_eq!(locate(&[], 1.0), (0, 0.0, 0.0));
+        // Unsorted keys (the loader refuses them, a hand-built channel may not).
+        for t in [0.5, 1.5, 2.5, 5.0] {
+            let (k, _, _) = locate(&[1.0, 0.0, 3.0, 2.0], t);
+            assert!(k <= 3, "{t}: {k}");
+        }
+        let clip = Clip { name: "c".into(), channels: vec![lin], duration: 3.0 };
+        let mut locals = vec![Transform::IDENTITY];
+        for t in [f32::NAN, f32::INFINITY, f32::MAX, -f32::MAX] {
+            clip.apply(t, &mut locals);
+            assert!(locals[0].translation.is_finite(), "{t}");
+        }
     }
 
     #[test]

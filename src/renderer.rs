@@ -113,22 +113,27 @@ impl Renderer {
     }
 
     /// Sets the scene time in seconds (the animation systems pose the scene for it on the next
-    /// frame); setting the same time again changes nothing.
-    pub fn set_time(&mut self, seconds: f32) {
+    /// frame); setting the same time again changes nothing. A time that is not finite (an
+    /// overflowing frame / fps, say) is refused.
+    pub fn set_time(&mut self, seconds: f32) -> Result<(), HemiError> {
+        if !seconds.is_finite() {
+            return Err(HemiError::Usage(format!("scene time {seconds} s is not a finite number")));
+        }
         match self.world.get_resource_mut::<Time>() {
             Some(mut time) => {
                 time.set_if_neq(Time { seconds });
             }
             None => self.world.insert_resource(Time { seconds }),
         }
+        Ok(())
     }
 
     /// Poses the scene at `seconds` and runs frames until every pixel has `spp` samples: one
     /// frame of an animation, as `hemi render --frames` makes it. The image depends only on the
-    /// scene at that time, never on the frames rendered before. Fails as [`Renderer::render`]
-    /// does.
+    /// scene at that time, never on the frames rendered before. A time that is not finite is
+    /// refused; otherwise it fails as [`Renderer::render`] does.
     pub fn render_at(&mut self, seconds: f32, spp: u32) -> Result<u32, HemiError> {
-        self.set_time(seconds);
+        self.set_time(seconds)?;
         self.render(spp)
     }
 

@@ -73,6 +73,9 @@ impl RenderSettings {
     /// occluder's quadrant packets).
     pub const ONE_FRAME_SPP: u32 = 4096;
 
+    /// The most samples per pixel a render may ask for (`--spp`, a peer scene's `ao.samples`).
+    pub const MAX_SPP: u32 = 1_000_000;
+
     /// Largest image hemi accepts, in pixels (8192 × 4096); buffers take about 60 bytes each.
     pub const MAX_PIXELS: u64 = 1 << 25;
 

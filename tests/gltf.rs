@@ -179,7 +179,7 @@ fn box_animated_poses_are_the_keyframes_exactly() {
     let ch = clip.channels.iter().find(|c| matches!(c.keys, Keys::Translation(_))).unwrap();
     let Keys::Translation(v) = &ch.keys else { unreachable!() };
     for (k, &t) in ch.times.iter().enumerate() {
-        r.set_time(t);
+        r.set_time(t).unwrap();
         r.run_frame().unwrap();
         let world = &r.world().resource::<NodeGraph>().world;
         let root_rotation = graph.nodes[ch.node].rest.rotation;
@@ -194,7 +194,7 @@ fn static_scene_sequence_builds_the_bvh_once() {
     scene.spawn(r.world_mut(), &SpawnOptions::default()).unwrap();
     let (mut blas, mut tlas) = (0, 0);
     for frame in 0..4 {
-        r.set_time(frame as f32 / 24.0);
+        r.set_time(frame as f32 / 24.0).unwrap();
         let stats = r.run_frame().unwrap();
         blas += stats.bvh_work.blas_built + stats.bvh_work.blas_refit;
         tlas += usize::from(stats.bvh_work.tlas_built);
@@ -229,7 +229,7 @@ fn animated_nodes_stay_instances_and_moving_them_rebuilds_only_the_top_level() {
         w.query_filtered::<hemi::bevy_ecs::query::Has<Dynamic>, With<TriangleMesh>>().iter(w).collect();
     meshes.sort();
     assert_eq!(meshes, [false, true], "one box hangs under an animated node, the other under none");
-    r.set_time(0.5);
+    r.set_time(0.5).unwrap();
     let stats = r.run_frame().unwrap();
     let top_level_only = hemi::geometry::accel::BvhWork { blas_built: 0, blas_refit: 0, tlas_built: true };
     assert_eq!(stats.bvh_work, top_level_only, "the static box stays baked, the moving one is an instance");
@@ -268,7 +268,7 @@ fn skinned_fox_deforms_and_only_refits_its_blas() {
     assert_eq!(first.blas_built, 1, "the rest-pose tree is built once");
     let before = r.world_mut().query::<&TriangleMesh>().single(r.world()).unwrap().0.clone();
     for frame in 1..4 {
-        r.set_time(frame as f32 / 24.0);
+        r.set_time(frame as f32 / 24.0).unwrap();
         let stats = r.run_frame().unwrap();
         assert_eq!(stats.bvh_work, BvhWork { blas_built: 0, blas_refit: 1, tlas_built: true }, "frame {frame}");
         assert_eq!(stats.spp, 1, "accumulation restarts on every moved frame");

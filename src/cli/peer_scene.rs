@@ -1,6 +1,11 @@
 //! The peer renderers' scene format (`../shared/peers/scenes/*.json`): glTF meshes, a pinhole
 //! camera, AO settings and point lights, rendered under their contract (pixel-centre primary
 //! rays, two-sided geometric normals, cosine-weighted AO, Lambertian point lights with 1/d²).
+//!
+//! The scene file and its meshes must be regular files of at most [`MAX_FILE_BYTES`]. Mesh
+//! paths are resolved against the scene file's folder and may lead out of it (the shared
+//! scenes name `../../assets/…`); the meshes' own external buffers follow the
+//! [`LoadOptions`] given to [`PeerScene::load_with`].
 
 use std::path::{Path, PathBuf};
 
@@ -13,7 +18,7 @@ use crate::{
     components::{AmbientOccluder, Camera, PointLight, Transform},
     error::HemiError,
     resources::RenderSettings,
-    scene::gltf::{self, SpawnOptions},
+    scene::gltf::{self, LoadOptions, MAX_FILE_BYTES, SpawnOptions, buffers::read_file},
 };
 
 #[derive(Deserialize)]
@@ -84,14 +89,38 @@ pub struct PeerScene {
     pub lights: Vec<(Vec3, Vec3)>,
     /// The scene's seed.
     pub seed: u64,
+    /// How the meshes are loaded by [`PeerScene::spawn`].
+    pub load_options: LoadOptions,
 }
 
 impl PeerScene {
-    /// Reads a scene file; errors name the file and what is wrong.
+    /// Reads a scene file with the default [`LoadOptions`]; errors name the file and what is
+    /// wrong.
     pub fn load(path: &Path) -> Result<Self, HemiError> {
+        Self::load_with(path, &LoadOptions::default())
+    }
+
+    /// Reads a scene file (a regular file of at most [`MAX_FILE_BYTES`]) whose meshes will be
+    /// loaded with `options`; errors name the file and what is wrong.
+    pub fn load_with(path: &Path, options: &LoadOptions) -> Result<Self, HemiError> {
         let fail = |message: String| HemiError::Load { path: path.to_path_buf(), message };
-        let text = std::fs::read_to_string(path).map_err(|e| fail(format!("cannot read: {e}")))?;
-        let json: SceneJson = serde_json::from_str(&text).map_err(|e| fail(format!("not a peer scene: {e}")))?;
+        let bytes = read_file(path, MAX_FILE_BYTES).map_err(fail)?;
+        Self::from_slice(&bytes, path, options)
+    }
+
+    /// Reads a scene file already in memory; `path` names it in errors and mesh paths are
+    /// resolved against its folder.
+    pub fn from_slice(bytes: &[u8], path: &Path, options: &LoadOptions) -> Result<Self, HemiError> {
+        let fail = |message: String| HemiError::Load { path: path.to_path_buf(), message };
+        let text = std::str::from_utf8(bytes).map_err(|e| fail(format!("not a peer scene: not UTF-8 text ({e})")))?;
+        let json: SceneJson = serde_json::from_str(text).map_err(|e| fail(format!("not a peer scene: {e}")))?;
+        let samples = json.ao.samples;
+        if !(1..=RenderSettings::MAX_SPP).contains(&samples) {
+            return Err(fail(format!(
+                "ao.samples {samples} must be between 1 and {} (the --spp limit)",
+                RenderSettings::MAX_SPP
+            )));
+        }
         let dir = path.parent().unwrap_or(Path::new("."));
         let meshes = match json.mesh {
             OneOrMany::One(m) => vec![m],
@@ -105,11 +134,12 @@ impl PeerScene {
             camera: Camera { eye: c.eye.into(), target: c.target.into(), up: c.up.into(), vfov_degrees: c.vfov_deg },
             width: json.width,
             height: json.height,
-            samples: json.ao.samples.max(1),
+            samples,
             max_distance: json.ao.max_distance.unwrap_or(f32::INFINITY),
             epsilon: json.ao.epsilon.unwrap_or(0.0),
             lights: json.point_lights.iter().map(|l| (l.position.into(), l.intensity.into())).collect(),
             seed: json.seed,
+            load_options: *options,
         };
         scene.camera.validate().map_err(fail)?;
         if scene.max_distance.is_nan() || scene.max_distance <= 0.0 {
@@ -135,7 +165,7 @@ impl PeerScene {
         }
         let mut warnings = Vec::new();
         for mesh in &self.meshes {
-            let scene = gltf::load(mesh)?;
+            let scene = gltf::load_with(mesh, &self.load_options)?;
             warnings.extend(scene.warnings.iter().map(|w| format!("{}: {w}", mesh.display())));
             scene.spawn(world, &SpawnOptions { geometry_only: true, ..Default::default() })?;
         }

@@ -14,7 +14,7 @@ use crate::{
     film::{OutputFile, OutputFormat},
     resources::{Aov, RenderSettings},
     sampling::SamplerKind,
-    scene::gltf::SpawnOptions,
+    scene::gltf::{LoadOptions, SpawnOptions},
     stats::{RayCounts, mrays_per_second},
 };
 
@@ -49,7 +49,7 @@ pub(super) struct RenderArgs {
     time: f32,
     /// Total samples per pixel, reached progressively over frames [default: 16, or a peer
     /// scene's ao.samples].
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=RenderSettings::MAX_SPP as i64))]
     spp: Option<u32>,
     /// Samples per pixel traced by each frame [default: all of --spp in one frame, up to 4096;
     /// 16 with --target-error, so pixels retire early]. Larger frames amortise the camera ray
@@ -84,6 +84,9 @@ pub(super) struct RenderArgs {
     /// files `<stem>.<name>.exr` beside the image.
     #[arg(long, value_delimiter = ',', value_parser = parse_aov)]
     aov: Vec<Aov>,
+    /// Let a glTF file's buffer URIs name files outside its folder (absolute paths, `..`).
+    #[arg(long)]
+    allow_external_uris: bool,
     /// Stream the progressive image to a running tev (its --hostname, e.g. 127.0.0.1:14158).
     #[arg(long, value_name = "HOST:PORT")]
     display_server: Option<String>,
@@ -159,12 +162,13 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
     for (_, path) in &aov_paths {
         OutputFile::create(path)?;
     }
+    let load_options = LoadOptions { allow_external_uris: args.allow_external_uris };
     let peer = match &args.scene {
         Some(path) if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("json")) => {
             if args.camera.is_some() || args.animation.is_some() || args.frames.is_some() {
                 return Err(HemiError::Usage("--camera, --animation and --frames need a glTF scene".into()));
             }
-            Some(PeerScene::load(path)?)
+            Some(PeerScene::load_with(path, &load_options)?)
         }
         _ => None,
     };
@@ -205,7 +209,7 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
             r
         }
         (Some(path), None) => {
-            let scene = crate::scene::gltf::load(path)?;
+            let scene = crate::scene::gltf::load_with(path, &load_options)?;
             for w in &scene.warnings {
                 console::note(&format!("hemi: warning: {}: {w}", path.display()));
             }
@@ -234,7 +238,7 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
         Totals { json: stats_file.is_some().then(Vec::new), display: display.transpose()?, ..Default::default() };
     match frames {
         None => {
-            renderer.set_time(args.time);
+            renderer.set_time(args.time)?;
             render_image(&mut renderer, spp, args.stats, &mut totals)?;
             OutputFile::create(&args.out)?.write(renderer.image())?;
             write_aovs(renderer.image(), &args.out, &args.aov)?;
@@ -252,7 +256,7 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
             for &frame in &list {
                 let out = frame_path(&args.out, frame).unwrap_or_else(|| args.out.clone());
                 let file = OutputFile::create(&out)?;
-                renderer.set_time((frame as f64 / args.fps) as f32);
+                renderer.set_time((frame as f64 / args.fps) as f32)?;
                 render_image(&mut renderer, spp, args.stats, &mut totals)?;
                 file.write(renderer.image())?;
                 write_aovs(renderer.image(), &out, &args.aov)?;

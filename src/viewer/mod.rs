@@ -344,7 +344,7 @@ impl Viewer {
             self.time += dt_s;
         }
         if self.animation_duration().is_some() {
-            self.renderer.set_time(self.time as f32);
+            self.renderer.set_time(self.time as f32)?;
         }
         let turn = self.options.turntable.map_or(0.0, |t| (std::f64::consts::TAU * dt_s / t.max(1e-3)) as f32);
         let moving = {

@@ -6,8 +6,13 @@
 //! [`load`] reads a file into a [`GltfScene`]; [`GltfScene::spawn`] puts it into a renderer's
 //! world as ordinary hemi entities (one `TriangleMesh` per primitive, shared by every node that
 //! uses the mesh) plus a [`NodeGraph`] resource that the animation systems pose from
-//! [`Time`]. Malformed input is refused with one line naming the element; gltf's reader is also
-//! wrapped in `catch_unwind`, so no input can panic.
+//! [`Time`]. Malformed input is refused with one line naming the file and the element: every
+//! index, byte range, stride and count is checked ([`validate`]) before the gltf crate's
+//! wrappers and readers run, and what the loader allocates is bounded by the size of the file
+//! ([`accessors::Data`]). Files must be regular files of at most [`MAX_FILE_BYTES`], and
+//! external buffers must lie in the model's folder unless [`LoadOptions::allow_external_uris`]
+//! is set. As a last line of defence the reader runs under `catch_unwind` with the panic
+//! message kept out of stderr (see [`load_with`]).
 //!
 //! Units: a point light's `intensity` (candela) becomes `PointLight::ls` with inverse-square
 //! falloff, so with a white Lambertian surface at 1 m a 1 cd light gives radiance 1/π, the same
@@ -15,13 +20,18 @@
 
 pub mod accessors;
 pub mod buffers;
+pub mod validate;
 
 use std::{
+    cell::{Cell, RefCell},
     collections::HashMap,
     panic::AssertUnwindSafe,
     path::{Path, PathBuf},
-    sync::Arc,
+    sync::{Arc, Once},
 };
+
+use accessors::Data;
+pub use buffers::{LoadOptions, MAX_FILE_BYTES};
 
 use ::gltf::{
     Document,
@@ -109,6 +119,8 @@ pub struct GltfScene {
     pub warnings: Vec<String>,
     placements: Vec<Placement>,
     skins: Vec<SkinData>,
+    /// `mesh 0 ('Body') primitive 0 (POSITION accessor 7)` for each entry of `meshes`.
+    labels: Vec<Vec<String>>,
 }
 
 /// A `KHR_lights_punctual` light mapped to hemi's component: point and spot intensities are
@@ -138,19 +150,75 @@ pub struct SpawnOptions {
     pub geometry_only: bool,
 }
 
-/// Reads a `.gltf` or `.glb` file. Errors name the file and the offending element.
+/// Reads a `.gltf` or `.glb` file with the default [`LoadOptions`] (external buffers only
+/// inside the file's folder). Errors name the file and the offending element.
 pub fn load(path: &Path) -> Result<GltfScene, HemiError> {
+    load_with(path, &LoadOptions::default())
+}
+
+/// Reads a `.gltf` or `.glb` file: a regular file of at most [`MAX_FILE_BYTES`], whose
+/// external buffers resolve in its folder unless `options` allow more. Errors are one line
+/// naming the file and the offending element.
+///
+/// Should the gltf crate still panic on some input that the checks before it missed, the
+/// panic is caught and reported as an error, and its message is kept off stderr: the first
+/// load installs a process-wide panic hook that stays silent while, on the same thread, a
+/// load is running and otherwise defers to the hook that was installed before it. (A hook
+/// swapped in and out around each load would race with panics on other threads.)
+pub fn load_with(path: &Path, options: &LoadOptions) -> Result<GltfScene, HemiError> {
     let fail = |message: String| HemiError::Load { path: path.to_path_buf(), message };
-    let bytes = std::fs::read(path).map_err(|e| fail(format!("cannot read: {e}")))?;
+    let bytes = buffers::read_file(path, MAX_FILE_BYTES).map_err(fail)?;
+    from_slice(&bytes, path, options)
+}
+
+/// Reads a glTF or GLB file already in memory; `path` names it in errors, and external
+/// buffers resolve against its folder.
+pub fn from_slice(bytes: &[u8], path: &Path, options: &LoadOptions) -> Result<GltfScene, HemiError> {
+    let fail = |message: String| HemiError::Load { path: path.to_path_buf(), message };
     let base = path.parent().unwrap_or(Path::new("."));
-    match std::panic::catch_unwind(AssertUnwindSafe(|| parse(&bytes, base))) {
+    match catch_quietly(|| parse(bytes, base, options)) {
         Ok(Ok(mut scene)) => {
             scene.path = path.to_path_buf();
             Ok(scene)
         }
         Ok(Err(message)) => Err(fail(message)),
-        Err(_) => Err(fail("the glTF reader failed on malformed data".into())),
+        Err(panic) => Err(fail(format!("the glTF reader failed on malformed data ({panic})"))),
     }
+}
+
+thread_local! {
+    static QUIET: Cell<bool> = const { Cell::new(false) };
+    static LAST_PANIC: RefCell<Option<String>> = const { RefCell::new(None) };
+}
+
+/// Runs `f`, turning a panic into its message (one line) without printing it.
+fn catch_quietly<T>(f: impl FnOnce() -> T) -> Result<T, String> {
+    static HOOK: Once = Once::new();
+    HOOK.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if !QUIET.with(Cell::get) {
+                return previous(info);
+            }
+            let payload = info.payload();
+            let message = payload
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| payload.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "a panic".into());
+            let place = info.location().map_or(String::new(), |l| {
+                let file: Vec<&str> = l.file().rsplit(['/', '\\']).take(3).collect();
+                let file: Vec<&str> = file.into_iter().rev().collect();
+                format!(" at {}:{}", file.join("/"), l.line())
+            });
+            let line = format!("{message}{place}").replace(['\n', '\r'], " ");
+            LAST_PANIC.with(|p| *p.borrow_mut() = Some(line));
+        }));
+    });
+    let was = QUIET.with(|q| q.replace(true));
+    let result = std::panic::catch_unwind(AssertUnwindSafe(f));
+    QUIET.with(|q| q.set(was));
+    result.map_err(|_| LAST_PANIC.with(|p| p.borrow_mut().take()).unwrap_or_else(|| "a panic".into()))
 }
 
 fn label(kind: &str, index: usize, name: Option<&str>) -> String {
@@ -160,12 +228,20 @@ fn label(kind: &str, index: usize, name: Option<&str>) -> String {
     }
 }
 
-fn parse(bytes: &[u8], base: &Path) -> Result<GltfScene, String> {
-    let ::gltf::Gltf { document: doc, blob } =
-        ::gltf::Gltf::from_slice(bytes).map_err(|e| format!("not a valid glTF 2.0 file: {e}"))?;
-    let buffers = buffers::load(&doc, blob, base)?;
+fn parse(bytes: &[u8], base: &Path, options: &LoadOptions) -> Result<GltfScene, String> {
+    let ::gltf::Gltf { document: doc, blob } = ::gltf::Gltf::from_slice_without_validation(bytes)
+        .map_err(|e| format!("not a valid glTF 2.0 file: {e}").replace(['\n', '\r'], " "))?;
+    // The order matters: the crate's own validation indexes some arrays unchecked, and its
+    // wrappers index all of them, so references are checked first.
+    validate::references(doc.as_json())?;
+    validate::rules(doc.as_json())?;
+    let buffers = buffers::load(&doc, blob, base, options)?;
+    let uses = validate::accessor_uses(doc.as_json());
+    let lens: Vec<usize> = buffers.iter().map(Vec::len).collect();
+    validate::data(doc.as_json(), &lens, &uses)?;
+    let buffers = Data::new(buffers);
     let mut warnings = Vec::new();
-    let (nodes, graph_index) = hierarchy(&doc)?;
+    let (nodes, graph_index) = hierarchy(&doc, &mut warnings)?;
 
     let mut scene = GltfScene {
         path: PathBuf::new(),
@@ -176,6 +252,7 @@ fn parse(bytes: &[u8], base: &Path) -> Result<GltfScene, String> {
         warnings: Vec::new(),
         placements: Vec::new(),
         skins: Vec::new(),
+        labels: vec![Vec::new(); doc.meshes().len()],
     };
     let mut mesh_read = vec![false; doc.meshes().len()];
     let mut skin_slot: HashMap<usize, usize> = HashMap::new();
@@ -199,6 +276,8 @@ fn parse(bytes: &[u8], base: &Path) -> Result<GltfScene, String> {
                         Some(prim) => {
                             textured +=
                                 usize::from(p.material().pbr_metallic_roughness().base_color_texture().is_some());
+                            let position = p.get(&Semantic::Positions).map_or(0, |a| a.index());
+                            scene.labels[m].push(format!("{prim_label} (POSITION accessor {position})"));
                             scene.meshes[m].push(prim);
                         }
                         None => skipped_prims += 1,
@@ -219,6 +298,15 @@ fn parse(bytes: &[u8], base: &Path) -> Result<GltfScene, String> {
                 None => None,
             };
             let offsets = gpu_instances(&doc, node, &buffers).map_err(|e| format!("{node_label}: {e}"))?;
+            // What spawning costs: an entity per primitive and instance, and for a skinned
+            // mesh a posed copy of its vertices and triangles.
+            for prim in &scene.meshes[m] {
+                buffers.charge(offsets.len(), 256, &node_label)?;
+                if skin.is_some() && prim.influences.is_some() {
+                    let size = prim.mesh.positions.len() + prim.mesh.indices.len();
+                    buffers.charge(size, 12, &format!("{node_label} (skinned copy)"))?;
+                }
+            }
             scene.placements.push(Placement { node: g, mesh: m, skin, offsets });
         }
         if let Some(camera) = node.camera() {
@@ -290,7 +378,7 @@ fn sheared_nodes(graph: &NodeGraph, nodes: impl Iterator<Item = usize>) -> usize
 
 /// The default scene's nodes in depth-first order (parents first), and each file node's index
 /// in that order (`None` for nodes outside the scene).
-fn hierarchy(doc: &Document) -> Result<(Vec<Node>, Vec<Option<usize>>), String> {
+fn hierarchy(doc: &Document, warnings: &mut Vec<String>) -> Result<(Vec<Node>, Vec<Option<usize>>), String> {
     let roots: Vec<::gltf::Node> = match doc.default_scene().or_else(|| doc.scenes().next()) {
         Some(scene) => scene.nodes().collect(),
         None => {
@@ -312,9 +400,19 @@ fn hierarchy(doc: &Document) -> Result<(Vec<Node>, Vec<Option<usize>>), String> 
             return Err(format!("{node_label} appears twice in the scene hierarchy (a cycle or a shared child)"));
         }
         let (t, r, s) = node.transform().decomposed();
-        let rest = Transform { translation: Vec3::from(t), rotation: Quat::from_array(r), scale: Vec3::from(s) };
+        let mut rest = Transform { translation: Vec3::from(t), rotation: Quat::from_array(r), scale: Vec3::from(s) };
         if !(rest.translation.is_finite() && rest.rotation.is_finite() && rest.scale.is_finite()) {
             return Err(format!("{node_label} has a non-finite transform"));
+        }
+        if let ::gltf::scene::Transform::Decomposed { rotation, .. } = node.transform() {
+            let length = Quat::from_array(rotation).length();
+            if length <= 1e-6 {
+                return Err(format!("{node_label}: rotation {rotation:?} is zero and cannot be normalised"));
+            }
+            if (length - 1.0).abs() > 1e-3 {
+                rest.rotation = rest.rotation.normalize();
+                warnings.push(format!("{node_label}: rotation is not unit length ({length}); normalised"));
+            }
         }
         let g = nodes.len();
         index[node.index()] = Some(g);
@@ -326,7 +424,7 @@ fn hierarchy(doc: &Document) -> Result<(Vec<Node>, Vec<Option<usize>>), String> 
 }
 
 /// Triangles of one primitive, or `None` for points and lines.
-fn read_primitive(p: &::gltf::Primitive, buffers: &[Vec<u8>]) -> Result<Option<Primitive>, String> {
+fn read_primitive(p: &::gltf::Primitive, buffers: &Data) -> Result<Option<Primitive>, String> {
     if !matches!(p.mode(), Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
         return Ok(None);
     }
@@ -348,6 +446,7 @@ fn read_primitive(p: &::gltf::Primitive, buffers: &[Vec<u8>]) -> Result<Option<P
         None => (0..n).collect(),
     };
     let m = verts.len();
+    buffers.charge(m, 12, "triangles")?;
     let indices: Vec<[u32; 3]> = match p.mode() {
         Mode::Triangles => verts.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
         // glTF 2.0 §3.7.2.1: strip triangle i is (i, i+1+i%2, i+2-i%2); fan i is (i+1, i+2, 0).
@@ -357,7 +456,7 @@ fn read_primitive(p: &::gltf::Primitive, buffers: &[Vec<u8>]) -> Result<Option<P
         _ => (0..m.saturating_sub(2)).map(|i| [verts[i + 1], verts[i + 2], verts[0]]).collect(),
     };
     let mesh = Mesh { positions, indices };
-    mesh.validate()?;
+    mesh.validate().map_err(|e| format!("POSITION accessor {}: {e}", pos.index()))?;
     let [r, g, b, _] = p.material().pbr_metallic_roughness().base_color_factor();
     let material = Matte::new(Vec3::new(r, g, b));
     let influences = match (p.get(&Semantic::Joints(0)), p.get(&Semantic::Weights(0))) {
@@ -375,7 +474,7 @@ fn read_primitive(p: &::gltf::Primitive, buffers: &[Vec<u8>]) -> Result<Option<P
     Ok(Some(Primitive { mesh: Arc::new(mesh), material, influences }))
 }
 
-fn read_skin(skin: &::gltf::Skin, buffers: &[Vec<u8>], graph_index: &[Option<usize>]) -> Result<SkinData, String> {
+fn read_skin(skin: &::gltf::Skin, buffers: &Data, graph_index: &[Option<usize>]) -> Result<SkinData, String> {
     let joints = skin
         .joints()
         .map(|j| graph_index[j.index()].ok_or_else(|| format!("joint node {} is not in the scene", j.index())))
@@ -398,7 +497,7 @@ fn read_skin(skin: &::gltf::Skin, buffers: &[Vec<u8>], graph_index: &[Option<usi
 }
 
 /// The per-instance transforms of `EXT_mesh_gpu_instancing` (one identity without it).
-fn gpu_instances(doc: &Document, node: &::gltf::Node, buffers: &[Vec<u8>]) -> Result<Vec<Affine3A>, String> {
+fn gpu_instances(doc: &Document, node: &::gltf::Node, buffers: &Data) -> Result<Vec<Affine3A>, String> {
     let Some(ext) = node.extension_value("EXT_mesh_gpu_instancing") else {
         return Ok(vec![Affine3A::IDENTITY]);
     };
@@ -437,7 +536,7 @@ fn gpu_instances(doc: &Document, node: &::gltf::Node, buffers: &[Vec<u8>]) -> Re
 
 fn read_clip(
     animation: &::gltf::Animation,
-    buffers: &[Vec<u8>],
+    buffers: &Data,
     graph_index: &[Option<usize>],
     warnings: &mut Vec<String>,
 ) -> Result<Clip, String> {
@@ -445,8 +544,11 @@ fn read_clip(
     let mut duration: f32 = 0.0;
     let mut morph = false;
     for ch in animation.channels() {
-        let ch_label = format!("channel {}", ch.index());
-        let Some(node) = graph_index[ch.target().node().index()] else { continue };
+        let target = ch.target().node();
+        let Some(node) = graph_index[target.index()] else { continue };
+        let ch_label = format!("channel {} ({} of {})", ch.index(), property_name(ch.target().property()), {
+            label("node", target.index(), target.name())
+        });
         let sampler = ch.sampler();
         let times = accessors::floats::<f32>(&sampler.input(), Dimensions::Scalar, buffers)
             .map_err(|e| format!("{ch_label} input {e}"))?;
@@ -470,13 +572,29 @@ fn read_clip(
         let keys = match ch.target().property() {
             Property::Translation => Keys::Translation(vec3()?),
             Property::Scale => Keys::Scale(vec3()?),
-            Property::Rotation => Keys::Rotation(
-                accessors::quats(&output, buffers)
-                    .map_err(out_err)?
-                    .into_iter()
-                    .map(|q| Quat::from_array(q).normalize())
-                    .collect(),
-            ),
+            Property::Rotation => {
+                let raw = accessors::quats(&output, buffers).map_err(out_err)?;
+                let cubic = interpolation == Interpolation::CubicSpline;
+                let mut keys = Vec::with_capacity(raw.len());
+                for (i, q) in raw.into_iter().enumerate() {
+                    let q = Quat::from_array(q);
+                    let key = if cubic { i / 3 } else { i };
+                    if !q.is_finite() {
+                        return Err(format!("{ch_label} key {key}: quaternion {q} is not finite"));
+                    }
+                    // A spline's in- and out-tangents (all but the middle of each three) are
+                    // not rotations and stay as they are.
+                    if cubic && i % 3 != 1 {
+                        keys.push(q);
+                        continue;
+                    }
+                    if q.length() <= 1e-6 {
+                        return Err(format!("{ch_label} key {key}: quaternion {q} is zero and cannot be normalised"));
+                    }
+                    keys.push(q.normalize());
+                }
+                Keys::Rotation(keys)
+            }
             Property::MorphTargetWeights => {
                 morph = true;
                 continue;
@@ -487,13 +605,14 @@ fn read_clip(
             Keys::Translation(v) | Keys::Scale(v) => v.len(),
             Keys::Rotation(q) => q.len(),
         };
-        let finite = match &keys {
-            Keys::Translation(v) | Keys::Scale(v) => v.iter().all(|x| x.is_finite()),
-            Keys::Rotation(q) => q.iter().all(|x| x.is_finite()),
-        };
-        if values != times.len() * per_key || !finite {
+        if let Keys::Translation(v) | Keys::Scale(v) = &keys
+            && let Some(i) = v.iter().position(|x| !x.is_finite())
+        {
+            return Err(format!("{ch_label} output value {i} is not finite ({})", v[i]));
+        }
+        if values != times.len() * per_key {
             return Err(format!(
-                "{ch_label}: {values} output values for {} keys (expected {} finite values)",
+                "{ch_label}: {values} output values for {} keys (expected {})",
                 times.len(),
                 times.len() * per_key
             ));
@@ -506,6 +625,15 @@ fn read_clip(
         warnings.push(format!("{name}: morph-target weights are not animated (no morph targets yet)"));
     }
     Ok(Clip { name, channels, duration })
+}
+
+fn property_name(p: Property) -> &'static str {
+    match p {
+        Property::Translation => "translation",
+        Property::Rotation => "rotation",
+        Property::Scale => "scale",
+        Property::MorphTargetWeights => "weights",
+    }
 }
 
 /// Finds an item by index (a whole number) or by name.
@@ -536,6 +664,9 @@ impl GltfScene {
     /// none, the [`NodeGraph`] and [`Time`].
     pub fn spawn(&self, world: &mut World, options: &SpawnOptions) -> Result<(), HemiError> {
         let fail = |message: String| HemiError::Load { path: self.path.clone(), message };
+        if !options.time.is_finite() {
+            return Err(HemiError::Usage(format!("scene time {} s is not a finite number", options.time)));
+        }
         let mut graph = self.graph.clone();
         graph.active = match &options.animation {
             None => (!graph.clips.is_empty()).then_some(0),
@@ -558,14 +689,29 @@ impl GltfScene {
         };
 
         let mut bounds: Option<(Vec3, Vec3)> = None;
-        let mut grow = |mesh: &Mesh, m: &Affine3A| {
-            for p in &mesh.positions {
-                let q = m.transform_point3(*p);
+        // Names primitive `k` of placement `p` in messages.
+        let what = |p: usize, k: usize| {
+            let placement = &self.placements[p];
+            let prim = self.labels.get(placement.mesh).and_then(|l| l.get(k)).map_or("a mesh", String::as_str);
+            format!("{prim} at node '{}'", graph.nodes[placement.node].name)
+        };
+        // The placed vertex farthest from the origin: (distance, placement, primitive, vertex, where).
+        let mut farthest = (-1.0f32, 0, 0, 0, Vec3::ZERO);
+        let mut grow = |mesh: &Mesh, m: &Affine3A, (p, k): (usize, usize)| -> Result<(), String> {
+            for (i, v) in mesh.positions.iter().enumerate() {
+                let q = m.transform_point3(*v);
+                if !q.is_finite() {
+                    return Err(format!("{}: vertex {i} {v} is not finite once placed ({q})", what(p, k)));
+                }
                 bounds = Some(bounds.map_or((q, q), |(lo, hi)| (lo.min(q), hi.max(q))));
+                if q.abs().max_element() > farthest.0 {
+                    farthest = (q.abs().max_element(), p, k, i, q);
+                }
             }
+            Ok(())
         };
         let animated = graph.animated();
-        for placement in &self.placements {
+        for (pi, placement) in self.placements.iter().enumerate() {
             let node_world = graph.world[placement.node];
             let node_name = &graph.nodes[placement.node].name;
             let skin = placement.skin.map(|s| &self.skins[s]);
@@ -580,7 +726,7 @@ impl GltfScene {
                         rest: prim.mesh.clone(),
                     };
                     let posed = Mesh { positions: skin.deform(&graph.world), indices: prim.mesh.indices.clone() };
-                    grow(&posed, &Affine3A::IDENTITY);
+                    grow(&posed, &Affine3A::IDENTITY, (pi, k)).map_err(fail)?;
                     world.spawn((
                         TriangleMesh(Arc::new(posed)),
                         Deforming { rest: prim.mesh.clone() },
@@ -593,7 +739,7 @@ impl GltfScene {
                 }
                 for offset in &placement.offsets {
                     let m = node_world * *offset;
-                    grow(&prim.mesh, &m);
+                    grow(&prim.mesh, &m, (pi, k)).map_err(fail)?;
                     let mut entity = world.spawn((
                         TriangleMesh(prim.mesh.clone()),
                         Transform::from_affine(&m),
@@ -635,7 +781,15 @@ impl GltfScene {
                 };
             }
             None => {
-                world.spawn(framing_camera(bounds.unwrap_or((Vec3::splat(-1.0), Vec3::ONE))));
+                let camera = framing_camera(bounds.unwrap_or((Vec3::splat(-1.0), Vec3::ONE)));
+                if !(camera.eye.is_finite() && camera.target.is_finite()) {
+                    let (_, p, k, i, q) = farthest;
+                    return Err(fail(format!(
+                        "the file has no camera and the scene is too large to frame ({}: vertex {i} lies at {q})",
+                        what(p, k)
+                    )));
+                }
+                world.spawn(camera);
             }
         }
         if world.query::<&AmbientOccluder>().iter(world).next().is_none() {
@@ -660,4 +814,19 @@ pub fn framing_camera((lo, hi): (Vec3, Vec3)) -> Camera {
     let distance = radius / (vfov.to_radians() * 0.5).sin() * 1.05;
     let dir = Vec3::new(0.45, 0.35, 1.0).normalize();
     Camera::look_at(center + dir * distance, center, vfov)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_caught_panic_becomes_one_quiet_line() {
+        let e = catch_quietly(|| -> u32 { panic!("first\nsecond") }).unwrap_err();
+        assert!(e.starts_with("first second at "), "{e}");
+        assert!(e.contains("gltf/mod.rs:"), "{e}");
+        assert_eq!(catch_quietly(|| 7).unwrap(), 7);
+        // Panics outside still reach the previous hook (and are caught here by the harness).
+        assert!(!QUIET.with(Cell::get));
+    }
 }
