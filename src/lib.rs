@@ -27,12 +27,14 @@ pub mod integrator;
 pub mod light;
 pub mod math;
 pub mod npy;
+pub mod partial;
 pub mod plot;
 pub mod random;
 pub mod renderer;
 pub mod resources;
 pub mod sampling;
 pub mod scene;
+pub mod sequence;
 mod simd;
 pub mod stats;
 #[path = "../systems/mod.rs"]
