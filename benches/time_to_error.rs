@@ -12,10 +12,12 @@ use glam::Vec3;
 use hemi::{
     Renderer,
     analytic::AnalyticScene,
-    convergence::{self, ErrorPoint},
+    cli::{
+        convergence::{self, ErrorPoint},
+        peer_scene::PeerScene,
+    },
     resources::{Aov, RenderSettings},
     sampling::SamplerKind,
-    scene::peer_scene::PeerScene,
 };
 
 /// Prints one row per sampler: slopes and the time to reach each target.

@@ -12,7 +12,7 @@ use hemi::{HemiError, prelude::*, sampling::warp::cosine_power_hemisphere};
 
 /// The component users spawn: a dome of sky light around the whole scene. Its "up" is the
 /// entity's local +Y (the identity transform when it has none).
-#[derive(Component, Clone, Copy, Debug)]
+#[derive(Component, Clone, Copy, Debug, PartialEq)]
 struct GradientDome {
     /// Radiance at the horizon (linear RGB).
     horizon: Vec3,

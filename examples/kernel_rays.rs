@@ -23,12 +23,12 @@ use std::{io::Write, path::Path, process::ExitCode, time::Instant};
 
 use hemi::{
     camera::PinholeRays,
+    cli::peer_scene::PeerScene,
     geometry::{Ray, RayOrder, SceneGeometry, Shape},
     math::Onb,
     prelude::*,
     random::SplitMix64,
     sampling::warp::cosine_power_hemisphere,
-    scene::peer_scene::PeerScene,
 };
 
 fn main() -> ExitCode {

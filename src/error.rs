@@ -23,6 +23,15 @@ pub enum HemiError {
     },
     /// A command-line argument is unusable.
     Usage(String),
+    /// Something in the scene changed in every one of `frames` frames in a row (a system that
+    /// moves an entity each frame, say), so accumulation restarted each time and a render to a
+    /// sample count would never finish.
+    KeepsChanging {
+        /// Frames in a row that restarted accumulation.
+        frames: u32,
+        /// What changed in the last of them: `Transform of entity 4v0 changed`.
+        what: String,
+    },
 }
 
 impl fmt::Display for HemiError {
@@ -33,6 +42,10 @@ impl fmt::Display for HemiError {
                 write!(f, "{}: {message}", path.display())
             }
             HemiError::Usage(m) => write!(f, "{m}"),
+            HemiError::KeepsChanging { frames, what } => write!(
+                f,
+                "the scene never settles: accumulation restarted in each of {frames} frames in a row (last: {what})"
+            ),
         }
     }
 }

@@ -9,15 +9,20 @@
 //!
 //! Scene objects, the camera, the ambient occluder and lights are ECS components
 //! ([`components`]); spawn them into a [`Renderer`]'s world and call
-//! [`Renderer::run_frame`] as often as you like. A static scene converges progressively;
-//! any change to an entity or to the settings restarts accumulation automatically.
+//! [`Renderer::run_frame`] as often as you like, or [`Renderer::render`] to a sample count. A
+//! static scene converges progressively; any change to an entity's components or to the
+//! settings restarts accumulation automatically (writing a value equal to the old one is no
+//! change). [`prelude`] has what a program needs, bevy's derives included.
+//!
+//! The cargo feature `cli` (on by default) builds the `hemi` binary and its `cli` module; a
+//! library user who sets `default-features = false` compiles none of its dependencies.
 
 pub mod analytic;
 pub mod animation;
 pub mod camera;
+#[cfg(feature = "cli")]
 pub mod cli;
 pub mod components;
-pub mod convergence;
 pub mod error;
 pub mod film;
 pub mod frame;
@@ -26,9 +31,7 @@ mod huge_pages;
 pub mod integrator;
 pub mod light;
 pub mod math;
-pub mod npy;
 pub mod partial;
-pub mod plot;
 pub mod random;
 pub mod renderer;
 pub mod resources;
@@ -45,8 +48,46 @@ pub use error::HemiError;
 pub use glam;
 pub use renderer::Renderer;
 
-/// The types most programs need.
+/// What a program that drives a [`Renderer`] reaches for: hemi's components, resources and
+/// light API, the bevy_ecs items its systems are written with, and glam's vectors.
+///
+/// It also brings the `bevy_ecs` crate itself into scope, which is what lets bevy's derive
+/// macros work in a crate whose only dependency is hemi: `#[derive(Component)]` expands to
+/// paths that start with `bevy_ecs::` whenever the crate's `Cargo.toml` names neither `bevy`
+/// nor `bevy_ecs`, and those paths then resolve through this re-export. A module that does not
+/// glob-import the prelude gets the same with `use hemi::bevy_ecs;`.
+///
+/// ```
+/// use hemi::prelude::*;
+///
+/// #[derive(Component)]
+/// struct Spin;
+///
+/// fn spin(time: Res<Time>, mut spinning: Query<&mut Transform, With<Spin>>) {
+///     for mut transform in &mut spinning {
+///         transform.rotation = Quat::from_rotation_y(time.seconds);
+///     }
+/// }
+///
+/// let mut renderer = Renderer::new(RenderSettings { width: 16, height: 8, ..Default::default() });
+/// renderer.schedule_mut().add_systems(spin.in_set(FrameStage::Animate));
+/// renderer.world_mut().spawn((Spin, Cuboid { half_extents: Vec3::ONE }));
+/// ```
 pub mod prelude {
+    pub use bevy_ecs::{
+        self,
+        change_detection::{DetectChanges, DetectChangesMut, Mut},
+        component::Component,
+        entity::Entity,
+        name::Name,
+        query::{Changed, With, Without},
+        resource::Resource,
+        schedule::{IntoScheduleConfigs, Schedule},
+        system::{Commands, Local, Query, Res, ResMut},
+        world::World,
+    };
+    pub use glam::{Quat, Vec2, Vec3, Vec3A};
+
     pub use crate::{
         Renderer,
         components::{
@@ -60,12 +101,4 @@ pub mod prelude {
         sampling::SamplerKind,
         stats::FrameStats,
     };
-    pub use bevy_ecs::{
-        component::Component,
-        entity::Entity,
-        name::Name,
-        query::{With, Without},
-        world::World,
-    };
-    pub use glam::{Quat, Vec2, Vec3, Vec3A};
 }

@@ -125,7 +125,8 @@ impl Renderer {
 
     /// Poses the scene at `seconds` and runs frames until every pixel has `spp` samples: one
     /// frame of an animation, as `hemi render --frames` makes it. The image depends only on the
-    /// scene at that time, never on the frames rendered before.
+    /// scene at that time, never on the frames rendered before. Fails as [`Renderer::render`]
+    /// does.
     pub fn render_at(&mut self, seconds: f32, spp: u32) -> Result<u32, HemiError> {
         self.set_time(seconds);
         self.render(spp)
@@ -162,13 +163,39 @@ impl Renderer {
             + sets.memory_bytes()
     }
 
+    /// Frames in a row that may each restart accumulation before [`Renderer::render`] gives
+    /// up: the first frame of a render restarts after any change made before it, and a system
+    /// that settles the scene over a few frames still converges, while one that changes
+    /// something every frame fails within a few frames' work instead of looping forever.
+    pub const MAX_CONSECUTIVE_RESETS: u32 = 8;
+
     /// Runs frames until every pixel has `spp` samples (sets `max_spp`); returns frames run.
+    ///
+    /// Continues the accumulation there is: `render(16)` then `render(64)` traces 48 more
+    /// samples per pixel, and, sample indices being global, gives the image a fresh
+    /// `render(64)` gives when both run the same frames (`samples_per_frame` dividing 16).
+    /// A lower `spp` than accumulated starts over, so that the image is the one a fresh
+    /// render to `spp` gives.
+    ///
+    /// Fails with [`HemiError::KeepsChanging`], naming the component and entity, when
+    /// [`Renderer::MAX_CONSECUTIVE_RESETS`] frames in a row restarted accumulation before it
+    /// reached `spp` (writing a component's same value again is no change).
     pub fn render(&mut self, spp: u32) -> Result<u32, HemiError> {
-        self.settings_mut().max_spp = Some(spp);
-        let mut frames = 0;
+        if self.settings().max_spp != Some(spp) {
+            self.settings_mut().max_spp = Some(spp);
+        }
+        let (mut frames, mut resets_in_a_row) = (0, 0);
         while !self.converged() || frames == 0 {
             self.run_frame()?;
             frames += 1;
+            let Some(what) = &self.stats().reset else {
+                resets_in_a_row = 0;
+                continue;
+            };
+            resets_in_a_row += 1;
+            if resets_in_a_row >= Self::MAX_CONSECUTIVE_RESETS && !self.converged() {
+                return Err(HemiError::KeepsChanging { frames: resets_in_a_row, what: what.clone() });
+            }
         }
         Ok(frames)
     }

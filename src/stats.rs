@@ -245,6 +245,9 @@ pub struct FrameStats {
     pub trace_split: TraceSplit,
     /// What the trace system's BVH queries did (all 0 unless built with the feature `counters`).
     pub traversal: TraversalCounts,
+    /// What restarted accumulation this frame (`Transform of entity 4v0 changed`); `None`
+    /// when the frame added to the samples before it.
+    pub reset: Option<String>,
 }
 
 impl FrameStats {

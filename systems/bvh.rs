@@ -29,7 +29,7 @@ use crate::{
         shapes::PlanePrim,
         world_space,
     },
-    resources::{RenderSettings, SceneProblems},
+    resources::{Accumulation, RenderSettings, SceneProblems},
     stats::FrameStats,
 };
 
@@ -160,6 +160,7 @@ pub fn update_bvh(
     settings: Res<RenderSettings>,
     mut geometry: ResMut<SceneGeometry>,
     mut problems: ResMut<SceneProblems>,
+    mut accumulation: ResMut<Accumulation>,
     mut stats: ResMut<FrameStats>,
     mut cache: Local<BvhCache>,
 ) {
@@ -169,6 +170,13 @@ pub fn update_bvh(
         let entries: Vec<ShapeData> = shapes.iter().collect();
         bakes_shared(&settings, &mesh_users(&entries), &entries) != cache.bakes_shared
     };
+    // Baked and instanced triangles round differently: samples of the two never mix, so a new
+    // sample target that flips the choice renders what a fresh render to that target would.
+    if rebake && stats.reset.is_none() {
+        let (width, height) = (accumulation.width, accumulation.height);
+        accumulation.reset(width, height);
+        stats.reset = Some("the shared meshes' baking changed with max_spp".into());
+    }
     let structural = !cache.built_once || !added.is_empty() || removed.any() || rebake;
     let note = if structural || !changed.is_empty() {
         cache.built_once = true;

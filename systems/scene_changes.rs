@@ -1,81 +1,158 @@
 //! Stage 1: notices any change to the scene or settings (change detection), validates what
 //! the frame will read, and resets the accumulation so a changed scene starts converging anew.
 
-use std::time::Instant;
+use std::{collections::HashMap, time::Instant};
 
-use bevy_ecs::{prelude::*, system::SystemParam};
+use bevy_ecs::{name::Name, prelude::*, system::SystemParam};
 
 use crate::{
     camera::Cameras,
     components::{Camera, Cuboid, Matte, OrthographicCamera, Plane, Sphere, ThinLensCamera, Transform, TriangleMesh},
+    frame::{describe_change, short_type_name},
     integrator::LightRegistry,
     resources::{Accumulation, RenderSettings, SceneProblems},
     stats::FrameStats,
 };
 
-type SceneChanged = Or<(
-    Changed<Transform>,
-    Changed<Sphere>,
-    Changed<Plane>,
-    Changed<Cuboid>,
-    Changed<TriangleMesh>,
-    Changed<Matte>,
-    Changed<Camera>,
-    Changed<OrthographicCamera>,
-    Changed<ThinLensCamera>,
-)>;
-
-/// Removals of any scene component (including despawns) since the last frame. Lights are
-/// watched by the systems their registration adds ([`crate::integrator::register_light`]).
-#[derive(SystemParam)]
-pub struct SceneRemovals<'w, 's> {
-    transform: RemovedComponents<'w, 's, Transform>,
-    sphere: RemovedComponents<'w, 's, Sphere>,
-    plane: RemovedComponents<'w, 's, Plane>,
-    cuboid: RemovedComponents<'w, 's, Cuboid>,
-    mesh: RemovedComponents<'w, 's, TriangleMesh>,
-    matte: RemovedComponents<'w, 's, Matte>,
-    camera: RemovedComponents<'w, 's, Camera>,
-    orthographic: RemovedComponents<'w, 's, OrthographicCamera>,
-    lens: RemovedComponents<'w, 's, ThinLensCamera>,
+/// Whether two values of a scene component render the same image.
+pub trait SameValue {
+    /// `true` when swapping `self` for `other` changes nothing.
+    fn same_value(&self, other: &Self) -> bool;
 }
 
-impl SceneRemovals<'_, '_> {
-    /// Whether anything was removed; reads every list so none is seen twice.
-    fn any(&mut self) -> bool {
-        let counts = [
-            self.transform.read().count(),
-            self.sphere.read().count(),
-            self.plane.read().count(),
-            self.cuboid.read().count(),
-            self.mesh.read().count(),
-            self.matte.read().count(),
-            self.camera.read().count(),
-            self.orthographic.read().count(),
-            self.lens.read().count(),
-        ];
-        counts.iter().any(|&c| c > 0)
+macro_rules! same_by_partial_eq {
+    ($($t:ty),*) => {$(
+        impl SameValue for $t {
+            fn same_value(&self, other: &Self) -> bool {
+                self == other
+            }
+        }
+    )*};
+}
+
+same_by_partial_eq!(Transform, Sphere, Plane, Cuboid, Matte, Camera, OrthographicCamera, ThinLensCamera);
+
+/// By pointer: meshes are shared data, and comparing vertices every frame would cost what a
+/// refit does. A mesh swapped for an equal copy counts as a change.
+impl SameValue for TriangleMesh {
+    fn same_value(&self, other: &Self) -> bool {
+        std::sync::Arc::ptr_eq(&self.0, &other.0)
     }
 }
 
-/// Validates camera, lights and settings; resets the accumulation when anything changed.
+/// Watches one scene component: its writes, its removals (despawns included), and the value
+/// each entity had when last looked at, so that writing an equal value is not a change.
+#[derive(SystemParam)]
+pub struct Watch<'w, 's, T: Component + Clone + SameValue> {
+    written: Query<'w, 's, (Entity, &'static T), Changed<T>>,
+    removed: RemovedComponents<'w, 's, T>,
+    seen: Local<'s, HashMap<Entity, T>>,
+}
+
+impl<T: Component + Clone + SameValue> Watch<'_, '_, T> {
+    /// The first entity whose `T` was removed (`true`), added or given a different value since
+    /// the last call; takes in the new values either way.
+    fn first_change(&mut self) -> Option<(Entity, bool)> {
+        let mut first = None;
+        for entity in self.removed.read() {
+            // Added and removed between two frames: never rendered, so no change.
+            if self.seen.remove(&entity).is_some() {
+                first.get_or_insert((entity, true));
+            }
+        }
+        for (entity, value) in &self.written {
+            match self.seen.get_mut(&entity) {
+                Some(old) if old.same_value(value) => {}
+                Some(old) => {
+                    *old = value.clone();
+                    first.get_or_insert((entity, false));
+                }
+                None => {
+                    self.seen.insert(entity, value.clone());
+                    first.get_or_insert((entity, false));
+                }
+            }
+        }
+        first
+    }
+}
+
+/// Every scene component whose change restarts accumulation. Lights are watched by the
+/// systems their registration adds ([`crate::integrator::register_light`]).
+#[derive(SystemParam)]
+pub struct SceneWatch<'w, 's> {
+    transform: Watch<'w, 's, Transform>,
+    sphere: Watch<'w, 's, Sphere>,
+    plane: Watch<'w, 's, Plane>,
+    cuboid: Watch<'w, 's, Cuboid>,
+    mesh: Watch<'w, 's, TriangleMesh>,
+    matte: Watch<'w, 's, Matte>,
+    camera: Watch<'w, 's, Camera>,
+    orthographic: Watch<'w, 's, OrthographicCamera>,
+    lens: Watch<'w, 's, ThinLensCamera>,
+    names: Query<'w, 's, &'static Name>,
+}
+
+impl SceneWatch<'_, '_> {
+    /// What changed first (`Sphere of entity 3v0 changed`), if anything did; every watch is brought
+    /// up to date so that no change is seen twice.
+    fn first_change(&mut self) -> Option<String> {
+        let changes = [
+            (short_type_name::<Transform>(), self.transform.first_change()),
+            (short_type_name::<Sphere>(), self.sphere.first_change()),
+            (short_type_name::<Plane>(), self.plane.first_change()),
+            (short_type_name::<Cuboid>(), self.cuboid.first_change()),
+            (short_type_name::<TriangleMesh>(), self.mesh.first_change()),
+            (short_type_name::<Matte>(), self.matte.first_change()),
+            (short_type_name::<Camera>(), self.camera.first_change()),
+            (short_type_name::<OrthographicCamera>(), self.orthographic.first_change()),
+            (short_type_name::<ThinLensCamera>(), self.lens.first_change()),
+        ];
+        let (component, (entity, removed)) = changes.into_iter().find_map(|(c, e)| Some((c, e?)))?;
+        let what = describe_change(component, entity, self.names.get(entity).ok());
+        Some(format!("{what} {}", if removed { "was removed" } else { "changed" }))
+    }
+}
+
+/// The settings as they bear on the image: the sample target only says when to stop, so
+/// raising it continues the accumulation.
+fn image_settings(settings: &RenderSettings) -> RenderSettings {
+    RenderSettings { max_spp: None, ..settings.clone() }
+}
+
+/// Validates camera, lights and settings; resets the accumulation when anything changed: a
+/// component's value (not a write of the same value), an entity or component removed, a light,
+/// a setting other than `max_spp`, or `max_spp` lowered below the samples already taken (so
+/// that the image is the one a fresh render to that target gives).
 #[allow(clippy::too_many_arguments)]
 pub fn detect_scene_changes(
-    changed: Query<(), SceneChanged>,
-    mut removed: SceneRemovals,
+    mut watch: SceneWatch,
     settings: Res<RenderSettings>,
     cameras: Cameras,
     mut lights: ResMut<LightRegistry>,
     mut accumulation: ResMut<Accumulation>,
     mut problems: ResMut<SceneProblems>,
     mut stats: ResMut<FrameStats>,
+    mut seen_settings: Local<Option<RenderSettings>>,
 ) {
     let start = Instant::now();
-    let removed_any = removed.any();
-    let resized = accumulation.width != settings.width || accumulation.height != settings.height;
-    let lights_changed = lights.take_changed();
-    let dirty = !changed.is_empty() || removed_any || lights_changed || settings.is_changed() || resized;
-    if dirty {
+    let component_change = watch.first_change();
+    let light_change = lights.take_changed();
+    let settings_changed = settings.is_changed() && {
+        let changed = seen_settings.as_ref().is_none_or(|old| image_settings(old) != image_settings(&settings));
+        *seen_settings = Some(settings.clone());
+        changed
+    };
+    let cause = if settings_changed {
+        Some("the render settings changed".to_string())
+    } else if accumulation.width != settings.width || accumulation.height != settings.height {
+        Some("the image size changed".to_string())
+    } else if settings.max_spp.is_some_and(|max| accumulation.spp > max) {
+        Some(format!("max_spp fell below the {} spp accumulated", accumulation.spp))
+    } else {
+        component_change.or(light_change)
+    };
+    if cause.is_some() {
         problems.view = validate_view(&settings, &cameras, &lights);
         // Never allocate for settings that were refused (e.g. an absurd image size).
         match settings.validate() {
@@ -83,7 +160,11 @@ pub fn detect_scene_changes(
             Err(_) => accumulation.reset(0, 0),
         }
     }
-    let note = if dirty { "changed: accumulation reset" } else { "unchanged" };
+    let note = match &cause {
+        Some(cause) => format!("accumulation reset: {cause}"),
+        None => "unchanged".to_string(),
+    };
+    stats.reset = cause;
     stats.record("scene_changes", start.elapsed(), note);
 }
 

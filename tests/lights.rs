@@ -289,7 +289,7 @@ fn lights_facing_away_cost_no_shadow_rays() {
 
 /// A uniform sky dome of radiance L, defined here like any user light: cosine-sampled, so
 /// every sample of an open floor is exactly π·L and the floor's radiance is exactly L.
-#[derive(Component, Clone, Copy)]
+#[derive(Component, Clone, Copy, PartialEq)]
 struct Dome {
     radiance: f32,
 }
@@ -434,7 +434,7 @@ fn new_lights_are_bit_identical_with_one_or_two_threads() {
 
 /// The ambient occluder behind a light type that only has the per-sample `sample`: it takes the
 /// core's general path, where the occluder itself takes the bulk direction path.
-#[derive(Component, Clone, Copy)]
+#[derive(Component, Clone, Copy, PartialEq)]
 struct PerSampleOccluder(AmbientOccluder);
 
 /// [`PerSampleOccluder`] placed.
@@ -571,7 +571,7 @@ fn the_occluder_s_bulk_path_matches_the_per_sample_path() {
 }
 
 /// A light that brings NaN or +∞ for some sample values and 1 for the others, with no shadow ray.
-#[derive(Component, Clone, Copy)]
+#[derive(Component, Clone, Copy, PartialEq)]
 struct Flaky;
 
 impl Light for Flaky {

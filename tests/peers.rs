@@ -6,8 +6,8 @@
 use std::path::PathBuf;
 
 use hemi::{
+    cli::{peer_compare::compare, peer_scene::PeerScene},
     sampling::SamplerKind,
-    scene::{peer_compare::compare, peer_scene::PeerScene},
 };
 
 fn scene(name: &str) -> PeerScene {

@@ -10,7 +10,7 @@ use glam::Vec3A;
 use super::{RunPoint, Scene, Tracer};
 use crate::{
     components::Transform,
-    frame::{FrameStage, LightUpdates},
+    frame::{FrameStage, LightUpdates, describe_change, short_type_name},
     geometry::SpawnOrigins,
     light::{Light, PlacedLight, ShadingPoint, Term},
 };
@@ -125,7 +125,7 @@ struct Slot {
 #[derive(Resource, Default)]
 pub struct LightRegistry {
     slots: Vec<Slot>,
-    changed: bool,
+    changed: Option<String>,
 }
 
 impl LightRegistry {
@@ -160,9 +160,10 @@ impl LightRegistry {
         if parts.is_empty() { "no lights".into() } else { parts.join(", ") }
     }
 
-    /// Whether any light was added, changed or removed since the last call; clears the flag.
-    pub fn take_changed(&mut self) -> bool {
-        std::mem::take(&mut self.changed)
+    /// What light was added, changed or removed since the last call (`PointLight of entity
+    /// 3v0 changed`), if any; clears it.
+    pub fn take_changed(&mut self) -> Option<String> {
+        self.changed.take()
     }
 
     fn slot_mut<L: Light>(&mut self) -> Option<&mut Slot> {
@@ -188,33 +189,61 @@ pub fn register_light<L: Light>(world: &mut World, schedule: &mut Schedule) -> b
     true
 }
 
+/// What [`update_lights`] reads of a light entity.
+type LightData<'a, L> = (Entity, Ref<'a, L>, Option<Ref<'a, Transform>>, Option<&'a Name>);
+
+/// A light as last placed: entity, value, and transform (the identity where it has none).
+type SeenLight<L> = (Entity, L, Transform);
+
 /// Re-validates and re-places all lights of type `L` when any of them (or its transform) was
-/// added, changed or removed, and flags the change for the accumulation reset.
+/// added, removed or given a different value, and names the change for the accumulation reset.
 fn update_lights<L: Light>(
-    lights: Query<(Entity, Ref<L>, Option<Ref<Transform>>)>,
+    lights: Query<LightData<L>>,
     mut removed: RemovedComponents<L>,
     mut removed_transforms: RemovedComponents<Transform>,
     mut registry: ResMut<LightRegistry>,
+    mut seen: Local<Vec<SeenLight<L>>>,
 ) {
     let removed_any = removed.read().count() > 0;
     let moved_any = removed_transforms.read().any(|e| lights.contains(e));
-    let changed = lights.iter().any(|(_, l, t)| l.is_changed() || t.is_some_and(|t| t.is_changed()));
-    if !(removed_any || moved_any || changed) {
+    let written = lights.iter().any(|(_, l, t, _)| l.is_changed() || t.is_some_and(|t| t.is_changed()));
+    if !(removed_any || moved_any || written) {
         return;
     }
-    let mut found: Vec<_> = lights.iter().collect();
+    let mut found: Vec<SeenLight<L>> =
+        lights.iter().map(|(e, l, t, _)| (e, (*l).clone(), t.map_or(Transform::IDENTITY, |t| *t))).collect();
     found.sort_by_key(|(e, ..)| *e);
+    // The first difference from the lights last placed, in entity order; none: equal writes.
+    let differs = |a: Option<&SeenLight<L>>, b: Option<&SeenLight<L>>| match (a, b) {
+        (Some((ea, la, ta)), Some((eb, lb, tb))) if ea == eb => (la != lb || ta != tb).then_some(*ea),
+        // The smaller entity is the one added or removed.
+        (Some((ea, ..)), Some((eb, ..))) => Some(*ea.min(eb)),
+        (Some((e, ..)), None) | (None, Some((e, ..))) => Some(*e),
+        (None, None) => None,
+    };
+    let n = found.len().max(seen.len());
+    let Some(entity) = (0..n).find_map(|i| differs(found.get(i), seen.get(i))) else {
+        return;
+    };
+    let what = match lights.get(entity) {
+        Ok((_, light, _, name)) => {
+            let light_changed = seen.iter().find(|(e, ..)| *e == entity).is_none_or(|(_, l, _)| l != &*light);
+            let component = if light_changed { short_type_name::<L>() } else { "Transform" };
+            format!("{} changed", describe_change(component, entity, name))
+        }
+        Err(_) => format!("{} was removed", describe_change(short_type_name::<L>(), entity, None)),
+    };
     let mut placed = Vec::with_capacity(found.len());
     let mut problems = Vec::new();
-    for (_, light, transform) in found {
-        let transform = transform.map_or(Transform::IDENTITY, |t| *t);
-        match light.validate(&transform) {
-            Ok(()) => placed.extend(light.place(&transform)),
+    for (_, light, transform) in &found {
+        match light.validate(transform) {
+            Ok(()) => placed.extend(light.place(transform)),
             Err(e) => problems.push(e),
         }
     }
+    *seen = found;
     let registry = &mut *registry;
-    registry.changed = true;
+    registry.changed = Some(what);
     if let Some(slot) = registry.slot_mut::<L>() {
         slot.group = Box::new(Group(placed));
         slot.problems = problems;

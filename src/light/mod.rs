@@ -309,8 +309,10 @@ pub trait PlacedLight: Send + Sync + 'static {
 }
 
 /// A light component. Implement it, then register the type once with
-/// [`Renderer::add_light`](crate::Renderer::add_light).
-pub trait Light: Component + Sized {
+/// [`Renderer::add_light`](crate::Renderer::add_light). `Clone + PartialEq` let the renderer
+/// compare a light with its previous value, so that writing an equal value every frame does
+/// not restart accumulation.
+pub trait Light: Component + Clone + PartialEq + Sized {
     /// The world-space form the tracer samples.
     type Placed: PlacedLight;
     /// What the light is called in statistics.

@@ -3,7 +3,5 @@
 pub mod default_scene;
 pub mod gltf;
 pub mod mesh_gen;
-pub mod peer_compare;
-pub mod peer_scene;
 
 pub use default_scene::{DEFAULT_BACKGROUND, spawn_default_scene};

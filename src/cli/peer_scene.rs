@@ -8,10 +8,10 @@ use bevy_ecs::prelude::World;
 use glam::Vec3;
 use serde::Deserialize;
 
+use super::npy;
 use crate::{
     components::{AmbientOccluder, Camera, PointLight, Transform},
     error::HemiError,
-    npy,
     resources::RenderSettings,
     scene::gltf::{self, SpawnOptions},
 };

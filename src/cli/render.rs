@@ -1,87 +1,25 @@
-//! The `hemi` command line.
+//! `hemi render`: an image or a numbered sequence of a glTF, peer or the built-in scene.
 
-use std::{io::IsTerminal, path::PathBuf, time::Instant};
+use std::{path::PathBuf, time::Instant};
 
-use clap::{Parser, Subcommand, error::ErrorKind};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
+use super::{
+    parse_aov, parse_fps, parse_frames, parse_sampler, parse_shard, parse_size, parse_time, peer_scene::PeerScene,
+};
 use crate::{
     Renderer,
     error::HemiError,
-    film::{OutputFile, OutputFormat},
+    film::OutputFile,
     resources::{Aov, RenderSettings},
     sampling::SamplerKind,
-    scene::{gltf::SpawnOptions, peer_scene::PeerScene},
+    scene::gltf::SpawnOptions,
     stats::{RayCounts, mrays_per_second},
 };
 
-/// hemi: ambient occlusion + direct lighting by CPU ray tracing on bevy_ecs.
-#[derive(Parser, Debug)]
-#[command(name = "hemi", version, about)]
-pub struct Cli {
-    #[command(subcommand)]
-    command: Command,
-}
-
-#[derive(Subcommand, Debug)]
-enum Command {
-    /// Render a glTF 2.0 scene (or, without one, the built-in scene) to an image or a sequence.
-    Render(RenderArgs),
-    /// Measure RMSE against run time and spp for every sampler (CSV + log-log plot).
-    Error(ErrorArgs),
-    /// Compare AO with the peer renderers' references: bias and RMSE per scene.
-    Compare(CompareArgs),
-}
-
-/// Options of `hemi compare`.
-#[derive(clap::Args, Debug)]
-struct CompareArgs {
-    /// Peer scene files (`../shared/peers/scenes/*.json`); references are read from `../refs`.
-    #[arg(required = true)]
-    scenes: Vec<PathBuf>,
-    /// Samples per pixel.
-    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..=65_536))]
-    spp: u32,
-    /// Sample pattern.
-    #[arg(long, default_value = "cmj", value_parser = parse_sampler)]
-    sampler: SamplerKind,
-    /// Worker threads (default: one per core).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
-    threads: Option<u32>,
-}
-
-/// Options of `hemi error`.
-#[derive(clap::Args, Debug)]
-struct ErrorArgs {
-    /// Scene: `sphere-over-plane` or `wall` (analytic references), a peer scene `.json` (its
-    /// `ao` against `../refs/<name>.ao.npy` over hit pixels), or `default` (needs --reference).
-    scene: String,
-    /// Reference image (linear EXR of the same size), e.g. `hemi render --spp 4096 --out ref.exr`.
-    #[arg(long)]
-    reference: Option<PathBuf>,
-    /// Largest spp measured (powers of two from 1).
-    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..=65_536))]
-    max_spp: u32,
-    /// Comma-separated samplers (default: all).
-    #[arg(long, value_delimiter = ',', value_parser = parse_sampler)]
-    samplers: Vec<SamplerKind>,
-    /// Image size, WIDTHxHEIGHT (default: the scene's own).
-    #[arg(long, value_parser = parse_size)]
-    size: Option<(u32, u32)>,
-    /// Seed.
-    #[arg(long, default_value_t = 0)]
-    seed: u64,
-    /// CSV output: sampler, spp, seconds, rays, rmse, relative_rmse.
-    #[arg(long, default_value = "error.csv")]
-    csv: PathBuf,
-    /// Plot output (PNG): RMSE against spp and against seconds, log-log, with fitted slopes.
-    #[arg(long, default_value = "error.png")]
-    plot: PathBuf,
-}
-
 /// Options of `hemi render`.
 #[derive(clap::Args, Debug)]
-struct RenderArgs {
+pub(super) struct RenderArgs {
     /// A .gltf/.glb scene, or a peer scene .json (default: the built-in scene).
     scene: Option<PathBuf>,
     /// Output image: .png (8-bit sRGB) or .exr (linear f32, unclamped). With --frames it must
@@ -147,63 +85,13 @@ struct RenderArgs {
     aov: Vec<Aov>,
 }
 
-fn parse_aov(s: &str) -> Result<Aov, String> {
-    Aov::from_name(s).ok_or_else(|| {
-        let names: Vec<&str> = Aov::ALL.iter().map(|a| a.name()).collect();
-        format!("unknown AOV '{s}' (expected one of: {})", names.join(", "))
-    })
-}
-
-fn parse_size(s: &str) -> Result<(u32, u32), String> {
-    let (w, h) = s.split_once(['x', 'X']).ok_or("expected WIDTHxHEIGHT, e.g. 640x360")?;
-    let w: u32 = w.trim().parse().map_err(|_| format!("width '{w}' is not a whole number"))?;
-    let h: u32 = h.trim().parse().map_err(|_| format!("height '{h}' is not a whole number"))?;
-    let settings = RenderSettings { width: w, height: h, ..Default::default() };
-    settings.validate()?;
-    Ok((w, h))
-}
-
-fn parse_frames(s: &str) -> Result<(u32, u32), String> {
-    let (a, b) = s.split_once("..").ok_or("expected a range START..END, e.g. 0..48")?;
-    let a: u32 = a.trim().parse().map_err(|_| format!("frame '{a}' is not a whole number"))?;
-    let b: u32 = b.trim().parse().map_err(|_| format!("frame '{b}' is not a whole number"))?;
-    if b <= a {
-        return Err(format!("frame range {a}..{b} is empty"));
-    }
-    Ok((a, b))
-}
-
-fn parse_fps(s: &str) -> Result<f64, String> {
-    match s.parse::<f64>() {
-        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
-        _ => Err(format!("fps '{s}' must be a positive number")),
-    }
-}
-
-fn parse_time(s: &str) -> Result<f32, String> {
-    match s.parse::<f32>() {
-        Ok(v) if v.is_finite() => Ok(v),
-        _ => Err(format!("time '{s}' must be a finite number of seconds")),
-    }
-}
-
-fn parse_shard(s: &str) -> Result<(u32, u32), String> {
-    let (i, n) = s.split_once('/').ok_or("expected INDEX/COUNT, e.g. 0/4")?;
-    let i: u32 = i.trim().parse().map_err(|_| format!("shard index '{i}' is not a whole number"))?;
-    let n: u32 = n.trim().parse().map_err(|_| format!("shard count '{n}' is not a whole number"))?;
-    if n == 0 || i >= n {
-        return Err(format!("shard {i}/{n}: the index must be below the count"));
-    }
-    Ok((i, n))
-}
-
 /// The frames of `start..end` that shard `i/n` renders: every n-th, starting at the i-th.
-pub fn shard_frames((start, end): (u32, u32), (i, n): (u32, u32)) -> Vec<u32> {
+fn shard_frames((start, end): (u32, u32), (i, n): (u32, u32)) -> Vec<u32> {
     (start..end).skip(i as usize).step_by(n as usize).collect()
 }
 
 /// The output path of `frame`: `{:04}` becomes the zero-padded number, `{}` the plain one.
-pub fn frame_path(pattern: &std::path::Path, frame: u32) -> Option<PathBuf> {
+fn frame_path(pattern: &std::path::Path, frame: u32) -> Option<PathBuf> {
     let s = pattern.to_str()?;
     if s.contains("{:04}") {
         Some(PathBuf::from(s.replace("{:04}", &format!("{frame:04}"))))
@@ -214,191 +102,7 @@ pub fn frame_path(pattern: &std::path::Path, frame: u32) -> Option<PathBuf> {
     }
 }
 
-fn parse_sampler(s: &str) -> Result<SamplerKind, String> {
-    SamplerKind::from_name(s).ok_or_else(|| {
-        let names: Vec<&str> = SamplerKind::ALL.iter().map(|k| k.name()).collect();
-        format!("unknown sampler '{s}' (expected one of: {})", names.join(", "))
-    })
-}
-
-/// Parses `args` and runs the command. `Ok(None)` means help or version was printed.
-pub fn run<I, T>(args: I) -> Result<(), HemiError>
-where
-    I: IntoIterator<Item = T>,
-    T: Into<std::ffi::OsString> + Clone,
-{
-    let cli = match Cli::try_parse_from(args) {
-        Ok(cli) => cli,
-        Err(e) if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) => {
-            let _ = e.print();
-            return Ok(());
-        }
-        Err(e) => {
-            let text = e.render().to_string();
-            let first = text.lines().next().unwrap_or("invalid arguments");
-            return Err(HemiError::Usage(first.trim_start_matches("error: ").to_string()));
-        }
-    };
-    match cli.command {
-        Command::Render(args) => render(args),
-        Command::Error(args) => error_study(args),
-        Command::Compare(args) => compare(args),
-    }
-}
-
-fn compare(args: CompareArgs) -> Result<(), HemiError> {
-    println!(
-        "{:<14} {:>6} {:>9} {:>10} {:>10} {:>10} {:>12} {:>8} {:>9}",
-        "scene", "spp", "hit px", "bias", "rmse", "predicted", "hit mismatch", "seconds", "Mrays/s"
-    );
-    for path in &args.scenes {
-        let scene = PeerScene::load(path)?;
-        let c = crate::scene::peer_compare::compare(&scene, args.spp, args.sampler, args.threads.map(|t| t as usize))?;
-        println!(
-            "{:<14} {:>6} {:>9} {:>+10.2e} {:>10.3e} {:>10.3e} {:>12} {:>8.2} {:>9.2}",
-            c.scene,
-            c.spp,
-            c.hit_pixels,
-            c.bias,
-            c.rmse,
-            c.predicted_rmse,
-            c.hit_mismatches,
-            c.seconds,
-            c.rays as f64 / c.seconds / 1e6
-        );
-    }
-    Ok(())
-}
-
-fn error_study(args: ErrorArgs) -> Result<(), HemiError> {
-    use crate::{analytic::AnalyticScene, convergence, plot};
-    use glam::Vec3;
-
-    if OutputFormat::from_path(&args.plot)? != OutputFormat::Png {
-        return Err(HemiError::Usage(format!("--plot {}: plots are written as .png", args.plot.display())));
-    }
-    let plot_file = OutputFile::create(&args.plot)?;
-    let analytic = AnalyticScene::from_name(&args.scene);
-    let peer =
-        if args.scene.ends_with(".json") { Some(PeerScene::load(std::path::Path::new(&args.scene))?) } else { None };
-    let (width, height) = match (args.size, analytic, &peer) {
-        (Some(size), _, _) => size,
-        (None, Some(a), _) => a.size(),
-        (None, None, Some(p)) => (p.width, p.height),
-        (None, None, None) => (160, 90),
-    };
-    let mut base = RenderSettings { width, height, seed: args.seed, ..Default::default() };
-    let mut mask = None;
-    let reference: Vec<Vec3> = match (analytic, &peer, &args.reference) {
-        (_, _, Some(path)) => read_reference(path, width, height)?,
-        (Some(a), _, None) => {
-            let camera = a.camera(1.0, Vec3::ZERO);
-            a.reference(&camera, width, height, 1.0, Vec3::ZERO)
-                .map_err(HemiError::InvalidScene)?
-                .into_iter()
-                .map(Vec3::splat)
-                .collect()
-        }
-        (None, Some(p), None) => {
-            if (width, height) != (p.width, p.height) {
-                return Err(HemiError::Usage(format!("peer references are {}x{}: drop --size", p.width, p.height)));
-            }
-            let (ao, hit) = p.read_reference()?;
-            base.jitter = false;
-            mask = Some(hit);
-            ao.into_iter().map(Vec3::splat).collect()
-        }
-        (None, None, None) if args.scene == "default" => {
-            return Err(HemiError::Usage(
-                "scene 'default' needs --reference FILE.exr (e.g. hemi render --size 160x90 --spp 4096 --out ref.exr)"
-                    .into(),
-            ));
-        }
-        (None, None, None) => {
-            return Err(HemiError::Usage(format!(
-                "unknown scene '{}' (expected sphere-over-plane, wall, a peer .json or default)",
-                args.scene
-            )));
-        }
-    };
-    let build = |settings: RenderSettings| -> Result<Renderer, HemiError> {
-        Ok(match (analytic, &peer) {
-            (Some(a), _) => {
-                let mut r = Renderer::new(settings);
-                a.spawn(r.world_mut(), 1.0, Vec3::ZERO);
-                r
-            }
-            (None, Some(p)) => {
-                let mut r = Renderer::new(settings);
-                p.spawn(r.world_mut())?;
-                r
-            }
-            (None, None) => Renderer::with_default_scene(settings),
-        })
-    };
-    let samplers = if args.samplers.is_empty() { SamplerKind::ALL.to_vec() } else { args.samplers.clone() };
-    let tty = std::io::stderr().is_terminal();
-    let aov = peer.as_ref().map(|_| Aov::Ao);
-    let points = convergence::study(build, &base, &samplers, args.max_spp, &reference, mask.as_deref(), aov, |p| {
-        if tty {
-            eprint!("\r{:>15} {:>6} spp  rmse {:.3e}   ", p.sampler.name(), p.spp, p.rmse);
-        }
-    })?;
-    if tty {
-        eprintln!();
-    }
-    std::fs::write(&args.csv, convergence::to_csv(&points))
-        .map_err(|e| HemiError::Io { path: args.csv.clone(), message: format!("cannot write CSV: {e}") })?;
-
-    let mut by_spp = Vec::new();
-    let mut by_time = Vec::new();
-    println!(
-        "{:<16} {:>12} {:>14} {:>14} {:>16}",
-        "sampler", "slope(spp)", "slope(seconds)", "rmse@max", "seconds@max"
-    );
-    for &k in &samplers {
-        let (s_spp, s_time) = convergence::slopes(&points, k);
-        let last = points.iter().rfind(|p| p.sampler == k).expect("every sampler was measured");
-        let fmt = |s: Option<f64>| s.map_or("-".to_string(), |v| format!("{v:.3}"));
-        println!("{:<16} {:>12} {:>14} {:>14.3e} {:>16.4}", k.name(), fmt(s_spp), fmt(s_time), last.rmse, last.seconds);
-        let mine = || points.iter().filter(|p| p.sampler == k);
-        by_spp.push(plot::Series {
-            label: format!("{} {}", k.name(), fmt(s_spp)),
-            points: mine().map(|p| (p.spp as f64, p.rmse)).collect(),
-        });
-        by_time.push(plot::Series {
-            label: format!("{} {}", k.name(), fmt(s_time)),
-            points: mine().map(|p| (p.seconds, p.rmse)).collect(),
-        });
-    }
-    let mut img = image::RgbImage::from_pixel(1400, 560, image::Rgb([255, 255, 255]));
-    let title = format!("{}: RMSE vs spp (slope)", args.scene);
-    plot::draw_panel(&mut img, (0, 0, 700, 560), &title, "samples per pixel", &by_spp);
-    plot::draw_panel(&mut img, (700, 0, 700, 560), "RMSE vs seconds (slope)", "seconds", &by_time);
-    plot_file.write_rgb8(&img)?;
-    eprintln!("hemi: wrote {} and {}", args.csv.display(), args.plot.display());
-    Ok(())
-}
-
-/// Reads a linear reference image of the expected size.
-fn read_reference(path: &std::path::Path, width: u32, height: u32) -> Result<Vec<glam::Vec3>, HemiError> {
-    let img = image::open(path)
-        .map_err(|e| HemiError::Io { path: path.to_path_buf(), message: format!("cannot read reference: {e}") })?
-        .into_rgb32f();
-    if img.dimensions() != (width, height) {
-        return Err(HemiError::Io {
-            path: path.to_path_buf(),
-            message: format!(
-                "reference is {}x{}, the render is {width}x{height} (use --size)",
-                img.width(),
-                img.height()
-            ),
-        });
-    }
-    Ok(img.pixels().map(|p| glam::Vec3::from_array(p.0)).collect())
-}
-
-fn render(args: RenderArgs) -> Result<(), HemiError> {
+pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
     let frames = match args.frames {
         Some(range) => {
             if frame_path(&args.out, range.0).is_none() {
