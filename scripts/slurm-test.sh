@@ -164,7 +164,7 @@ log "1. 4-task array over 8 frames: identical to the local render ($((SECONDS - 
 
 # ---------------------------------------------------------------- 2. cancel, then re-submit
 t0=$SECONDS
-slow=(--frames 0..8 --fps 4 --size 48x32 --spp "${HEMI_SLURM_TEST_SLOW_SPP:-20000}")
+slow=(--frames 0..8 --fps 4 --size 48x32 --spp "${HEMI_SLURM_TEST_SLOW_SPP:-10000}")
 "$hemi" render "$asset" "${slow[@]}" --out "$work/local-slow/f_{:04}.png" 2>/dev/null || fail "local render failed"
 job=$(submit --array=0-3 deploy/slurm/hemi-array.sbatch "$asset" "$work/cancel/f_{:04}.png" "${slow[@]}") \
     || fail "sbatch refused the array"
@@ -174,7 +174,7 @@ scancel "${job}_0" || fail "scancel ${job}_0 failed"
 wait_job "$job" 180
 [ -f "$work/cancel/f_0004.png" ] \
     && fail "task 0 finished frame 4 before it was cancelled: raise HEMI_SLURM_TEST_SLOW_SPP"
-if "$hemi" status "$work/cancel/f_{:04}.png" --frames 0..8 >"$work/status-before.txt"; then
+if "$hemi" status "$work/cancel/f_{:04}.png" --frames 0..8 >"$work/status-before.txt" 2>&1; then
     fail "hemi status exited 0 with frame 4 missing"
 fi
 grep -Eq '^ +4  (missing|partial) ' "$work/status-before.txt" || fail "hemi status did not report frame 4: $(cat "$work/status-before.txt")"

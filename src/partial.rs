@@ -3,7 +3,8 @@
 //! render makes.
 //!
 //! A partial renders the samples `first..end` of a render of `spp` samples per pixel (global
-//! indices, through [`RenderSettings::first_sample`] and [`RenderSettings::end_sample`]) in
+//! indices, through [`crate::resources::RenderSettings::first_sample`] and
+//! [`crate::resources::RenderSettings::end_sample`]) in
 //! frames of `spf` samples, and keeps every frame's per-pixel f32 sums as they left the trace,
 //! untouched. [`merge`] adds those frames in global sample order into f64 sums, exactly as
 //! the accumulation of a single render does, then resolves them as every frame does. So the
@@ -36,6 +37,10 @@ use crate::{
 
 /// The EXR attribute holding a partial's [`PartialInfo`] as JSON.
 pub const ATTRIBUTE: &str = "hemiPartial";
+
+/// The key of [`PartialInfo::settings`] that holds every render setting at once, compared
+/// after the single ones (so that a mismatch names the single setting where it can).
+pub const ALL_SETTINGS: &str = "all settings";
 
 /// What a partial was rendered from, and which samples it holds.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -194,7 +199,7 @@ impl Partial {
         if (w, h) != (info.width as usize, info.height as usize) {
             return Err(err(format!("image is {w}x{h}, its metadata says {}x{}", info.width, info.height)));
         }
-        let channel = |name: &str| layer.channel_data.list.iter().find(|c| c.name == Text::from(name));
+        let channel = |name: &str| layer.channel_data.list.iter().find(|c| c.name == *name);
         let f32s = |name: &str| match channel(name).map(|c| &c.sample_data) {
             Some(FlatSamples::F32(v)) => Ok(v),
             _ => Err(err(format!("missing f32 channel {name}"))),
@@ -273,7 +278,10 @@ pub fn merge(parts: &[(std::path::PathBuf, Partial)]) -> Result<Image, HemiError
                 return Err(differs(what, x.to_string(), y.to_string()));
             }
         }
-        let keys: std::collections::BTreeSet<&String> = a.settings.keys().chain(b.settings.keys()).collect();
+        // Single settings first, the catch-all `all settings` (when present) last.
+        let mut keys: Vec<&String> = a.settings.keys().chain(b.settings.keys()).collect();
+        keys.sort_by_key(|k| (k.as_str() == ALL_SETTINGS, k.as_str()));
+        keys.dedup();
         for key in keys {
             let (x, y) = (a.settings.get(key), b.settings.get(key));
             if x != y {
@@ -405,9 +413,9 @@ mod tests {
     fn merge_refuses_gaps_overlaps_and_other_renders() {
         let (a, b, c) = (part(0, 6), part(6, 12), part(3, 9));
         let message = |parts: &[(std::path::PathBuf, Partial)]| merge(parts).unwrap_err().to_string();
-        let m = message(&[a.clone()]);
+        let m = message(std::slice::from_ref(&a));
         assert!(m.contains("missing partial") && m.contains("6..12"), "{m}");
-        let m = message(&[b.clone()]);
+        let m = message(std::slice::from_ref(&b));
         assert!(m.contains("missing partial") && m.contains("0..6"), "{m}");
         let m = message(&[a.clone(), c.clone(), b.clone()]);
         assert!(m.contains("overlaps") && m.contains("part_3_9.exr"), "{m}");

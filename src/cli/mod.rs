@@ -6,6 +6,7 @@
 mod compare;
 pub mod convergence;
 mod error_study;
+mod merge;
 pub mod npy;
 pub mod peer_compare;
 pub mod peer_scene;
@@ -36,6 +37,12 @@ enum Command {
     Error(error_study::ErrorArgs),
     /// Compare AO with the peer renderers' references: bias and RMSE per scene.
     Compare(compare::CompareArgs),
+    /// Sum the partials of a still split by sample index (`render --sample-range`) into the
+    /// image a single render makes.
+    Merge(merge::MergeArgs),
+    /// Which frames of a sequence are done, partial (being written, or a writer was killed) or
+    /// missing; exits 0 when all are done, 1 otherwise.
+    Status(merge::StatusArgs),
 }
 
 fn parse_aov(s: &str) -> Result<Aov, String> {
@@ -118,5 +125,7 @@ where
         Command::Render(args) => render::render(args),
         Command::Error(args) => error_study::error_study(args),
         Command::Compare(args) => compare::compare(args),
+        Command::Merge(args) => merge::merge(args),
+        Command::Status(args) => merge::status(args),
     }
 }
