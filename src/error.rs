@@ -34,6 +34,8 @@ pub enum HemiError {
         /// What changed in the last of them: `Transform of entity 4v0 changed`.
         what: String,
     },
+    /// A window could not be opened or shown (no display).
+    Window(String),
 }
 
 impl fmt::Display for HemiError {
@@ -43,7 +45,7 @@ impl fmt::Display for HemiError {
             HemiError::Io { path, message } | HemiError::Load { path, message } => {
                 write!(f, "{}: {message}", path.display())
             }
-            HemiError::Usage(m) | HemiError::Incomplete(m) => write!(f, "{m}"),
+            HemiError::Usage(m) | HemiError::Incomplete(m) | HemiError::Window(m) => write!(f, "{m}"),
             HemiError::KeepsChanging { frames, what } => write!(
                 f,
                 "the scene never settles: accumulation restarted in each of {frames} frames in a row (last: {what})"

@@ -42,11 +42,18 @@ mod simd;
 pub mod stats;
 #[path = "../systems/mod.rs"]
 pub mod systems;
+#[cfg(feature = "cli")]
+pub mod viewer;
 
 pub use bevy_ecs;
 pub use error::HemiError;
 pub use glam;
 pub use renderer::Renderer;
+
+/// The README's library example, compiled and run as a doctest so it stays true.
+#[doc = include_str!("../README.md")]
+#[cfg(doctest)]
+pub struct ReadmeDoctests;
 
 /// What a program that drives a [`Renderer`] reaches for: hemi's components, resources and
 /// light API, the bevy_ecs items its systems are written with, and glam's vectors.

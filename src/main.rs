@@ -2,13 +2,15 @@
 
 use std::process::ExitCode;
 
-use hemi::HemiError;
+use hemi::{HemiError, cli::console};
 
+/// Exit statuses: 0 done, 1 the scene, a file or the render failed, 2 the command line was
+/// wrong, 141 standard output was closed (see [`console`]).
 fn main() -> ExitCode {
     match hemi::cli::run(std::env::args_os()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("hemi: error: {e}");
+            console::note(&format!("hemi: error: {e}"));
             ExitCode::from(if matches!(e, HemiError::Usage(_)) { 2 } else { 1 })
         }
     }

@@ -157,26 +157,64 @@ fn peer_scene_with_aovs_writes_one_exr_per_aov() {
     assert!(ao.pixels().all(|p| (0.0..=1.0).contains(&p.0[0])));
 }
 
+/// Usage errors exit with 2: hemi's own checks in one line, clap's with its usage line and
+/// hint; a file that cannot be written exits with 1, in one line naming it.
 #[test]
-fn bad_arguments_give_one_line_and_a_non_zero_exit() {
-    let unwritable = "/nonexistent-dir/x.png";
-    let cases: [(&[&str], &str); 9] = [
+fn bad_arguments_name_the_problem_and_exit_with_the_documented_status() {
+    // Under a file, so not even root can create the folder.
+    let unwritable = "/dev/null/x.png";
+    let hemis_own: [(&[&str], &str, i32); 10] = [
+        (&["render", "--out", "picture.bmp"], ".png or .exr", 2),
+        (&["render", "--out", "g_{:04}.png"], "placeholder", 2),
+        (&["render", "--out", "g_{:04}.png", "--frames", "0..4", "--shard", "7/10"], "gets no frame", 2),
+        (&["render", "--out", "g_{:04}.png", "--frames", "1..2", "--fps", "1e-45"], "beyond what a frame time", 2),
+        (
+            &["render", "--out", "same.exr", "--stats-json", "same.exr"],
+            "--stats-json same.exr is also the file of --out",
+            2,
+        ),
+        (&["render", "--out", "x.png", "--aov", "ao", "--stats-json", "x.ao.exr"], "is also the file of --aov ao", 2),
+        (&["render", "scene.gltf", "--out", "scene.gltf"], "would overwrite the input", 2),
+        (&["render", "--shard", "0/2"], "--shard needs --frames", 2),
+        (&["render", "--out", unwritable], "/dev/null/x.png", 1),
+        (&["error", "wall", "--csv", "e.png", "--plot", "e.png"], "also the file of --csv", 2),
+    ];
+    for (args, needle, status) in hemis_own {
+        let (code, _, err) = hemi(args);
+        assert_eq!(code, status, "{args:?}: {err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: not one line: {err}");
+        assert!(err.contains(needle), "{args:?}: '{needle}' not in {err}");
+    }
+    let claps: [(&[&str], &str); 8] = [
+        (&["render", "--size", "0x0"], "empty"),
+        (&["render", "--size", "4294967296x1"], "width 4294967296 is too large"),
         (&["render", "--aov", "shadows"], "unknown AOV 'shadows'"),
         (&["render", "--bogus"], "--bogus"),
-        (&["render", "--size", "0x0"], "empty"),
         (&["render", "--size", "12"], "WIDTHxHEIGHT"),
         (&["render", "--spp", "many"], "--spp"),
         (&["render", "--spp", "0"], "--spp"),
         (&["render", "--sampler", "sobolish"], "sobolish"),
-        (&["render", "--out", unwritable], "nonexistent-dir"),
-        (&["render", "--out", "picture.bmp"], ".png or .exr"),
     ];
-    for (args, needle) in cases {
+    for (args, needle) in claps {
         let (code, _, err) = hemi(args);
-        assert_ne!(code, 0, "{args:?} succeeded");
-        assert_ne!(code, 101, "{args:?} panicked: {err}");
-        assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: not one line: {err}");
-        assert!(err.contains(needle), "{args:?}: '{needle}' not in {err}");
+        assert_eq!(code, 2, "{args:?}: {err}");
+        let first = err.lines().next().unwrap_or_default();
+        assert!(first.starts_with("hemi: error: ") && first.contains(needle), "{args:?}: '{needle}' not in {err}");
+        assert!(err.contains("try '--help'"), "{args:?}: no hint: {err}");
+    }
+    let (_, _, err) = hemi(&["render", "--bogus"]);
+    assert!(err.contains("Usage: hemi render"), "no usage line: {err}");
+}
+
+/// Without the arguments it needs, a command prints its help and exits with 2.
+#[test]
+fn bare_commands_print_their_usage() {
+    for (args, usage) in
+        [(&[][..], "Usage: hemi <COMMAND>"), (&["compare"], "Usage: hemi compare"), (&["error"], "Usage: hemi error")]
+    {
+        let (code, out, err) = hemi(args);
+        assert_eq!(code, 2, "{args:?}: {err}");
+        assert!(out.is_empty() && err.contains(usage) && err.contains("Options:"), "{args:?}: {err}");
     }
 }
 

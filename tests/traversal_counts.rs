@@ -110,7 +110,7 @@ fn short_ao_rays_start_at_the_node_of_their_own_cube() {
     }
     assert!(with.bvh_wide_nodes > 8, "{} wide nodes: the tree should have levels", with.bvh_wide_nodes);
     let packets = with.rays.ao / lanes;
-    assert!(packets > 500, "{packets} packets: the camera should see many cubes");
+    assert!(with.rays.ao > 4000, "{} AO rays: the camera should see many cubes", with.rays.ao);
     let extra = minus(&with.traversal, &without.traversal);
     // One node test for most packets, two where a cube's leaves lie under two wide nodes
     // (1.25 a packet here; from the root it was 2.06 when measured).

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use super::{parse_sampler, peer_compare, peer_scene::PeerScene};
+use super::{console, parse_sampler, peer_compare, peer_scene::PeerScene};
 use crate::{error::HemiError, sampling::SamplerKind};
 
 /// Options of `hemi compare`.
@@ -23,15 +23,15 @@ pub(super) struct CompareArgs {
 }
 
 pub(super) fn compare(args: CompareArgs) -> Result<(), HemiError> {
-    println!(
-        "{:<14} {:>6} {:>9} {:>10} {:>10} {:>10} {:>12} {:>8} {:>9}",
+    console::out(&format!(
+        "{:<14} {:>6} {:>9} {:>10} {:>10} {:>10} {:>12} {:>8} {:>9}\n",
         "scene", "spp", "hit px", "bias", "rmse", "predicted", "hit mismatch", "seconds", "Mrays/s"
-    );
+    ))?;
     for path in &args.scenes {
         let scene = PeerScene::load(path)?;
         let c = peer_compare::compare(&scene, args.spp, args.sampler, args.threads.map(|t| t as usize))?;
-        println!(
-            "{:<14} {:>6} {:>9} {:>+10.2e} {:>10.3e} {:>10.3e} {:>12} {:>8.2} {:>9.2}",
+        console::out(&format!(
+            "{:<14} {:>6} {:>9} {:>+10.2e} {:>10.3e} {:>10.3e} {:>12} {:>8.2} {:>9.2}\n",
             c.scene,
             c.spp,
             c.hit_pixels,
@@ -41,7 +41,7 @@ pub(super) fn compare(args: CompareArgs) -> Result<(), HemiError> {
             c.hit_mismatches,
             c.seconds,
             c.rays as f64 / c.seconds / 1e6
-        );
+        ))?;
     }
     Ok(())
 }

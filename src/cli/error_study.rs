@@ -2,7 +2,7 @@
 
 use std::{io::IsTerminal, path::PathBuf};
 
-use super::{convergence, parse_sampler, parse_size, peer_scene::PeerScene, plot};
+use super::{check_distinct, console, convergence, parse_sampler, parse_size, peer_scene::PeerScene, plot};
 use crate::{
     Renderer,
     analytic::AnalyticScene,
@@ -47,6 +47,9 @@ pub(super) fn error_study(args: ErrorArgs) -> Result<(), HemiError> {
     if OutputFormat::from_path(&args.plot)? != OutputFormat::Png {
         return Err(HemiError::Usage(format!("--plot {}: plots are written as .png", args.plot.display())));
     }
+    let scene_file = std::path::Path::new(&args.scene);
+    let inputs: Vec<&std::path::Path> = args.reference.iter().map(PathBuf::as_path).chain([scene_file]).collect();
+    check_distinct(&[("--csv", &args.csv), ("--plot", &args.plot)], &inputs)?;
     let plot_file = OutputFile::create(&args.plot)?;
     let analytic = AnalyticScene::from_name(&args.scene);
     let peer =
@@ -111,26 +114,32 @@ pub(super) fn error_study(args: ErrorArgs) -> Result<(), HemiError> {
     let aov = peer.as_ref().map(|_| Aov::Ao);
     let points = convergence::study(build, &base, &samplers, args.max_spp, &reference, mask.as_deref(), aov, |p| {
         if tty {
-            eprint!("\r{:>15} {:>6} spp  rmse {:.3e}   ", p.sampler.name(), p.spp, p.rmse);
+            console::note_raw(&format!("\r{:>15} {:>6} spp  rmse {:.3e}   ", p.sampler.name(), p.spp, p.rmse));
         }
     })?;
     if tty {
-        eprintln!();
+        console::note("");
     }
-    std::fs::write(&args.csv, convergence::to_csv(&points))
-        .map_err(|e| HemiError::Io { path: args.csv.clone(), message: format!("cannot write CSV: {e}") })?;
+    OutputFile::create_any(&args.csv)?.write_text(&convergence::to_csv(&points))?;
 
     let mut by_spp = Vec::new();
     let mut by_time = Vec::new();
-    println!(
-        "{:<16} {:>12} {:>14} {:>14} {:>16}",
+    console::out(&format!(
+        "{:<16} {:>12} {:>14} {:>14} {:>16}\n",
         "sampler", "slope(spp)", "slope(seconds)", "rmse@max", "seconds@max"
-    );
+    ))?;
     for &k in &samplers {
         let (s_spp, s_time) = convergence::slopes(&points, k);
         let last = points.iter().rfind(|p| p.sampler == k).expect("every sampler was measured");
         let fmt = |s: Option<f64>| s.map_or("-".to_string(), |v| format!("{v:.3}"));
-        println!("{:<16} {:>12} {:>14} {:>14.3e} {:>16.4}", k.name(), fmt(s_spp), fmt(s_time), last.rmse, last.seconds);
+        console::out(&format!(
+            "{:<16} {:>12} {:>14} {:>14.3e} {:>16.4}\n",
+            k.name(),
+            fmt(s_spp),
+            fmt(s_time),
+            last.rmse,
+            last.seconds
+        ))?;
         let mine = || points.iter().filter(|p| p.sampler == k);
         by_spp.push(plot::Series {
             label: format!("{} {}", k.name(), fmt(s_spp)),
@@ -149,7 +158,7 @@ pub(super) fn error_study(args: ErrorArgs) -> Result<(), HemiError> {
     let img = plot::draw(&panels, (700, 560))
         .map_err(|e| HemiError::Io { path: args.plot.clone(), message: format!("cannot draw the plot: {e}") })?;
     plot_file.write_rgb8(&img)?;
-    eprintln!("hemi: wrote {} and {}", args.csv.display(), args.plot.display());
+    console::note(&format!("hemi: wrote {} and {}", args.csv.display(), args.plot.display()));
     Ok(())
 }
 

@@ -5,12 +5,13 @@ use std::{path::PathBuf, time::Instant};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use super::{
-    parse_aov, parse_fps, parse_frames, parse_sampler, parse_shard, parse_size, parse_time, peer_scene::PeerScene,
+    check_distinct, console, parse_aov, parse_fps, parse_frames, parse_sampler, parse_shard, parse_size, parse_time,
+    peer_scene::PeerScene,
 };
 use crate::{
     Renderer,
     error::HemiError,
-    film::{OutputFile, is_complete_image},
+    film::{OutputFile, OutputFormat, is_complete_image},
     partial::{self, Partial},
     resources::{Aov, RenderSettings},
     sampling::SamplerKind,
@@ -96,6 +97,9 @@ pub(super) struct RenderArgs {
     /// files `<stem>.<name>.exr` beside the image.
     #[arg(long, value_delimiter = ',', value_parser = parse_aov)]
     aov: Vec<Aov>,
+    /// Stream the progressive image to a running tev (its --hostname, e.g. 127.0.0.1:14158).
+    #[arg(long, value_name = "HOST:PORT")]
+    display_server: Option<String>,
 }
 
 /// The frames of `start..end` that shard `i/n` renders: every n-th, starting at the i-th.
@@ -117,9 +121,31 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
                     args.out.display()
                 )));
             }
-            Some(shard_frames(range, args.shard.unwrap_or((0, 1))))
+            let shard = args.shard.unwrap_or((0, 1));
+            let list = shard_frames(range, shard);
+            if list.is_empty() {
+                return Err(HemiError::Usage(format!(
+                    "--shard {}/{} gets no frame of {}..{}",
+                    shard.0, shard.1, range.0, range.1
+                )));
+            }
+            // Every frame's time must be a number the animation can be sampled at.
+            let last_time = (range.1 - 1) as f64 / args.fps;
+            if !(last_time as f32).is_finite() {
+                return Err(HemiError::Usage(format!(
+                    "--frames {}..{} at --fps {} reaches time {last_time:e} s, beyond what a frame time can hold",
+                    range.0, range.1, args.fps
+                )));
+            }
+            Some(list)
         }
         None if args.shard.is_some() => return Err(HemiError::Usage("--shard needs --frames".into())),
+        None if frame_path(&args.out, 0).is_some() => {
+            return Err(HemiError::Usage(format!(
+                "--out {} has a frame-number placeholder: add --frames START..END, or name one file",
+                args.out.display()
+            )));
+        }
         None if args.skip_existing && args.sample_range.is_none() => {
             return Err(HemiError::Usage("--skip-existing needs --frames or --sample-range".into()));
         }
@@ -141,23 +167,22 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
             )));
         }
     }
-    // Check the output first: a bad path fails before any work is done.
+    // Check the outputs first: a bad or colliding path fails before any work is done, and
+    // nothing is written under an output's name until that output is complete.
     let first_out = match &frames {
-        Some(list) => list.first().and_then(|&f| frame_path(&args.out, f)),
-        None => Some(args.out.clone()),
+        Some(list) => frame_path(&args.out, list[0]).expect("checked above"),
+        None => args.out.clone(),
     };
-    if let Some(path) = &first_out {
-        if let (Some(dir), true) = (path.parent(), frames.is_some()) {
-            std::fs::create_dir_all(dir).ok();
-        }
-        if args.sample_range.is_some() {
-            OutputFile::create_any(path)?;
-        } else {
-            OutputFile::create(path)?;
-        }
-        for &aov in &args.aov {
-            OutputFile::create(&aov_path(path, aov))?;
-        }
+    let aov_paths: Vec<(String, PathBuf)> =
+        args.aov.iter().map(|&aov| (format!("--aov {}", aov.name()), aov_path(&first_out, aov))).collect();
+    let mut outputs: Vec<(&str, &std::path::Path)> = vec![("--out", &first_out)];
+    outputs.extend(aov_paths.iter().map(|(option, path)| (option.as_str(), path.as_path())));
+    outputs.extend(args.stats_json.as_deref().map(|p| ("--stats-json", p)));
+    check_distinct(&outputs, &args.scene.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
+    OutputFormat::from_path(&first_out).map_err(|e| HemiError::Usage(e.to_string()))?;
+    OutputFile::create(&first_out)?;
+    for (_, path) in &aov_paths {
+        OutputFile::create(path)?;
     }
     let peer = match &args.scene {
         Some(path) if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("json")) => {
@@ -201,14 +226,14 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
         (Some(_), Some(peer)) => {
             let mut r = Renderer::new(settings);
             for w in peer.spawn(r.world_mut())? {
-                eprintln!("hemi: warning: {w}");
+                console::note(&format!("hemi: warning: {w}"));
             }
             r
         }
         (Some(path), None) => {
             let scene = crate::scene::gltf::load(path)?;
             for w in &scene.warnings {
-                eprintln!("hemi: warning: {}: {w}", path.display());
+                console::note(&format!("hemi: warning: {}: {w}", path.display()));
             }
             let mut r = Renderer::new(settings);
             // Posed (and, without a camera in the file, framed) at the start of the whole
@@ -229,7 +254,10 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
     }
     let stats_file = args.stats_json.as_deref().map(OutputFile::create_any).transpose()?;
     let start = Instant::now();
-    let mut totals = Totals { json: stats_file.is_some().then(Vec::new), ..Default::default() };
+    let display =
+        args.display_server.as_deref().map(|a| super::tev::DisplayServer::connect(a, &args.out.to_string_lossy()));
+    let mut totals =
+        Totals { json: stats_file.is_some().then(Vec::new), display: display.transpose()?, ..Default::default() };
     match frames {
         None if args.sample_range.is_some() => {
             render_partial(&args, &mut renderer, spp)?;
@@ -243,10 +271,10 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
             if args.target_error.is_some() {
                 let (taken, uniform) =
                     renderer.world().resource::<crate::resources::Accumulation>().samples_against_uniform();
-                eprintln!(
+                console::note(&format!(
                     "hemi: adaptive sampling took {taken} samples; uniform sampling needs {uniform:.0} for the same RMS error ({:.2}x)",
                     uniform / taken.max(1) as f64
-                );
+                ));
             }
         }
         Some(list) => {
@@ -262,7 +290,7 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
                 file.write(renderer.image())?;
                 write_aovs(renderer.image(), &out, &args.aov)?;
                 if !args.stats {
-                    eprintln!("hemi: frame {frame} -> {}", out.display());
+                    console::note(&format!("hemi: frame {frame} -> {}", out.display()));
                 }
             }
             report(size, &renderer, &totals, start, &format!("{} frames", list.len()));
@@ -357,6 +385,8 @@ struct Totals {
     frames: u32,
     /// Per-frame JSON records, kept only for `--stats-json`.
     json: Option<Vec<serde_json::Value>>,
+    /// Where `--display-server` streams the image.
+    display: Option<super::tev::DisplayServer>,
 }
 
 impl Totals {
@@ -408,9 +438,12 @@ fn render_image(renderer: &mut Renderer, spp: u32, print_stats: bool, totals: &m
             records.push(stats.to_json());
         }
         if print_stats {
-            progress.suspend(|| print!("{}", stats.table()));
+            progress.suspend(|| console::out(&stats.table()))?;
         }
         progress.set_position(stats.spp as u64);
+        if let Some(display) = &mut totals.display {
+            display.update(renderer.image(), renderer.converged());
+        }
     }
     progress.finish_and_clear();
     Ok(())
@@ -434,7 +467,7 @@ fn write_aovs(image: &crate::resources::Image, out: &std::path::Path, aovs: &[Ao
 }
 
 fn report(size: (u32, u32), renderer: &Renderer, totals: &Totals, start: Instant, what: &str) {
-    eprintln!(
+    console::note(&format!(
         "hemi: {}x{} at {} spp in {:.2} s ({} frames, {:.1} M rays, {:.2} Mrays/s while tracing) -> {}",
         size.0,
         size.1,
@@ -444,8 +477,8 @@ fn report(size: (u32, u32), renderer: &Renderer, totals: &Totals, start: Instant
         totals.rays.total() as f64 / 1e6,
         if totals.trace_secs > 0.0 { totals.rays.total() as f64 / totals.trace_secs / 1e6 } else { 0.0 },
         what
-    );
+    ));
     if crate::geometry::TraversalCounts::ENABLED {
-        eprintln!("hemi: {}", crate::stats::traversal_line(&totals.traversal, totals.rays.total()));
+        console::note(&format!("hemi: {}", crate::stats::traversal_line(&totals.traversal, totals.rays.total())));
     }
 }

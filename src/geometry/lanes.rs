@@ -1,17 +1,12 @@
-//! Rays in SIMD lanes, for packet traversal and direction runs: eight per AVX register
-//! ([`Avx`]) or sixteen per AVX-512 register ([`Avx512`]). Each operation is one IEEE operation
-//! of the single-ray code (no fused multiply-adds), so a lane computes bit for bit what that
-//! ray's own traversal does.
-//!
-//! Every method is `unsafe` and compiled for its type's instruction set, which the CPU must
-//! have; callers are generic code inlined into functions compiled for it, where the methods
-//! inline in turn.
+//! Rays in SIMD lanes, for packet traversal and direction runs: [`RayLanes`], and the
+//! [`PacketLanes`] a lane type needs to gather rays into lanes and scatter them back.
 
 use std::arch::x86_64::*;
 
 use glam::{DVec3, Vec3A};
 
 use super::ray::Ray;
+use crate::simd::{Avx, Avx512, Lanes, avx::transpose8, avx512::transpose16};
 
 /// A packet's rays in lanes, one ray per lane: origin, direction and reciprocal direction per
 /// axis, and the far end of the segment.
@@ -88,75 +83,15 @@ const RAY_FLOATS: usize = 13;
 // `Lanes::write_rays` writes sixteen floats per ray.
 const _: () = assert!(size_of::<Ray>() == 64);
 
-/// A vector of f32 lanes, one per ray of a packet, with a mask of one bit per lane.
-pub(crate) trait Lanes: Copy {
-    /// Lanes per vector.
-    const WIDTH: usize;
-    /// A lane mask.
-    type Mask: Copy;
-
-    /// `x` in every lane.
-    unsafe fn splat(x: f32) -> Self;
+/// Lanes that rays can be gathered into and written back from.
+pub(crate) trait PacketLanes: Lanes {
     /// `rays` (one to `WIDTH`) in lanes 0, 1, …, lanes past the last repeating it: each field
     /// gathered by register shuffles, with no round trip through memory.
     unsafe fn rays(rays: &[Ray]) -> RayLanes<Self>;
-    /// The inverse of [`Lanes::rays`]: lane k's ray written to `out[at[k]]`, for every lane
+    /// The inverse of [`PacketLanes::rays`]: lane k's ray written to `out[at[k]]`, for every lane
     /// (`at` holds at least `WIDTH` indices; lanes may share one); the fourth lane of each
     /// vector is 0.
     unsafe fn write_rays(lanes: &RayLanes<Self>, out: &mut [Ray], at: &[u32]);
-    /// Each lane's place in a run laid out group by group: for lane k in `groups[q]` (disjoint
-    /// masks), `start[q]` plus the number of lanes below k in `groups[q]`; `none` for a lane
-    /// in no group.
-    unsafe fn places(groups: &[u32; 4], start: &[u32; 4], none: u32) -> [u32; 16];
-    /// `x[0..WIDTH]`.
-    unsafe fn load(x: &[f32]) -> Self;
-    /// Lane `j` (below `WIDTH`), read from where `self` lies in memory.
-    fn lane(&self, j: usize) -> f32;
-    /// Adds lane k of `x`, `y` and `z` to `out[k]`, for a full vector of `out` (`WIDTH`
-    /// elements); the fourth lane of each element gets z's lane, as [`Vec3A::new`] gives it.
-    unsafe fn add_to(x: Self, y: Self, z: Self, out: &mut [Vec3A]);
-    /// `self + b`.
-    unsafe fn add(self, b: Self) -> Self;
-    /// `self − b`.
-    unsafe fn sub(self, b: Self) -> Self;
-    /// `self · b`.
-    unsafe fn mul(self, b: Self) -> Self;
-    /// `self / b`.
-    unsafe fn div(self, b: Self) -> Self;
-    /// `−self`.
-    unsafe fn neg(self) -> Self;
-    /// `|self|`.
-    unsafe fn abs(self) -> Self;
-    /// `max(self, b)`, `b` where either is NaN (`maxps`).
-    unsafe fn max_keep(self, b: Self) -> Self;
-    /// `min(self, b)`, `b` where either is NaN (`minps`).
-    unsafe fn min_keep(self, b: Self) -> Self;
-    /// `self < b` (false for NaN).
-    unsafe fn lt(self, b: Self) -> Self::Mask;
-    /// `self > b` (false for NaN).
-    unsafe fn gt(self, b: Self) -> Self::Mask;
-    /// `self ≤ b` (false for NaN).
-    unsafe fn le(self, b: Self) -> Self::Mask;
-    /// `self != b`, or either is NaN.
-    unsafe fn ne(self, b: Self) -> Self::Mask;
-    /// `self == b`, or either is NaN.
-    unsafe fn eq_or_nan(self, b: Self) -> Self::Mask;
-    /// `if_set` in the lanes of `m`, `self` elsewhere.
-    unsafe fn select(self, m: Self::Mask, if_set: Self) -> Self;
-    /// Lanes in both masks.
-    unsafe fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask;
-    /// Lanes in either mask.
-    unsafe fn or(a: Self::Mask, b: Self::Mask) -> Self::Mask;
-    /// Lanes in `b` and not in `a`.
-    unsafe fn andnot(a: Self::Mask, b: Self::Mask) -> Self::Mask;
-    /// The least lane (of numbers, none NaN).
-    unsafe fn least(self) -> f32;
-    /// The greatest lane (of numbers, none NaN).
-    unsafe fn greatest(self) -> f32;
-    /// Bit `i` set for lane `i` in the mask.
-    unsafe fn bits(m: Self::Mask) -> u32;
-    /// The mask with lane `i` set for bit `i` of `bits`.
-    unsafe fn mask(bits: u32) -> Self::Mask;
     /// The lanes whose ray (origin `o`, direction `d`) meets the plane through `a` with normal
     /// `n` at a `t` in (0, `tmax`): `t = (n·(a − o)) / (n·d)` in f64, rounded to f32, no hit
     /// where `n·d = 0`, each lane with exactly the operations of [`Triangle::finish`].
@@ -165,106 +100,7 @@ pub(crate) trait Lanes: Copy {
     unsafe fn plane_hits(n: DVec3, a: DVec3, o: &[Self; 3], d: &[Self; 3], tmax: Self) -> u32;
 }
 
-/// Lanes with a fused multiply-add (one rounding), for [`FusedPacket`]'s node test.
-///
-/// [`FusedPacket`]: super::wide_bvh::FusedPacket
-pub(crate) trait FusedLanes: Lanes {
-    /// `self · b + c`, rounded once.
-    unsafe fn mul_add(self, b: Self, c: Self) -> Self;
-}
-
-impl FusedLanes for Avx512 {
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn mul_add(self, b: Self, c: Self) -> Self {
-        Avx512(_mm512_fmadd_ps(self.0, b.0, c.0))
-    }
-}
-
-/// Eight lanes in an AVX register.
-#[derive(Clone, Copy)]
-pub(crate) struct Avx(pub(crate) __m256);
-
-impl FusedLanes for Avx {
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn mul_add(self, b: Self, c: Self) -> Self {
-        Avx(_mm256_fmadd_ps(self.0, b.0, c.0))
-    }
-}
-
-/// The transpose of eight rows of eight floats: lane k of row c becomes lane c of row k.
-#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-#[inline]
-fn transpose8(row: &[__m256; 8]) -> [__m256; 8] {
-    // Rows 2i and 2i + 1 interleaved: pairs[2i] holds elements 0 and 1 of each 128-bit block,
-    // pairs[2i + 1] elements 2 and 3.
-    let mut pairs = [_mm256_setzero_pd(); 8];
-    for i in 0..4 {
-        pairs[2 * i] = _mm256_castps_pd(_mm256_unpacklo_ps(row[2 * i], row[2 * i + 1]));
-        pairs[2 * i + 1] = _mm256_castps_pd(_mm256_unpackhi_ps(row[2 * i], row[2 * i + 1]));
-    }
-    let mut out = [_mm256_setzero_ps(); 8];
-    for e in 0..4 {
-        // Element e of each block of rows 0..4 (q0) and 4..8 (q1).
-        let h = e / 2;
-        let (q0, q1) = if e % 2 == 0 {
-            (_mm256_unpacklo_pd(pairs[h], pairs[2 + h]), _mm256_unpacklo_pd(pairs[4 + h], pairs[6 + h]))
-        } else {
-            (_mm256_unpackhi_pd(pairs[h], pairs[2 + h]), _mm256_unpackhi_pd(pairs[4 + h], pairs[6 + h]))
-        };
-        let (q0, q1) = (_mm256_castpd_ps(q0), _mm256_castpd_ps(q1));
-        out[e] = _mm256_permute2f128_ps::<0x20>(q0, q1);
-        out[e + 4] = _mm256_permute2f128_ps::<0x31>(q0, q1);
-    }
-    out
-}
-
-/// The transpose of sixteen rows of sixteen floats: lane k of row c becomes lane c of row k.
-#[target_feature(enable = "avx512f")]
-#[inline]
-fn transpose16(row: &[__m512; 16]) -> [__m512; 16] {
-    // Rows 2i and 2i + 1 interleaved: pairs[2i] holds elements 0 and 1 of each 128-bit block,
-    // pairs[2i + 1] elements 2 and 3.
-    let mut pairs = [_mm512_setzero_pd(); 16];
-    for i in 0..8 {
-        pairs[2 * i] = _mm512_castps_pd(_mm512_unpacklo_ps(row[2 * i], row[2 * i + 1]));
-        pairs[2 * i + 1] = _mm512_castps_pd(_mm512_unpackhi_ps(row[2 * i], row[2 * i + 1]));
-    }
-    let mut out = [_mm512_setzero_ps(); 16];
-    for e in 0..4 {
-        // Element e of each block of rows 4q..4q + 4.
-        let h = e / 2;
-        let mut quad = [_mm512_setzero_ps(); 4];
-        for (q, quad) in quad.iter_mut().enumerate() {
-            let (x, y) = (pairs[4 * q + h], pairs[4 * q + 2 + h]);
-            let v = if e % 2 == 0 { _mm512_unpacklo_pd(x, y) } else { _mm512_unpackhi_pd(x, y) };
-            *quad = _mm512_castpd_ps(v);
-        }
-        // Blocks 0, 1 (front) and 2, 3 (back) of the four quads, then each block's four.
-        let front = [_mm512_shuffle_f32x4::<0x44>(quad[0], quad[1]), _mm512_shuffle_f32x4::<0x44>(quad[2], quad[3])];
-        let back = [_mm512_shuffle_f32x4::<0xEE>(quad[0], quad[1]), _mm512_shuffle_f32x4::<0xEE>(quad[2], quad[3])];
-        out[e] = _mm512_shuffle_f32x4::<0x88>(front[0], front[1]);
-        out[4 + e] = _mm512_shuffle_f32x4::<0xDD>(front[0], front[1]);
-        out[8 + e] = _mm512_shuffle_f32x4::<0x88>(back[0], back[1]);
-        out[12 + e] = _mm512_shuffle_f32x4::<0xDD>(back[0], back[1]);
-    }
-    out
-}
-
-/// Sixteen lanes in an AVX-512 register.
-#[derive(Clone, Copy)]
-pub(crate) struct Avx512(pub(crate) __m512);
-
-impl Lanes for Avx {
-    const WIDTH: usize = 8;
-    type Mask = __m256;
-
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn splat(x: f32) -> Self {
-        Avx(_mm256_set1_ps(x))
-    }
+impl PacketLanes for Avx {
     /// Each ray as two rows of eight (origin and direction; reciprocal direction and `tmax`),
     /// transposed eight by eight.
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
@@ -308,175 +144,6 @@ impl Lanes for Avx {
             }
         }
     }
-    /// Lane by lane, without a branch.
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn places(groups: &[u32; 4], start: &[u32; 4], none: u32) -> [u32; 16] {
-        let mut at = [none; 16];
-        for (k, at) in at[..8].iter_mut().enumerate() {
-            let below = (1u32 << k) - 1;
-            for (lanes, start) in groups.iter().zip(start) {
-                if lanes >> k & 1 != 0 {
-                    *at = start + (lanes & below).count_ones();
-                }
-            }
-        }
-        at
-    }
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn load(x: &[f32]) -> Self {
-        let x = &x[..8];
-        // SAFETY: eight floats, checked above.
-        unsafe { Avx(_mm256_loadu_ps(x.as_ptr())) }
-    }
-    #[inline(always)]
-    fn lane(&self, j: usize) -> f32 {
-        // SAFETY: an `__m256` is eight f32 in memory.
-        let floats = unsafe { &*(&raw const self.0).cast::<[f32; 8]>() };
-        floats[j]
-    }
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn add_to(x: Self, y: Self, z: Self, out: &mut [Vec3A]) {
-        let out = &mut out[..8];
-        let xy_lo = _mm256_castps_pd(_mm256_unpacklo_ps(x.0, y.0));
-        let xy_hi = _mm256_castps_pd(_mm256_unpackhi_ps(x.0, y.0));
-        let zz_lo = _mm256_castps_pd(_mm256_unpacklo_ps(z.0, z.0));
-        let zz_hi = _mm256_castps_pd(_mm256_unpackhi_ps(z.0, z.0));
-        // Block i of rows[j]: element 4i + j as (x, y, z, z).
-        let rows = [
-            _mm256_castpd_ps(_mm256_unpacklo_pd(xy_lo, zz_lo)),
-            _mm256_castpd_ps(_mm256_unpackhi_pd(xy_lo, zz_lo)),
-            _mm256_castpd_ps(_mm256_unpacklo_pd(xy_hi, zz_hi)),
-            _mm256_castpd_ps(_mm256_unpackhi_pd(xy_hi, zz_hi)),
-        ];
-        // Elements 2j and 2j + 1, as they lie in memory.
-        let pairs = [
-            _mm256_permute2f128_ps::<0x20>(rows[0], rows[1]),
-            _mm256_permute2f128_ps::<0x20>(rows[2], rows[3]),
-            _mm256_permute2f128_ps::<0x31>(rows[0], rows[1]),
-            _mm256_permute2f128_ps::<0x31>(rows[2], rows[3]),
-        ];
-        let p = out.as_mut_ptr().cast::<f32>();
-        for (j, pair) in pairs.into_iter().enumerate() {
-            // SAFETY: `out` holds eight `Vec3A`s (16 bytes each), checked above.
-            unsafe {
-                let at = p.add(8 * j);
-                _mm256_storeu_ps(at, _mm256_add_ps(_mm256_loadu_ps(at), pair));
-            }
-        }
-    }
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn add(self, b: Self) -> Self {
-        Avx(_mm256_add_ps(self.0, b.0))
-    }
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn sub(self, b: Self) -> Self {
-        Avx(_mm256_sub_ps(self.0, b.0))
-    }
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn mul(self, b: Self) -> Self {
-        Avx(_mm256_mul_ps(self.0, b.0))
-    }
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn div(self, b: Self) -> Self {
-        Avx(_mm256_div_ps(self.0, b.0))
-    }
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn neg(self) -> Self {
-        Avx(_mm256_xor_ps(self.0, _mm256_set1_ps(-0.0)))
-    }
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn abs(self) -> Self {
-        Avx(_mm256_andnot_ps(_mm256_set1_ps(-0.0), self.0))
-    }
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn max_keep(self, b: Self) -> Self {
-        Avx(_mm256_max_ps(self.0, b.0))
-    }
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn min_keep(self, b: Self) -> Self {
-        Avx(_mm256_min_ps(self.0, b.0))
-    }
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn lt(self, b: Self) -> __m256 {
-        _mm256_cmp_ps::<_CMP_LT_OQ>(self.0, b.0)
-    }
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn gt(self, b: Self) -> __m256 {
-        _mm256_cmp_ps::<_CMP_GT_OQ>(self.0, b.0)
-    }
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn le(self, b: Self) -> __m256 {
-        _mm256_cmp_ps::<_CMP_LE_OQ>(self.0, b.0)
-    }
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn ne(self, b: Self) -> __m256 {
-        _mm256_cmp_ps::<_CMP_NEQ_UQ>(self.0, b.0)
-    }
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn eq_or_nan(self, b: Self) -> __m256 {
-        _mm256_cmp_ps::<_CMP_EQ_UQ>(self.0, b.0)
-    }
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn select(self, m: __m256, if_set: Self) -> Self {
-        Avx(_mm256_blendv_ps(self.0, if_set.0, m))
-    }
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn and(a: __m256, b: __m256) -> __m256 {
-        _mm256_and_ps(a, b)
-    }
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn or(a: __m256, b: __m256) -> __m256 {
-        _mm256_or_ps(a, b)
-    }
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn andnot(a: __m256, b: __m256) -> __m256 {
-        _mm256_andnot_ps(a, b)
-    }
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn least(self) -> f32 {
-        let m = _mm_min_ps(_mm256_castps256_ps128(self.0), _mm256_extractf128_ps::<1>(self.0));
-        let m = _mm_min_ps(m, _mm_movehl_ps(m, m));
-        _mm_cvtss_f32(_mm_min_ss(m, _mm_movehdup_ps(m)))
-    }
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn greatest(self) -> f32 {
-        let m = _mm_max_ps(_mm256_castps256_ps128(self.0), _mm256_extractf128_ps::<1>(self.0));
-        let m = _mm_max_ps(m, _mm_movehl_ps(m, m));
-        _mm_cvtss_f32(_mm_max_ss(m, _mm_movehdup_ps(m)))
-    }
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn bits(m: __m256) -> u32 {
-        _mm256_movemask_ps(m) as u32
-    }
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn mask(bits: u32) -> __m256 {
-        let bit = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
-        _mm256_castsi256_ps(_mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(bits as i32), bit), bit))
-    }
     /// In two halves of four f64 lanes.
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
@@ -506,15 +173,7 @@ impl Lanes for Avx {
     }
 }
 
-impl Lanes for Avx512 {
-    const WIDTH: usize = 16;
-    type Mask = __mmask16;
-
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn splat(x: f32) -> Self {
-        Avx512(_mm512_set1_ps(x))
-    }
+impl PacketLanes for Avx512 {
     /// Each ray as one row of sixteen, transposed sixteen by sixteen.
     #[target_feature(enable = "avx512f")]
     #[inline]
@@ -565,173 +224,6 @@ impl Lanes for Avx512 {
             unsafe { _mm512_storeu_ps((&mut out[at as usize] as *mut Ray).cast::<f32>(), row) };
         }
     }
-    /// One expand per group: `start[q], start[q] + 1, …` spread over the group's lanes in
-    /// order.
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn places(groups: &[u32; 4], start: &[u32; 4], none: u32) -> [u32; 16] {
-        let iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
-        let mut at = _mm512_set1_epi32(none as i32);
-        for (&lanes, &start) in groups.iter().zip(start) {
-            let run = _mm512_add_epi32(_mm512_set1_epi32(start as i32), iota);
-            at = _mm512_mask_expand_epi32(at, lanes as __mmask16, run);
-        }
-        let mut out = [0u32; 16];
-        // SAFETY: `out` holds sixteen u32.
-        unsafe { _mm512_storeu_si512(out.as_mut_ptr().cast(), at) };
-        out
-    }
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn load(x: &[f32]) -> Self {
-        let x = &x[..16];
-        // SAFETY: sixteen floats, checked above.
-        unsafe { Avx512(_mm512_loadu_ps(x.as_ptr())) }
-    }
-    #[inline(always)]
-    fn lane(&self, j: usize) -> f32 {
-        // SAFETY: an `__m512` is sixteen f32 in memory.
-        let floats = unsafe { &*(&raw const self.0).cast::<[f32; 16]>() };
-        floats[j]
-    }
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn add_to(x: Self, y: Self, z: Self, out: &mut [Vec3A]) {
-        let out = &mut out[..16];
-        let xy_lo = _mm512_castps_pd(_mm512_unpacklo_ps(x.0, y.0));
-        let xy_hi = _mm512_castps_pd(_mm512_unpackhi_ps(x.0, y.0));
-        let zz_lo = _mm512_castps_pd(_mm512_unpacklo_ps(z.0, z.0));
-        let zz_hi = _mm512_castps_pd(_mm512_unpackhi_ps(z.0, z.0));
-        // Block i of rows[j]: element 4i + j as (x, y, z, z).
-        let rows = [
-            _mm512_castpd_ps(_mm512_unpacklo_pd(xy_lo, zz_lo)),
-            _mm512_castpd_ps(_mm512_unpackhi_pd(xy_lo, zz_lo)),
-            _mm512_castpd_ps(_mm512_unpacklo_pd(xy_hi, zz_hi)),
-            _mm512_castpd_ps(_mm512_unpackhi_pd(xy_hi, zz_hi)),
-        ];
-        let front = [_mm512_shuffle_f32x4::<0x44>(rows[0], rows[1]), _mm512_shuffle_f32x4::<0x44>(rows[2], rows[3])];
-        let back = [_mm512_shuffle_f32x4::<0xEE>(rows[0], rows[1]), _mm512_shuffle_f32x4::<0xEE>(rows[2], rows[3])];
-        // Elements 4j..4j + 4, as they lie in memory.
-        let quads = [
-            _mm512_shuffle_f32x4::<0x88>(front[0], front[1]),
-            _mm512_shuffle_f32x4::<0xDD>(front[0], front[1]),
-            _mm512_shuffle_f32x4::<0x88>(back[0], back[1]),
-            _mm512_shuffle_f32x4::<0xDD>(back[0], back[1]),
-        ];
-        let p = out.as_mut_ptr().cast::<f32>();
-        for (j, quad) in quads.into_iter().enumerate() {
-            // SAFETY: `out` holds sixteen `Vec3A`s (16 bytes each), checked above.
-            unsafe {
-                let at = p.add(16 * j);
-                _mm512_storeu_ps(at, _mm512_add_ps(_mm512_loadu_ps(at), quad));
-            }
-        }
-    }
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn add(self, b: Self) -> Self {
-        Avx512(_mm512_add_ps(self.0, b.0))
-    }
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn sub(self, b: Self) -> Self {
-        Avx512(_mm512_sub_ps(self.0, b.0))
-    }
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn mul(self, b: Self) -> Self {
-        Avx512(_mm512_mul_ps(self.0, b.0))
-    }
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn div(self, b: Self) -> Self {
-        Avx512(_mm512_div_ps(self.0, b.0))
-    }
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn neg(self) -> Self {
-        Avx512(_mm512_castsi512_ps(_mm512_xor_si512(_mm512_castps_si512(self.0), _mm512_set1_epi32(i32::MIN))))
-    }
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn abs(self) -> Self {
-        Avx512(_mm512_abs_ps(self.0))
-    }
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn max_keep(self, b: Self) -> Self {
-        Avx512(_mm512_max_ps(self.0, b.0))
-    }
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn min_keep(self, b: Self) -> Self {
-        Avx512(_mm512_min_ps(self.0, b.0))
-    }
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn lt(self, b: Self) -> __mmask16 {
-        _mm512_cmp_ps_mask::<_CMP_LT_OQ>(self.0, b.0)
-    }
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn gt(self, b: Self) -> __mmask16 {
-        _mm512_cmp_ps_mask::<_CMP_GT_OQ>(self.0, b.0)
-    }
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn le(self, b: Self) -> __mmask16 {
-        _mm512_cmp_ps_mask::<_CMP_LE_OQ>(self.0, b.0)
-    }
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn eq_or_nan(self, b: Self) -> __mmask16 {
-        _mm512_cmp_ps_mask::<_CMP_EQ_UQ>(self.0, b.0)
-    }
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn ne(self, b: Self) -> __mmask16 {
-        _mm512_cmp_ps_mask::<_CMP_NEQ_UQ>(self.0, b.0)
-    }
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn select(self, m: __mmask16, if_set: Self) -> Self {
-        Avx512(_mm512_mask_blend_ps(m, self.0, if_set.0))
-    }
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn and(a: __mmask16, b: __mmask16) -> __mmask16 {
-        a & b
-    }
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn or(a: __mmask16, b: __mmask16) -> __mmask16 {
-        a | b
-    }
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn andnot(a: __mmask16, b: __mmask16) -> __mmask16 {
-        !a & b
-    }
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn least(self) -> f32 {
-        _mm512_reduce_min_ps(self.0)
-    }
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn greatest(self) -> f32 {
-        _mm512_reduce_max_ps(self.0)
-    }
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn bits(m: __mmask16) -> u32 {
-        m as u32
-    }
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn mask(bits: u32) -> __mmask16 {
-        bits as __mmask16
-    }
     /// In two halves of eight f64 lanes.
     #[target_feature(enable = "avx512f")]
     #[inline]
@@ -768,30 +260,13 @@ impl Lanes for Avx512 {
     }
 }
 
-/// Runs a test's eight-lane version where the CPU has AVX2 ([`crate::simd::avx2`]) and its
-/// sixteen-lane version where it has AVX-512 as well, saying which it skips.
-#[cfg(test)]
-pub(crate) fn both_widths(eight: unsafe fn(), sixteen: unsafe fn()) {
-    if !crate::simd::avx2() {
-        eprintln!("no AVX2 on this CPU: packets are not used and not tested");
-        return;
-    }
-    // SAFETY: AVX2 and the rest of x86-64-v3 were detected.
-    unsafe { eight() };
-    if std::arch::is_x86_feature_detected!("avx512f") {
-        // SAFETY: AVX-512 was detected.
-        unsafe { sixteen() };
-    } else {
-        eprintln!("no AVX-512 on this CPU: sixteen-lane packets are not used and not tested");
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use glam::Vec3A;
 
     use super::*;
     use crate::random::SplitMix64;
+    use crate::simd::both_widths;
 
     /// Every field of every ray lands in its own lane, bit for bit (as [`Lanes::lane`] reads
     /// it), for packets of one ray up to a full one, lanes past the last ray repeating it;
@@ -823,7 +298,7 @@ mod tests {
     ///
     /// # Safety
     /// The CPU must have `L`'s instruction set.
-    unsafe fn segments_in_the_box<L: Lanes>() {
+    unsafe fn segments_in_the_box<L: PacketLanes>() {
         use glam::DVec3;
         let mut rng = SplitMix64::new(9);
         let (mut cut, mut whole) = (0, 0);
@@ -931,7 +406,7 @@ mod tests {
     ///
     /// # Safety
     /// The CPU must have `L`'s instruction set.
-    unsafe fn rays_into_lanes<L: Lanes>() {
+    unsafe fn rays_into_lanes<L: PacketLanes>() {
         let mut rng = SplitMix64::new(7);
         let mut v = || Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 8.0 - 4.0;
         for n in 1..=L::WIDTH {

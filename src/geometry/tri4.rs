@@ -13,7 +13,10 @@ use super::{
     shapes::Triangle,
 };
 #[cfg(target_arch = "x86_64")]
-use crate::geometry::lanes::{Lanes, RayLanes};
+use crate::{
+    geometry::lanes::{PacketLanes, RayLanes},
+    simd::Lanes,
+};
 
 /// Four triangles (fewer in a leaf's last packet: unused lanes have slot `u32::MAX`). Aligned
 /// to 32 bytes, so that in an array each 160-byte packet starts on or halfway into a 64-byte
@@ -153,7 +156,10 @@ impl<L: Lanes> RayTriPacket<L> {
             }
         }
     }
+}
 
+#[cfg(target_arch = "x86_64")]
+impl<L: PacketLanes> RayTriPacket<L> {
     /// The lanes whose ray meets `tri`'s plane in (0, tmax): for lanes whose edge functions
     /// passed, exactly the lanes where [`Triangle::finish`] finds a hit (their determinant, a
     /// sum of three non-zero values of one sign, is never zero).
@@ -280,7 +286,7 @@ mod tests {
     /// through vertices and edges, rays parallel to an axis, and segments of every length.
     #[test]
     fn packet_edges_are_the_single_ray_edges_bit_for_bit() {
-        use crate::geometry::lanes::{Avx, Avx512, both_widths};
+        use crate::simd::{Avx, Avx512, both_widths};
         both_widths(packet_edges_are_single_ray_edges::<Avx>, packet_edges_are_single_ray_edges::<Avx512>);
     }
 
@@ -288,7 +294,7 @@ mod tests {
     ///
     /// # Safety
     /// The CPU must have `L`'s instruction set.
-    unsafe fn packet_edges_are_single_ray_edges<L: Lanes>() {
+    unsafe fn packet_edges_are_single_ray_edges<L: PacketLanes>() {
         let mut rng = SplitMix64::new(23);
         let mut v = |s: f32| Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * s - s * 0.5;
         let tris: Vec<(u32, Triangle)> = (0..4)
@@ -356,7 +362,7 @@ mod tests {
     /// finds none; with one ray turned back towards the triangle, that ray alone is hit.
     #[test]
     fn a_packet_leaving_a_triangle_gets_exactly_finish_s_plane_hits() {
-        use crate::geometry::lanes::{Avx, Avx512, both_widths};
+        use crate::simd::{Avx, Avx512, both_widths};
         both_widths(packet_leaving_a_triangle::<Avx>, packet_leaving_a_triangle::<Avx512>);
     }
 
@@ -379,7 +385,7 @@ mod tests {
     ///
     /// # Safety
     /// The CPU must have `L`'s instruction set.
-    unsafe fn packet_leaving_a_triangle<L: Lanes>() {
+    unsafe fn packet_leaving_a_triangle<L: PacketLanes>() {
         let tri = Triangle { p: [Vec3A::new(-1.0, 0.0, -1.0), Vec3A::new(2.0, 0.0, -1.0), Vec3A::new(-1.0, 0.0, 2.0)] };
         let packet = Tri4::pack([(0, tri)].into_iter());
         let origin = Vec3A::new(0.1, 1e-3, 0.1);

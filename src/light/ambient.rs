@@ -9,7 +9,7 @@ use crate::{
         DirectionRun, DirectionTerms, Light, LightSample, LightSamples, PlacedLight, ShadingPoint, Term, check_emission,
     },
     math::Onb,
-    sampling::warp::{cosine_power_hemisphere, cosine_power_hemisphere4},
+    sampling::warp::{cosine_directions, cosine_power_hemisphere, cosine_power_hemisphere4},
 };
 
 /// RTGU's ambient occluder (Suffern ch. 17) as a light: it adds
@@ -98,83 +98,17 @@ impl PlacedLight for PlacedOccluder {
         (self.exponent == 1.0).then(|| self.terms())
     }
 
-    /// Cosine-sampled runs (e = 1) sixteen or eight lanes at a time where the CPU has AVX-512
-    /// or AVX2; other exponents four at a time. Same values as `sample`.
+    /// Cosine-sampled runs (e = 1) by [`cosine_directions`], in groups the compiler vectorises;
+    /// other exponents four at a time. Same values as `sample`.
     #[inline]
     fn sample_directions(&self, at: &ShadingPoint, values: &[Vec2], run: &mut DirectionRun) -> Option<DirectionTerms> {
         run.resize(values.len());
-        if !(self.exponent == 1.0 && cosine_directions_wide(&at.frame, values, run)) {
+        if self.exponent == 1.0 {
+            cosine_directions(&at.frame, values, [&mut run.x, &mut run.y, &mut run.z, &mut run.weight]);
+        } else {
             self.directions4(&at.frame, values, run);
         }
         Some(self.terms())
-    }
-}
-
-/// [`cosine_directions`] sixteen or eight lanes at a time where the CPU has AVX-512 or AVX2;
-/// false (nothing written) elsewhere.
-#[inline]
-fn cosine_directions_wide(frame: &Onb, values: &[Vec2], run: &mut DirectionRun) -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if crate::simd::avx512() {
-            // SAFETY: the CPU has AVX-512F, checked just above.
-            unsafe { cosine_directions_avx512(frame, values, run) };
-            return true;
-        }
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has AVX2, checked just above.
-            unsafe { cosine_directions_avx2(frame, values, run) };
-            return true;
-        }
-    }
-    let _ = (frame, values, run);
-    false
-}
-
-/// [`cosine_directions`] compiled for AVX-512F, where it vectorises sixteen-wide.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-fn cosine_directions_avx512(frame: &Onb, values: &[Vec2], run: &mut DirectionRun) {
-    cosine_directions(frame, values, run);
-}
-
-/// [`cosine_directions`] compiled for AVX2, where it vectorises eight-wide.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn cosine_directions_avx2(frame: &Onb, values: &[Vec2], run: &mut DirectionRun) {
-    cosine_directions(frame, values, run);
-}
-
-/// Cosine-distributed directions (e = 1, weight 1) around `frame`'s w for the sample points
-/// `values`, into `run`: [`cosine_power_hemisphere`] and the frame's `to_world`, sample by
-/// sample, in fixed-size groups whose loops the compiler vectorises.
-#[inline(always)]
-fn cosine_directions(frame: &Onb, values: &[Vec2], run: &mut DirectionRun) {
-    const GROUP: usize = 16;
-    let (u, v, w) = (frame.u, frame.v, frame.w);
-    for (k, group) in values.chunks(GROUP).enumerate() {
-        // A whole group of points (a short last group padded), so that the loop below has no
-        // conditional load: with one, the AVX2 copy left this loop scalar (twice the AO
-        // kernel's time outside its queries on the peer Cornell box, forced onto that copy).
-        let mut points = [Vec2::splat(0.5); GROUP];
-        points[..group.len()].copy_from_slice(group);
-        let mut d = [Vec3::ZERO; GROUP];
-        for (d, &p) in d.iter_mut().zip(&points) {
-            *d = cosine_power_hemisphere(p, 1.0).dir;
-        }
-        let (mut x, mut y, mut z) = ([0.0f32; GROUP], [0.0f32; GROUP], [0.0f32; GROUP]);
-        for i in 0..GROUP {
-            // to_world, component by component: u·x + v·y + w·z.
-            x[i] = u.x * d[i].x + v.x * d[i].y + w.x * d[i].z;
-            y[i] = u.y * d[i].x + v.y * d[i].y + w.y * d[i].z;
-            z[i] = u.z * d[i].x + v.z * d[i].y + w.z * d[i].z;
-        }
-        // Whole groups (the run's columns hold a multiple of sixteen): fixed-size stores.
-        let range = k * GROUP..(k + 1) * GROUP;
-        run.x[range.clone()].copy_from_slice(&x);
-        run.y[range.clone()].copy_from_slice(&y);
-        run.z[range.clone()].copy_from_slice(&z);
-        run.weight[range].fill(1.0);
     }
 }
 
@@ -221,43 +155,6 @@ mod tests {
                 let expected = placed.sample(&at, &LightSamples::fixed(u));
                 assert_eq!(Some(run.light_sample(j, &terms)), expected, "sample {j}, e = {exponent}");
             }
-        }
-    }
-
-    /// Both vector copies of the cosine directions give the one-sample bits, whichever one
-    /// this CPU's runs use.
-    #[cfg(target_arch = "x86_64")]
-    #[test]
-    fn each_vector_copy_of_the_cosine_directions_gives_each_sample_s_bits() {
-        let mut rng = SplitMix64::new(4);
-        let frame = Onb::from_normal(Vec3::new(0.3, -0.8, 0.5).normalize());
-        // 37 points: two full groups of sixteen and a partial one.
-        let values: Vec<Vec2> = (0..37).map(|_| Vec2::new(rng.next_f32(), rng.next_f32())).collect();
-        let mut expected = DirectionRun::default();
-        expected.resize(values.len());
-        cosine_directions(&frame, &values, &mut expected);
-        for (j, &u) in values.iter().enumerate() {
-            let d = cosine_power_hemisphere(u, 1.0).dir;
-            let world = frame.u * d.x + frame.v * d.y + frame.w * d.z;
-            assert_eq!(expected.dir(j), Vec3A::from(world), "sample {j}");
-        }
-        type Copy = unsafe fn(&Onb, &[Vec2], &mut DirectionRun);
-        let copies: [(&str, Copy); 2] = [("avx2", cosine_directions_avx2), ("avx512f", cosine_directions_avx512)];
-        for (feature, copy) in copies {
-            if !std::arch::is_x86_feature_detected!("avx2")
-                || (feature == "avx512f" && !std::arch::is_x86_feature_detected!("avx512f"))
-            {
-                continue;
-            }
-            let mut run = DirectionRun::default();
-            run.resize(values.len());
-            // SAFETY: the CPU has the copy's instruction set, checked above.
-            unsafe { copy(&frame, &values, &mut run) };
-            assert_eq!(
-                (&run.x, &run.y, &run.z, &run.weight),
-                (&expected.x, &expected.y, &expected.z, &expected.weight),
-                "{feature}"
-            );
         }
     }
 }

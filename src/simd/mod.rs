@@ -1,38 +1,211 @@
-//! The instruction sets hemi's vector copies may use: what the CPU has, less AVX-512 when the
-//! environment variable `HEMI_NO_AVX512` is `1`, so that the copies an AVX2-only CPU runs
-//! (eight-lane packets, the AVX2 loops) can be run, tested and timed on a CPU with both.
+//! hemi's SIMD layer: which instruction sets the vector copies may use, and the lane types
+//! they are written over.
+//!
+//! The instruction set is detected here and nowhere else: what the CPU has, less AVX-512 when
+//! the environment variable `HEMI_NO_AVX512` is `1` (so that the copies an AVX2-only CPU runs
+//! can be run, tested and timed on a CPU with both), and none at all when `HEMI_SIMD` is
+//! `portable` (every query then takes the code that needs no vector instruction set, as on
+//! other architectures).
+//!
+//! Lane types of f32 ([`Lanes`]) are eight lanes in an AVX register ([`Avx`]), sixteen in an AVX-512
+//! one ([`Avx512`]), or eight in plain arrays (`Portable`, no intrinsics, any target; the
+//! reference the other two are tested against); of u32, `U32Lanes` for the samplers' hashes.
+//! Kernels are written once, generic over the lane type, and compiled per instruction set in
+//! functions marked `#[target_feature]`: a closure or generic function only inlines into code
+//! compiled for the same instruction set. [`multiversion!`] generates such copies and their
+//! dispatch for plain loops the compiler vectorises.
 
-/// Whether the eight-lane copies may run: the CPU has x86-64-v3's AVX2, FMA, BMI1, BMI2, LZCNT
-/// and POPCNT (every Intel CPU since Haswell, every AMD since Zen), which they are compiled for
-/// (checked once). Bit scans and counts of lane masks then take one instruction each.
+mod lanes;
+// Not yet instantiated by the kernels (under `HEMI_SIMD=portable` they take the scalar
+// paths); today it is the tested reference the vector lane types are checked against.
+#[allow(dead_code)]
+mod portable;
+
 #[cfg(target_arch = "x86_64")]
+pub(crate) mod avx;
+#[cfg(target_arch = "x86_64")]
+pub(crate) mod avx512;
+#[cfg(target_arch = "x86_64")]
+mod u32_lanes;
+
+#[cfg(target_arch = "x86_64")]
+pub(crate) use avx::Avx;
+#[cfg(target_arch = "x86_64")]
+pub(crate) use avx512::Avx512;
+pub(crate) use lanes::{FusedLanes, Lanes};
+#[allow(unused_imports)]
+pub(crate) use portable::Portable;
+#[cfg(target_arch = "x86_64")]
+pub(crate) use u32_lanes::U32Lanes;
+
+/// An instruction set hemi's vector copies are compiled for, from least to most.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Isa {
+    /// No vector instruction set: the portable code (any target, or `HEMI_SIMD=portable`).
+    Portable,
+    /// x86-64-v3: AVX2, FMA, BMI1, BMI2, LZCNT and POPCNT (every Intel CPU since Haswell,
+    /// every AMD since Zen). Bit scans and counts of lane masks take one instruction each.
+    Avx2,
+    /// AVX-512F on top of [`Isa::Avx2`].
+    Avx512,
+}
+
+/// The best instruction set this CPU has, whatever the environment says (checked once). The
+/// only place hemi asks the CPU.
+pub fn cpu_isa() -> Isa {
+    #[cfg(target_arch = "x86_64")]
+    {
+        static ISA: std::sync::OnceLock<Isa> = std::sync::OnceLock::new();
+        *ISA.get_or_init(|| {
+            let v3 = std::arch::is_x86_feature_detected!("avx2")
+                && std::arch::is_x86_feature_detected!("fma")
+                && std::arch::is_x86_feature_detected!("bmi1")
+                && std::arch::is_x86_feature_detected!("bmi2")
+                && std::arch::is_x86_feature_detected!("lzcnt")
+                && std::arch::is_x86_feature_detected!("popcnt");
+            match (v3, std::arch::is_x86_feature_detected!("avx512f")) {
+                (false, _) => Isa::Portable,
+                (true, false) => Isa::Avx2,
+                (true, true) => Isa::Avx512,
+            }
+        })
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    Isa::Portable
+}
+
+/// The instruction set the vector copies use: [`cpu_isa`], capped by the environment
+/// (`HEMI_SIMD=portable`: none; `HEMI_NO_AVX512=1`: no AVX-512). Read once per process.
+pub fn isa() -> Isa {
+    static ISA: std::sync::OnceLock<Isa> = std::sync::OnceLock::new();
+    *ISA.get_or_init(|| {
+        let set = |name: &str, value: &str| std::env::var(name).is_ok_and(|v| v.trim() == value);
+        let cap = if set("HEMI_SIMD", "portable") {
+            Isa::Portable
+        } else if set("HEMI_NO_AVX512", "1") {
+            Isa::Avx2
+        } else {
+            Isa::Avx512
+        };
+        cpu_isa().min(cap)
+    })
+}
+
+/// Whether the eight-lane copies may run: [`isa`] is at least [`Isa::Avx2`], which they are
+/// compiled for.
 pub(crate) fn avx2() -> bool {
-    static YES: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    *YES.get_or_init(|| {
-        std::arch::is_x86_feature_detected!("avx2")
-            && std::arch::is_x86_feature_detected!("fma")
-            && std::arch::is_x86_feature_detected!("bmi1")
-            && std::arch::is_x86_feature_detected!("bmi2")
-            && std::arch::is_x86_feature_detected!("lzcnt")
-            && std::arch::is_x86_feature_detected!("popcnt")
-    })
+    isa() >= Isa::Avx2
 }
 
-/// Whether the AVX-512 copies may run: the CPU has AVX-512F and everything [`avx2`] asks for
-/// (which they are compiled with too, and every such CPU has), and `HEMI_NO_AVX512` is not `1`
-/// (checked once).
-#[cfg(target_arch = "x86_64")]
+/// Whether the AVX-512 copies may run: [`isa`] is [`Isa::Avx512`] (which includes everything
+/// [`avx2()`] asks for; the copies are compiled with it too).
 pub(crate) fn avx512() -> bool {
-    static YES: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    *YES.get_or_init(|| {
-        let off = std::env::var("HEMI_NO_AVX512").is_ok_and(|v| v.trim() == "1");
-        !off && std::arch::is_x86_feature_detected!("avx512f") && avx2()
-    })
+    isa() >= Isa::Avx512
 }
 
-/// Rays per packet on this CPU and environment: sixteen where [`avx512`] allows, eight
+/// Rays per packet on this CPU and environment: sixteen where [`avx512()`] allows, eight
 /// otherwise (what eight-wide trees trace, and the width the cosine table is laid out in).
-#[cfg(target_arch = "x86_64")]
 pub(crate) fn packet_lanes() -> usize {
     if avx512() { 16 } else { 8 }
 }
+
+/// A kernel written once over the lane type `L`, which [`run_in`] compiles for `L`'s
+/// instruction set: the entry points marked `#[target_feature]` are generated here, once, and
+/// `run` (`#[inline(always)]` in each implementation) is inlined into them with everything it
+/// inlines in turn.
+pub(crate) trait Kernel<L> {
+    /// What the kernel returns.
+    type Output;
+    /// Runs the kernel.
+    ///
+    /// # Safety
+    /// The CPU must have `L`'s instruction set.
+    unsafe fn run(self) -> Self::Output;
+}
+
+/// Runs `kernel` in `lanes` lanes, compiled for that lane type's instruction set: [`Avx512`]
+/// for sixteen, [`Avx`] for eight; `None`, having done nothing, for other widths.
+///
+/// # Safety
+/// The CPU must have the instruction set of the lane type of that width ([`avx512()`],
+/// [`avx2()`]).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub(crate) unsafe fn run_in<K, O>(lanes: usize, kernel: K) -> Option<O>
+where
+    K: Kernel<Avx, Output = O> + Kernel<Avx512, Output = O>,
+{
+    /// [`Kernel::run`] compiled for AVX-512.
+    #[target_feature(enable = "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    unsafe fn avx512<K: Kernel<Avx512>>(kernel: K) -> K::Output {
+        // SAFETY: compiled for AVX-512, which the caller's CPU has.
+        unsafe { kernel.run() }
+    }
+    /// [`Kernel::run`] compiled for x86-64-v3.
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    unsafe fn avx2<K: Kernel<Avx>>(kernel: K) -> K::Output {
+        // SAFETY: compiled for x86-64-v3, which the caller's CPU has.
+        unsafe { kernel.run() }
+    }
+    // SAFETY: the caller's CPU has the instruction set of the lane type of this width.
+    unsafe {
+        match lanes {
+            16 => Some(avx512(kernel)),
+            8 => Some(avx2(kernel)),
+            _ => None,
+        }
+    }
+}
+
+/// Runs a test's eight-lane version where the CPU has AVX2 and its sixteen-lane version where
+/// it has AVX-512 as well (whatever the environment caps [`isa`] at: the copies are tested
+/// wherever they can run), saying which it skips.
+#[cfg(all(test, target_arch = "x86_64"))]
+pub(crate) fn both_widths(eight: unsafe fn(), sixteen: unsafe fn()) {
+    if cpu_isa() < Isa::Avx2 {
+        eprintln!("no AVX2 on this CPU: packets are not used and not tested");
+        return;
+    }
+    // SAFETY: AVX2 and the rest of x86-64-v3 were detected.
+    unsafe { eight() };
+    if cpu_isa() >= Isa::Avx512 {
+        // SAFETY: AVX-512 was detected.
+        unsafe { sixteen() };
+    } else {
+        eprintln!("no AVX-512 on this CPU: sixteen-lane packets are not used and not tested");
+    }
+}
+
+/// Defines a function whose body is compiled once per instruction set, AVX-512 and AVX2 copies
+/// marked `#[target_feature]` and a portable one, and which runs the copy [`isa`] allows: for
+/// loops the compiler vectorises by itself. The body is an `#[inline(always)]` function, so
+/// that it (and what it calls inline) is compiled into each copy with that copy's features.
+macro_rules! multiversion {
+    ($(#[$m:meta])* $vis:vis fn $name:ident($($arg:ident: $ty:ty),* $(,)?) $body:block) => {
+        $(#[$m])*
+        $vis fn $name($($arg: $ty),*) {
+            #[inline(always)]
+            fn body($($arg: $ty),*) $body
+            #[cfg(target_arch = "x86_64")]
+            #[target_feature(enable = "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+            fn avx512($($arg: $ty),*) {
+                body($($arg),*)
+            }
+            #[cfg(target_arch = "x86_64")]
+            #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+            fn avx2($($arg: $ty),*) {
+                body($($arg),*)
+            }
+            match $crate::simd::isa() {
+                // SAFETY: `isa` allows AVX-512 only where the CPU has it and x86-64-v3.
+                #[cfg(target_arch = "x86_64")]
+                $crate::simd::Isa::Avx512 => unsafe { avx512($($arg),*) },
+                // SAFETY: `isa` allows AVX2 only where the CPU has x86-64-v3.
+                #[cfg(target_arch = "x86_64")]
+                $crate::simd::Isa::Avx2 => unsafe { avx2($($arg),*) },
+                _ => body($($arg),*),
+            }
+        }
+    };
+}
+pub(crate) use multiversion;

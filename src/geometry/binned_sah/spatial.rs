@@ -30,18 +30,18 @@ const OVERLAP_MIN: f32 = 1e-5;
 const SPLIT_BUDGET: f32 = 0.3;
 
 /// Fewest references of a node where spatial splits are tried. Below 512 they were hardly ever
-/// taken on the peer scenes (Sponza: the same traversal counts within 1 % with tries from 64
-/// references up), while trying them cost Sponza's build 60 % more.
+/// taken on the peer scenes (trying them from 64 references up left the traversal counts
+/// where they were), while trying them made the build much slower.
 const SPATIAL_MIN_REFS: usize = 512;
 
 /// Half area, as a fraction of the scene's, above which a triangle counts as large.
 const LARGE_TRIANGLE: f32 = 1e-4;
 
 /// Whether a set of triangles (their boxes `refs`, whose union has half area `root_area`) is
-/// worth spatial splits: when at least 1 % of the triangles are large ([`LARGE_TRIANGLE`]), as
-/// in a building (Sponza: 14 %, whose AO rays then trace 16 % faster for 40 ms more build).
+/// worth spatial splits: when at least one in a hundred triangles is large ([`LARGE_TRIANGLE`]),
+/// as in a building such as Sponza, whose AO rays then trace faster for a little more build.
 /// A finely tessellated model on a ground quad has almost none (the dragon: 2 of 871k), and
-/// splitting there cut its traversal counts by 1–3 % for 350 ms more build.
+/// splitting there barely cut its traversal counts for a much longer build.
 fn worth_splitting(refs: &[Ref], root_area: f32) -> bool {
     let large = refs.iter().filter(|r| r.aabb.half_area() > LARGE_TRIANGLE * root_area).count();
     large * 100 >= refs.len()

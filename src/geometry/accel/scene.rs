@@ -1,0 +1,447 @@
+//! Everything rays can hit: the instances, their top level, and the planes beside them.
+
+use std::{
+    sync::Arc,
+    time::{Duration, Instant},
+};
+
+use bevy_ecs::prelude::Resource;
+use glam::{Affine3A, Vec3A};
+use obvhs::{
+    BvhBuildParams,
+    aabb::Aabb,
+    bvh2::{builder::build_bvh2, node::Bvh2Node},
+};
+
+use super::{
+    Object, Prim, Shape,
+    blas::{Blas, PACKET_RUN, SMALL_SET, subtree_depth},
+    kernels::{CameraPackets, ClosestHit, PacketWidth, packet_width},
+    ray_order::RayOrder,
+    tlas::Instance,
+    tree::{OccludedEach, Occluder, TopClosest, Tree},
+};
+#[cfg(target_arch = "x86_64")]
+use crate::geometry::wide_bvh::LaneHits;
+use crate::geometry::{
+    hit::SurfaceHit,
+    ray::Ray,
+    shapes::{PlanePrim, SpherePrim, Triangle},
+    wide_bvh::{Node, NodeTest, WideBvh},
+};
+
+/// What the last BVH update did, for statistics.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BvhWork {
+    /// Bottom-level BVHs built from scratch.
+    pub blas_built: usize,
+    /// Bottom-level BVHs refit to moved vertices.
+    pub blas_refit: usize,
+    /// Whether the top-level BVH over the instances was rebuilt.
+    pub tlas_built: bool,
+}
+
+impl BvhWork {
+    /// Whether any BVH work was done.
+    pub fn any(&self) -> bool {
+        self.blas_built + self.blas_refit > 0 || self.tlas_built
+    }
+}
+
+/// Everything rays can hit.
+#[derive(Resource, Clone, Debug, Default)]
+pub struct SceneGeometry {
+    pub(super) blases: Vec<Arc<Blas>>,
+    pub(super) instances: Vec<Instance>,
+    tlas: Vec<Bvh2Node>,
+    /// The top-level BVH2 collapsed to a wide tree, which traversal uses.
+    pub(super) top: Tree,
+    /// Whether runs of camera rays go through the top level in packets: every instance is in
+    /// world space (no transform) and some BLAS holds triangle packets.
+    top_packets: bool,
+    /// The BLAS of a scene that is one world-space instance (a baked static scene), which
+    /// queries take directly, with no top level: held here so that a query reaches it in one
+    /// load rather than through the instance list.
+    pub(super) world_blas: Option<Arc<Blas>>,
+    pub(super) planes: Vec<PlanePrim>,
+    /// Objects, indexed by `SurfaceHit::object`.
+    pub objects: Vec<Object>,
+    /// Triangles stored (each shared mesh once).
+    pub triangle_count: usize,
+    /// Triangles placed in the scene (each instance counted).
+    pub instanced_triangle_count: usize,
+    /// Zero-area triangles dropped from the input (they can never be hit).
+    pub degenerate_triangles: usize,
+    /// Bounds of the bounded primitives (empty when there are none).
+    pub bounds: Option<(Vec3A, Vec3A)>,
+    /// Depth of the top-level BVH plus the deepest BLAS.
+    pub depth: usize,
+    /// Time the last update took.
+    pub build_time: Duration,
+}
+
+impl SceneGeometry {
+    /// A scene whose bounded primitives (given in world space, any order) form one BLAS,
+    /// with `planes` beside it.
+    pub fn build(prims: Vec<Prim>, planes: Vec<PlanePrim>, objects: Vec<Object>) -> Self {
+        let start = Instant::now();
+        let blas = Arc::new(Blas::build(prims));
+        let instances = blas.bounds().and_then(|b| Instance::new(0, b, Affine3A::IDENTITY, None));
+        let mut g = SceneGeometry::from_instances(vec![blas], instances.into_iter().collect(), planes, objects);
+        g.build_time = start.elapsed();
+        g
+    }
+
+    /// A scene of BLAS instances plus `planes`; builds the top-level BVH over the instances.
+    pub fn from_instances(
+        blases: Vec<Arc<Blas>>,
+        instances: Vec<Instance>,
+        planes: Vec<PlanePrim>,
+        objects: Vec<Object>,
+    ) -> Self {
+        let start = Instant::now();
+        let (tlas, instances) = if instances.is_empty() {
+            (Vec::new(), instances)
+        } else {
+            // PLOC merges equal Morton codes pair by pair, so thousands of instances at one
+            // position would build in quadratic time; the binned builder halves such sets.
+            let bvh = if instances.len() < SMALL_SET {
+                let aabbs: Vec<Aabb> = instances.iter().map(|i| i.bounds).collect();
+                let params = BvhBuildParams { max_prims_per_leaf: 1, ..BvhBuildParams::fast_build() };
+                build_bvh2(&aabbs, params, &mut Duration::default())
+            } else {
+                crate::geometry::binned_sah::build(instances.len(), |i| instances[i].bounds).0
+            };
+            let ordered = bvh.primitive_indices.iter().map(|&i| instances[i as usize].clone()).collect();
+            (bvh.nodes, ordered)
+        };
+        let triangle_count = blases.iter().map(|b| b.triangle_count).sum();
+        let instanced_triangle_count = instances.iter().map(|i| blases[i.blas as usize].triangle_count).sum();
+        let degenerate_triangles = blases.iter().map(|b| b.degenerate_triangles).sum();
+        let bounds = tlas.first().map(|n| (n.aabb().min, n.aabb().max));
+        let depth = subtree_depth(&tlas) + blases.iter().map(|b| b.depth).max().unwrap_or(0);
+        let world_blas = match &instances[..] {
+            [inst] if inst.identity => Some(blases[inst.blas as usize].clone()),
+            _ => None,
+        };
+        SceneGeometry {
+            top_packets: instances.iter().all(|i| i.identity) && blases.iter().any(|b| !b.packets.is_empty()),
+            world_blas,
+            blases,
+            instances,
+            top: Tree::from_bvh2(&tlas),
+            tlas,
+            planes,
+            objects,
+            triangle_count,
+            instanced_triangle_count,
+            degenerate_triangles,
+            bounds,
+            depth,
+            build_time: start.elapsed(),
+        }
+    }
+
+    /// Children per node of the trees traversal uses (8 with AVX, else 4).
+    pub fn node_width(&self) -> usize {
+        self.blases.iter().map(|b| b.node_width()).max().unwrap_or(self.top.width())
+    }
+
+    /// Rays per packet in occlusion runs: 16 with AVX-512, 8 with AVX, 0 where trees are
+    /// four-wide and every ray is traced alone.
+    pub fn packet_lanes(&self) -> usize {
+        #[cfg(target_arch = "x86_64")]
+        if self.node_width() == 8 {
+            return packet_width().lanes();
+        }
+        0
+    }
+
+    /// Number of binary BVH nodes as built (top level plus every BLAS once).
+    pub fn node_count(&self) -> usize {
+        self.tlas.len() + self.blases.iter().map(|b| b.node_count()).sum::<usize>()
+    }
+
+    /// Number of nodes of the wide trees traversal uses ([`SceneGeometry::node_width`]
+    /// children each; top level plus every BLAS once).
+    pub fn wide_node_count(&self) -> usize {
+        self.top.len() + self.blases.iter().map(|b| b.wide_node_count()).sum::<usize>()
+    }
+
+    /// Number of primitives stored in the leaves (shared meshes once; a triangle that spatial
+    /// splits put in several leaves once per leaf).
+    pub fn prim_count(&self) -> usize {
+        self.blases.iter().map(|b| b.prims.len()).sum()
+    }
+
+    /// The bottom-level BVHs.
+    pub fn blases(&self) -> &[Arc<Blas>] {
+        &self.blases
+    }
+
+    /// The instances, in top-level leaf order.
+    pub fn instances(&self) -> &[Instance] {
+        &self.instances
+    }
+
+    /// Every bounded primitive placed in world space (instances expanded), for comparisons.
+    pub fn world_prims(&self) -> Vec<Prim> {
+        let mut out = Vec::new();
+        for inst in &self.instances {
+            let m = inst.to_world;
+            for prim in self.blases[inst.blas as usize].prims() {
+                let object = inst.object.unwrap_or(prim.object);
+                let shape = match prim.shape {
+                    Shape::Triangle(t) => Shape::Triangle(Triangle { p: t.p.map(|p| m.transform_point3a(p)) }),
+                    Shape::Sphere(s) => {
+                        let scale = m.matrix3.x_axis.length();
+                        Shape::Sphere(SpherePrim { center: m.transform_point3a(s.center), radius: s.radius * scale })
+                    }
+                };
+                out.push(Prim { shape, object });
+            }
+        }
+        out
+    }
+
+    /// Number of infinite planes.
+    pub fn plane_count(&self) -> usize {
+        self.planes.len()
+    }
+
+    /// Bytes held by nodes, instances and primitives.
+    pub fn memory_bytes(&self) -> usize {
+        self.tlas.len() * size_of::<Bvh2Node>()
+            + self.instances.len() * size_of::<Instance>()
+            + self.blases.iter().map(|b| b.memory_bytes()).sum::<usize>()
+            + self.planes.len() * size_of::<PlanePrim>()
+    }
+
+    /// Diagonal length of the bounded geometry's box (0 when there is none).
+    pub fn extent(&self) -> f32 {
+        self.bounds.map_or(0.0, |(min, max)| (max - min).length())
+    }
+
+    /// Closest hit along `ray`, if any. `stack` is reusable scratch space.
+    #[inline]
+    pub fn intersect(&self, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> Option<SurfaceHit> {
+        let mut ray = *ray;
+        let best = self.closest_instance(&mut ray, stack);
+        self.hit_with_planes(ray, best)
+    }
+
+    /// [`SceneGeometry::intersect`] for each of `rays` into `hits` (same length), the same hits:
+    /// in packets where the trees are eight-wide, every instance is in world space and there are
+    /// triangle packets (straight into the one BLAS of a static scene, else through the top
+    /// level), which suits runs of rays that travel together, such as one pixel's camera rays.
+    pub fn intersect_many(&self, rays: &[Ray], stack: &mut Vec<(u32, f32)>, hits: &mut [Option<SurfaceHit>]) {
+        #[cfg(target_arch = "x86_64")]
+        if rays.len() >= PACKET_RUN
+            && let Some(into) = self.camera_packets()
+        {
+            let width = packet_width().lanes();
+            for (chunk, out) in rays.chunks(width).zip(hits.chunks_mut(width)) {
+                let mut found = LaneHits::new(chunk);
+                let live = (1u32 << chunk.len()) - 1;
+                let alone = self.closest_packet(into, chunk, live, &mut found, stack) | found.tied;
+                for (k, (ray, hit)) in chunk.iter().zip(out).enumerate() {
+                    *hit = if alone & (1 << k) != 0 {
+                        self.intersect(ray, stack)
+                    } else {
+                        self.hit_with_planes(ray.with_tmax(found.tmax[k]), found.best[k])
+                    };
+                }
+            }
+            return;
+        }
+        for (ray, hit) in rays.iter().zip(hits) {
+            *hit = self.intersect(ray, stack);
+        }
+    }
+
+    /// Where [`SceneGeometry::intersect_many`] traces packets, if anywhere: straight into the
+    /// one world-space BLAS of triangle packets of a static scene, else through an eight-wide
+    /// top level whose instances are all in world space, with some triangle packets.
+    #[cfg(target_arch = "x86_64")]
+    fn camera_packets(&self) -> Option<CameraPackets<'_>> {
+        if let Some(blas) = &self.world_blas
+            && let Tree::Eight(tree) = &blas.tree
+            && !blas.packets.is_empty()
+        {
+            return Some(CameraPackets::World(blas, tree));
+        }
+        match &self.top {
+            Tree::Eight(top) if self.top_packets => Some(CameraPackets::Top(top)),
+            _ => None,
+        }
+    }
+
+    /// One packet of [`SceneGeometry::intersect_many`] traced `into` the scene, offered to
+    /// `hits`. Returns the lanes whose subtree overflowed a packet's stack.
+    #[cfg(target_arch = "x86_64")]
+    fn closest_packet(
+        &self,
+        into: CameraPackets,
+        rays: &[Ray],
+        live: u32,
+        hits: &mut LaneHits<ClosestHit>,
+        stack: &mut Vec<(u32, f32)>,
+    ) -> u32 {
+        let sixteen = matches!(packet_width(), PacketWidth::Sixteen);
+        // SAFETY: eight-wide trees are built only where AVX was detected, and sixteen-lane
+        // packets are chosen only where AVX-512 (with POPCNT) was.
+        unsafe {
+            match into {
+                CameraPackets::World(blas, tree) if sixteen => blas.closest_lanes_avx512(tree, rays, live, 0, hits),
+                CameraPackets::World(blas, tree) => blas.closest_lanes_avx(tree, rays, live, 0, hits),
+                CameraPackets::Top(top) if sixteen => self.closest_top_avx512(top, rays, live, hits, stack),
+                CameraPackets::Top(top) => self.closest_top_avx(top, rays, live, hits, stack),
+            }
+        }
+    }
+
+    /// The closest hit along `ray` given the closest primitive hit `best` (instance, slot,
+    /// barycentrics) at `ray.tmax`: a plane hit before it wins.
+    #[inline]
+    fn hit_with_planes(&self, mut ray: Ray, best: Option<ClosestHit>) -> Option<SurfaceHit> {
+        let mut plane_hit = None;
+        for plane in &self.planes {
+            if let Some(t) = plane.intersect(&ray) {
+                ray.tmax = t;
+                plane_hit = Some(plane);
+            }
+        }
+        if let Some(plane) = plane_hit {
+            return Some(plane.surface(&ray, ray.tmax));
+        }
+        best.map(|(i, slot, b1, b2)| self.surface(i, slot, &ray, b1, b2))
+    }
+
+    /// The surface at a hit of instance `i`'s primitive `slot`; `ray.tmax` is the world t.
+    pub(super) fn surface(&self, i: u32, slot: u32, ray: &Ray, b1: f32, b2: f32) -> SurfaceHit {
+        let inst = &self.instances[i as usize];
+        let blas = &self.blases[inst.blas as usize];
+        let object = inst.object.unwrap_or(blas.prims[slot as usize].object);
+        if inst.identity {
+            return blas.surface(slot, ray, b1, b2, object);
+        }
+        // The same local ray as during traversal (a pure function of the world ray's origin and
+        // direction), so the local hit is the one that was found.
+        let Some((local, dt)) = inst.local_ray(&ray.with_tmax(f32::INFINITY)) else {
+            return blas.surface(slot, ray, b1, b2, object);
+        };
+        let local = local.with_tmax(ray.tmax - dt);
+        inst.to_world_hit(blas.surface(slot, &local, b1, b2, object), dt)
+    }
+
+    /// Front-to-back top-level traversal; shrinks `ray.tmax` (world t) to the closest hit and
+    /// returns (instance, primitive slot, b1, b2).
+    #[inline]
+    fn closest_instance(&self, ray: &mut Ray, stack: &mut Vec<(u32, f32)>) -> Option<ClosestHit> {
+        stack.clear();
+        if let Some(blas) = &self.world_blas {
+            // One world-space BLAS (a static scene): no top level to traverse.
+            return blas.closest(ray, stack).map(|(slot, b1, b2)| (0, slot, b1, b2));
+        }
+        self.top.query(TopClosest { scene: self, ray, stack })
+    }
+
+    /// Closest hit through the top-level tree `top`.
+    #[inline(always)]
+    pub(super) fn closest_through<const W: usize>(
+        &self,
+        top: &WideBvh<W>,
+        ray: &mut Ray,
+        stack: &mut Vec<(u32, f32)>,
+    ) -> Option<ClosestHit>
+    where
+        Node<W>: NodeTest<W>,
+    {
+        let mut best = None;
+        top.closest(ray, stack, |first, count, ray, stack| {
+            for k in first..first + count {
+                let inst = &self.instances[k as usize];
+                let blas = &self.blases[inst.blas as usize];
+                if inst.identity {
+                    if let Some((slot, b1, b2)) = blas.closest(ray, stack) {
+                        best = Some((k, slot, b1, b2));
+                    }
+                } else if let Some((mut local, dt)) = inst.local_ray(ray)
+                    && let Some((slot, b1, b2)) = blas.closest(&mut local, stack)
+                {
+                    ray.tmax = ray.tmax.min(local.tmax + dt);
+                    best = Some((k, slot, b1, b2));
+                }
+            }
+        });
+        best
+    }
+
+    /// Whether anything blocks `ray` in (0, tmax); stops at the first blocker found.
+    #[inline]
+    pub fn occluded(&self, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool {
+        let mut blocked = [false];
+        self.occluded_many(std::slice::from_ref(ray), RayOrder::Mixed, stack, &mut blocked);
+        blocked[0]
+    }
+
+    /// [`SceneGeometry::occluded`] for each of `rays` into `blocked` (same length; every entry is
+    /// written, whatever it held), in one call:
+    /// the dispatch to the tree's width and the traversal's set-up outside the loop over rays;
+    /// `order` says how the rays are cut into packets.
+    pub fn occluded_many(&self, rays: &[Ray], order: RayOrder, stack: &mut Vec<(u32, f32)>, blocked: &mut [bool]) {
+        for (ray, b) in rays.iter().zip(blocked.iter_mut()) {
+            *b = self.planes.iter().any(|p| p.intersect(ray).is_some());
+        }
+        stack.clear();
+        if let Some(blas) = &self.world_blas {
+            // One world-space BLAS (a static scene): no top level to traverse.
+            blas.occluded_many(rays, order, stack, blocked);
+        } else {
+            #[cfg(target_arch = "x86_64")]
+            if let Tree::Eight(top) = &self.top
+                && rays.len() >= PACKET_RUN
+            {
+                // SAFETY: an eight-wide tree is built only where AVX was detected, and
+                // sixteen-lane packets are chosen only where AVX-512 (with POPCNT) was.
+                return unsafe {
+                    match packet_width() {
+                        PacketWidth::Sixteen => self.occluded_packets_avx512(top, rays, order, stack, blocked),
+                        PacketWidth::Eight => self.occluded_packets_avx(top, rays, order, stack, blocked),
+                    }
+                };
+            }
+            let _ = order;
+            self.top.query(OccludedEach { target: self, rays, stack, blocked });
+        }
+    }
+
+    /// Whether anything in instances `first..first + count` (a top-level leaf) blocks `ray`.
+    #[inline(always)]
+    pub(super) fn instances_block(&self, first: u32, count: u32, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool {
+        let instances = &self.instances[first as usize..(first + count) as usize];
+        instances.iter().any(|inst| self.instance_blocks(inst, ray, stack))
+    }
+
+    /// Whether anything in instance `inst` blocks `ray` (world space).
+    #[inline(always)]
+    pub(super) fn instance_blocks(&self, inst: &Instance, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool {
+        let blas = &self.blases[inst.blas as usize];
+        if inst.identity {
+            blas.occluded(ray, stack)
+        } else {
+            inst.local_ray(ray).is_some_and(|(local, _)| blas.occluded(&local, stack))
+        }
+    }
+}
+
+/// Occlusion through the top-level tree.
+impl Occluder for SceneGeometry {
+    #[inline(always)]
+    fn occluded_in<const W: usize>(&self, top: &WideBvh<W>, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool
+    where
+        Node<W>: NodeTest<W>,
+    {
+        top.occluded(ray, stack, |first, count, stack| self.instances_block(first, count, ray, stack))
+    }
+}

@@ -1,0 +1,171 @@
+//! The wide tree a BLAS or the top level is traversed through, and the traversals written once for
+//! either node width.
+
+use obvhs::bvh2::node::Bvh2Node;
+
+use super::{blas::Blas, kernels::ClosestHit, scene::SceneGeometry};
+use crate::geometry::{
+    ray::Ray,
+    wide_bvh::{Bvh4, Node, NodeTest, WideBvh},
+};
+
+/// The wide tree traversal uses: eight children per node where the CPU has AVX, else four.
+#[derive(Clone, Debug)]
+pub(super) enum Tree {
+    Four(Bvh4),
+    #[cfg(target_arch = "x86_64")]
+    Eight(crate::geometry::wide_bvh::Bvh8),
+}
+
+impl Default for Tree {
+    fn default() -> Self {
+        Tree::Four(Bvh4::default())
+    }
+}
+
+impl Tree {
+    /// Collapses `bvh2` to eight children per node where the CPU has AVX and `HEMI_BVH_WIDTH`
+    /// is not 4, else to four.
+    pub(super) fn from_bvh2(bvh2: &[Bvh2Node]) -> Self {
+        #[cfg(target_arch = "x86_64")]
+        if bvh_width() == 8
+            && let Some(tree) = crate::geometry::wide_bvh::Bvh8::from_bvh2(bvh2)
+        {
+            return Tree::Eight(tree);
+        }
+        Tree::Four(Bvh4::from_bvh2(bvh2))
+    }
+
+    pub(super) fn map_leaves(&mut self, f: impl FnMut(u32, u32) -> (u32, u32)) {
+        match self {
+            Tree::Four(t) => t.map_leaves(f),
+            #[cfg(target_arch = "x86_64")]
+            Tree::Eight(t) => t.map_leaves(f),
+        }
+    }
+
+    pub(super) fn memory_bytes(&self) -> usize {
+        match self {
+            Tree::Four(t) => t.memory_bytes(),
+            #[cfg(target_arch = "x86_64")]
+            Tree::Eight(t) => t.memory_bytes(),
+        }
+    }
+
+    pub(super) fn len(&self) -> usize {
+        match self {
+            Tree::Four(t) => t.len(),
+            #[cfg(target_arch = "x86_64")]
+            Tree::Eight(t) => t.len(),
+        }
+    }
+
+    pub(super) fn width(&self) -> usize {
+        match self {
+            Tree::Four(_) => 4,
+            #[cfg(target_arch = "x86_64")]
+            Tree::Eight(_) => 8,
+        }
+    }
+
+    /// Runs `query` over this tree; an eight-wide tree is traversed by code compiled for AVX.
+    #[inline(always)]
+    pub(super) fn query<Q: TreeQuery>(&self, query: Q) -> Q::Output {
+        match self {
+            Tree::Four(tree) => query.run(tree),
+            // SAFETY: an eight-wide tree is built only where AVX was detected.
+            #[cfg(target_arch = "x86_64")]
+            Tree::Eight(tree) => unsafe { query_avx(tree, query) },
+        }
+    }
+}
+
+/// A traversal written once for either node width.
+pub(super) trait TreeQuery {
+    type Output;
+    fn run<const W: usize>(self, tree: &WideBvh<W>) -> Self::Output
+    where
+        Node<W>: NodeTest<W>;
+}
+
+/// [`TreeQuery::run`] compiled for the eight-lane instruction sets ([`crate::simd::avx2`]), so
+/// that the eight-wide node test inlines.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+pub(super) fn query_avx<Q: TreeQuery>(tree: &crate::geometry::wide_bvh::Bvh8, query: Q) -> Q::Output {
+    query.run(tree)
+}
+
+/// Closest hit in a BLAS: (primitive slot, b1, b2).
+pub(super) struct BlasClosest<'a> {
+    pub(super) blas: &'a Blas,
+    pub(super) ray: &'a mut Ray,
+    pub(super) stack: &'a mut Vec<(u32, f32)>,
+}
+
+impl TreeQuery for BlasClosest<'_> {
+    type Output = Option<(u32, f32, f32)>;
+    #[inline(always)]
+    fn run<const W: usize>(self, tree: &WideBvh<W>) -> Self::Output
+    where
+        Node<W>: NodeTest<W>,
+    {
+        self.blas.closest_in(tree, self.ray, self.stack)
+    }
+}
+
+/// Occlusion of each of `rays` not yet known to be blocked (`blocked`, same length), by
+/// `target`'s traversal of the tree: one call, one dispatch to the tree's width.
+pub(super) struct OccludedEach<'a, T> {
+    pub(super) target: &'a T,
+    pub(super) rays: &'a [Ray],
+    pub(super) stack: &'a mut Vec<(u32, f32)>,
+    pub(super) blocked: &'a mut [bool],
+}
+
+/// What an [`OccludedEach`] query traverses: a BLAS, or the scene through its top level.
+pub(super) trait Occluder {
+    /// Whether anything reached through `tree` blocks `ray`. Uses `stack` above its length.
+    fn occluded_in<const W: usize>(&self, tree: &WideBvh<W>, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool
+    where
+        Node<W>: NodeTest<W>;
+}
+
+impl<T: Occluder> TreeQuery for OccludedEach<'_, T> {
+    type Output = ();
+    #[inline(always)]
+    fn run<const W: usize>(self, tree: &WideBvh<W>)
+    where
+        Node<W>: NodeTest<W>,
+    {
+        for (ray, b) in self.rays.iter().zip(self.blocked.iter_mut()) {
+            *b = *b || self.target.occluded_in(tree, ray, self.stack);
+        }
+    }
+}
+
+/// Closest hit through the top level: (instance, primitive slot, b1, b2).
+pub(super) struct TopClosest<'a> {
+    pub(super) scene: &'a SceneGeometry,
+    pub(super) ray: &'a mut Ray,
+    pub(super) stack: &'a mut Vec<(u32, f32)>,
+}
+
+impl TreeQuery for TopClosest<'_> {
+    type Output = Option<ClosestHit>;
+    #[inline(always)]
+    fn run<const W: usize>(self, tree: &WideBvh<W>) -> Self::Output
+    where
+        Node<W>: NodeTest<W>,
+    {
+        self.scene.closest_through(tree, self.ray, self.stack)
+    }
+}
+
+/// The node width asked for: 4 when the environment variable `HEMI_BVH_WIDTH` is `4`,
+/// else 8 (which falls back to 4 without AVX). Read once per process.
+#[cfg(target_arch = "x86_64")]
+pub(super) fn bvh_width() -> usize {
+    static WIDTH: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
+    *WIDTH.get_or_init(|| if std::env::var("HEMI_BVH_WIDTH").is_ok_and(|w| w.trim() == "4") { 4 } else { 8 })
+}

@@ -1,0 +1,158 @@
+//! A wide BVH collapsed from an obvhs BVH2, with the child boxes of a node stored as
+//! structure-of-arrays and tested against a ray at once: four children per node with SSE (the
+//! x86_64 baseline; scalar elsewhere), or eight with AVX, built only where the CPU has it.
+//!
+//! The node test keeps the semantics of the scalar slab test it replaces, bit for bit on every
+//! decision and at either width: a zero direction component gives 0·∞ = NaN exactly when the
+//! origin lies on that slab's plane, and such a bound leaves the slab unbounded (the NaN lane
+//! is dropped by the min/max, which return their second operand when the first is NaN); the
+//! far distance is widened by 2γ(3) (Ize 2013) so rounding never culls a true hit. Each axis
+//! takes its near and far planes by the sign of the direction, which for a box with min ≤ max
+//! gives the same values as min/max of the two slab distances and lets an empty slot be an
+//! inverted box that no ray enters.
+
+mod build;
+mod node_test;
+#[cfg(target_arch = "x86_64")]
+mod packet;
+#[cfg(test)]
+mod tests;
+mod traversal;
+
+#[cfg(target_arch = "x86_64")]
+pub(crate) use packet::{FusedPacket, LaneHits, PACKET_MIN_LANES, RayPacket};
+
+use obvhs::aabb::Aabb;
+
+use super::ray::Ray;
+use crate::math::gamma;
+
+/// Asks the CPU to start loading `x`'s cache lines (a hint; no effect on results).
+#[inline(always)]
+pub(crate) fn prefetch<T>(x: &T) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        let p = (x as *const T).cast::<i8>();
+        for line in (0..std::mem::size_of::<T>()).step_by(64) {
+            // SAFETY: a prefetch never faults, and `line` stays inside `x`.
+            unsafe { std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p.add(line)) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = x;
+}
+
+/// Leaf references on the closest-hit stack: `LEAF | (node << 3) | slot`.
+const LEAF: u32 = 1 << 31;
+
+/// `W` children: their boxes (min x, y, z, max x, y, z; `W` lanes each) and what they hold.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+pub struct Node<const W: usize> {
+    planes: [[f32; W]; 6],
+    /// Node index of an inner child, or first primitive of a leaf.
+    child: [u32; W],
+    /// Primitives in a leaf child; 0 for an inner child or an empty slot.
+    count: [u32; W],
+}
+
+/// A ray's constants for the node test.
+#[derive(Clone, Copy)]
+pub struct RayBox {
+    origin: [f32; 3],
+    inv_dir: [f32; 3],
+    near: [usize; 3],
+    far: [usize; 3],
+}
+
+impl RayBox {
+    /// The node-test constants of `ray`.
+    #[inline(always)]
+    pub fn new(ray: &Ray) -> Self {
+        let inv = ray.inv_dir;
+        // inv_dir is never ±0 or NaN for a finite direction; its sign picks the near plane.
+        let (near, far) = plane_rows(inv.cmplt(glam::Vec3A::ZERO).bitmask());
+        RayBox { origin: ray.origin.to_array(), inv_dir: inv.to_array(), near, far }
+    }
+}
+
+/// The rows of a node's planes that are the near and far planes on each axis for a direction
+/// negative on the axes of `negative` (bit a for axis a): row a (the minimum) is the near plane
+/// where the direction is positive, row a + 3 (the maximum) where it is negative.
+#[inline(always)]
+fn plane_rows(negative: u32) -> ([usize; 3], [usize; 3]) {
+    let neg = |a: usize| ((negative >> a) & 1) as usize;
+    (std::array::from_fn(|a| a + 3 * neg(a)), std::array::from_fn(|a| a + 3 - 3 * neg(a)))
+}
+
+/// The ray–children test of a node of width `W`.
+pub trait NodeTest<const W: usize> {
+    /// Which children the ray enters before `tmax` (bit i for child i) and their entry distances.
+    fn test(&self, r: &RayBox, tmax: f32) -> (u32, [f32; W]);
+}
+
+/// Where the entry distance starts: the smallest positive f32, so a child whose exit distance
+/// is 0 or less is not entered. It can hold only hits at t ≤ 0, which every primitive test
+/// rejects: this skips, for instance, the flat leaf box of a plane that a ray starts on.
+const NEAR_START: f32 = f32::from_bits(1);
+
+/// How far past the computed exit distance a box still counts as entered (Ize 2013).
+#[inline(always)]
+fn far_scale() -> f32 {
+    1.0 + 2.0 * gamma(3)
+}
+
+impl<const W: usize> Node<W> {
+    const EMPTY: Self = {
+        let mut planes = [[f32::INFINITY; W]; 6];
+        planes[3] = [f32::NEG_INFINITY; W];
+        planes[4] = [f32::NEG_INFINITY; W];
+        planes[5] = [f32::NEG_INFINITY; W];
+        Node { planes, child: [0; W], count: [0; W] }
+    };
+
+    fn set(&mut self, slot: usize, aabb: &Aabb) {
+        for a in 0..3 {
+            self.planes[a][slot] = aabb.min[a];
+            self.planes[a + 3][slot] = aabb.max[a];
+        }
+    }
+}
+
+/// A BVH of `W` children per node whose leaves are ranges of a primitive array in the BVH2's
+/// leaf order.
+#[derive(Clone, Debug)]
+pub struct WideBvh<const W: usize> {
+    nodes: Vec<Node<W>>,
+    /// The root's box (the union of its children's): nothing lies outside it.
+    bounds: Aabb,
+}
+
+impl<const W: usize> Default for WideBvh<W> {
+    fn default() -> Self {
+        WideBvh { nodes: Vec::new(), bounds: Aabb::empty() }
+    }
+}
+
+/// Four children per node: available everywhere.
+pub type Bvh4 = WideBvh<4>;
+
+/// Eight children per node: built only where the CPU has AVX.
+pub type Bvh8 = WideBvh<8>;
+
+impl<const W: usize> WideBvh<W> {
+    /// Number of nodes.
+    pub fn len(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Whether there are no nodes.
+    pub fn is_empty(&self) -> bool {
+        self.nodes.is_empty()
+    }
+
+    /// Bytes held by the nodes.
+    pub fn memory_bytes(&self) -> usize {
+        self.nodes.len() * size_of::<Node<W>>()
+    }
+}

@@ -1,0 +1,205 @@
+//! Cosine runs in one pass: sample points to directions to packets, with no sort where whole CMJ
+//! patterns give each sample's quadrant.
+
+use glam::Vec3A;
+
+use super::{
+    DirectionRays, QuadrantOut, QuadrantPasses, clear_and_floor,
+    lanes::{PassLanes, add_clear_or_floor, along, occluded_lanes, spawned_lanes, to_world},
+    quadrant_lanes, quadrant_starts,
+};
+use crate::{
+    geometry::{accel::SceneGeometry, hit::SpawnOrigins},
+    light::DirectionTerms,
+    math::Onb,
+};
+#[cfg(target_arch = "x86_64")]
+use crate::{
+    sampling::{cmj::QuadrantPattern, warp::cosine_hemisphere16},
+    simd::{Avx512, Lanes},
+};
+
+impl DirectionRays {
+    /// [`DirectionRays::add_cosine`] in AVX-512 lanes, the sample points already in
+    /// `samples[0]` and `samples[1]`. Each group of sixteen samples is mapped to directions
+    /// ([`cosine_hemisphere16`]) and sorted into the quadrants of [`DirectionRays::add_lanes`]
+    /// by lane compression; packets load their lanes straight from those columns.
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512F and POPCNT ([`crate::simd::avx512()`]).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    pub(super) unsafe fn add_cosine_avx512(
+        &mut self,
+        geometry: &SceneGeometry,
+        stack: &mut Vec<(u32, f32)>,
+        spawn: &SpawnOrigins,
+        frame: &Onb,
+        terms: &DirectionTerms,
+        arriving: &mut [Vec3A],
+    ) -> (u64, u64) {
+        use std::arch::x86_64::*;
+
+        let n = arriving.len();
+        let groups = n.div_ceil(16);
+        // Every sample has weight 1: one clear value and one floor for all.
+        let (clear, floor) = clear_and_floor(terms, 1.0);
+        self.dark.clear();
+        self.dark.resize(groups, 0);
+        let mut traced = 0;
+        let mut cycles = 0;
+        if clear.cmpne(floor).any() {
+            let [xs, ys, dx, dy, dz] = &mut self.samples;
+            for column in [&mut *dx, &mut *dy, &mut *dz] {
+                column.resize(groups * 16, 0.0);
+            }
+            let normal = spawn.normal();
+            let tangents = Onb::from_normal(normal.into());
+            let (tu, tv) = (Vec3A::from(tangents.u), Vec3A::from(tangents.v));
+            let k = |x: f32| Avx512(_mm512_set1_ps(x));
+            // Directions, quadrants and their counts.
+            self.groups.clear();
+            let mut count = [0u32; 4];
+            for g in 0..groups {
+                let at = g * 16;
+                // SAFETY (this block): the CPU has AVX-512F; the loads and stores are of
+                // sixteen floats within the columns, which hold whole groups.
+                let masks = unsafe {
+                    let local = cosine_hemisphere16(
+                        _mm512_loadu_ps(xs[at..at + 16].as_ptr()),
+                        _mm512_loadu_ps(ys[at..at + 16].as_ptr()),
+                    );
+                    let d = to_world(frame, local.map(Avx512));
+                    for (column, lanes) in [&mut *dx, &mut *dy, &mut *dz].into_iter().zip(d) {
+                        _mm512_storeu_ps(column[at..at + 16].as_mut_ptr(), lanes.0);
+                    }
+                    let valid = (1u32 << (n - at).min(16)) - 1;
+                    let negative = [Avx512::bits(along(&d, tu).lt(k(0.0))), Avx512::bits(along(&d, tv).lt(k(0.0)))];
+                    quadrant_lanes(valid, negative)
+                };
+                for (count, lanes) in count.iter_mut().zip(masks) {
+                    *count += lanes.count_ones();
+                }
+                self.groups.push(masks);
+            }
+            let mut cursor;
+            (cursor, traced) = quadrant_starts(count);
+            for column in &mut self.ray_dirs {
+                column.resize(traced, 0.0);
+            }
+            self.ray_samples.resize(traced, 0);
+            let iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+            for (g, masks) in self.groups.iter().enumerate() {
+                let at = g * 16;
+                for (cursor, &lanes) in cursor.iter_mut().zip(masks) {
+                    if lanes == 0 {
+                        continue;
+                    }
+                    let (m, to) = (lanes as __mmask16, *cursor as usize);
+                    let keep = ((1u32 << lanes.count_ones()) - 1) as __mmask16;
+                    // SAFETY (this block): the CPU has AVX-512F; the loads read one group of
+                    // the sample columns and the masked stores write the quadrant's next
+                    // `lanes.count_ones()` entries, within the `traced` of each ray column.
+                    unsafe {
+                        for (from, to_column) in [&*dx, &*dy, &*dz].into_iter().zip(&mut self.ray_dirs) {
+                            let lanes = _mm512_maskz_compress_ps(m, _mm512_loadu_ps(from[at..at + 16].as_ptr()));
+                            _mm512_mask_storeu_ps(to_column[to..].as_mut_ptr(), keep, lanes);
+                        }
+                        let index =
+                            _mm512_maskz_compress_epi32(m, _mm512_add_epi32(iota, _mm512_set1_epi32(at as i32)));
+                        _mm512_mask_storeu_epi32(self.ray_samples[to..].as_mut_ptr().cast(), keep, index);
+                    }
+                    *cursor += lanes.count_ones();
+                }
+            }
+            // Packets of sixteen consecutive rays, as `RayOrder::Grouped` cuts them, each
+            // query timed (when timing) as `DirectionRays::trace` times the whole call.
+            stack.clear();
+            for p in (0..traced).step_by(16) {
+                let live = (1u32 << (traced - p).min(16)) - 1;
+                // SAFETY: the CPU has AVX-512F; the masked loads read the packet's `live` rays
+                // within the ray columns.
+                let (hit, took) = unsafe {
+                    let load = |c: &Vec<f32>| Avx512(_mm512_maskz_loadu_ps(live as __mmask16, c[p..].as_ptr()));
+                    let d = [load(&self.ray_dirs[0]), load(&self.ray_dirs[1]), load(&self.ray_dirs[2])];
+                    let lanes = spawned_lanes(d, spawn, terms.max_distance);
+                    occluded_lanes(geometry, stack, &lanes, live, self.timing)
+                };
+                cycles += took;
+                let mut each = hit;
+                while each != 0 {
+                    let j = self.ray_samples[p + each.trailing_zeros() as usize] as usize;
+                    each &= each - 1;
+                    self.dark[j / 16] |= 1 << (j % 16);
+                }
+            }
+        }
+        for (sums, &dark) in arriving.chunks_mut(16).zip(&self.dark) {
+            // SAFETY: the CPU has AVX-512F.
+            unsafe { add_clear_or_floor::<Avx512>(clear, floor, dark, sums) };
+        }
+        (traced as u64, cycles)
+    }
+
+    /// [`DirectionRays::add_cosine`] for runs of whole passes of quadrant patterns: each
+    /// pass's n samples traced `L::WIDTH` slots at a time in the pattern's quadrant order
+    /// ([`QuadrantPattern`]), so every packet is rays into one quarter of the hemisphere around
+    /// the shading normal (n/4 ≥ `L::WIDTH`), their local directions loaded from the table
+    /// ([`CosineTable`](crate::sampling::cosine_table::CosineTable)) in that order, with no columns written and no sort; then each sample's
+    /// answer is read back by its slot, in sample order, or, for a sum, the blocked ones
+    /// counted. Each sample gets the same ray, answer and light as in [`DirectionRays::add`].
+    ///
+    /// # Safety
+    /// The CPU must have `L`'s instruction set.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    pub(super) unsafe fn add_cosine_quadrants<L: PassLanes>(
+        &mut self,
+        geometry: &SceneGeometry,
+        stack: &mut Vec<(u32, f32)>,
+        spawn: &SpawnOrigins,
+        frame: &Onb,
+        QuadrantPasses { cmj, table, n, passes }: QuadrantPasses<impl Iterator<Item = u32>>,
+        terms: &DirectionTerms,
+        mut out: QuadrantOut,
+    ) -> (u64, u64) {
+        // Every sample has weight 1: one clear value and one floor for all.
+        let (clear, floor) = clear_and_floor(terms, 1.0);
+        let tracing = clear.cmpne(floor).any();
+        let (mut traced, mut cycles, mut dark) = (0, 0, 0);
+        let all = (1u32 << L::WIDTH) - 1;
+        stack.clear();
+        for (pass, p) in passes.enumerate() {
+            // Bit t % 16 of entry t / 16: slot t is blocked.
+            let mut blocked = [0u32; 16];
+            if tracing {
+                for (packet, local) in table.pattern(p).chunks_exact(3 * L::WIDTH).enumerate() {
+                    // SAFETY (every block below): the caller's CPU has `L`'s instruction set.
+                    let (hit, took) = unsafe {
+                        let local = [0, 1, 2].map(|axis| L::load(&local[axis * L::WIDTH..]));
+                        let lanes = spawned_lanes(to_world(frame, local), spawn, terms.max_distance);
+                        occluded_lanes(geometry, stack, &lanes, all, self.timing)
+                    };
+                    cycles += took;
+                    let slot = packet * L::WIDTH;
+                    blocked[slot / 16] |= hit << (slot % 16);
+                }
+                traced += n;
+            }
+            let QuadrantOut::Each(arriving) = &mut out else {
+                dark += blocked.iter().map(|b| b.count_ones()).sum::<u32>();
+                continue;
+            };
+            let pattern = unsafe { QuadrantPattern::<L::Grid>::new(cmj, p) };
+            for (group, sums) in arriving[pass * n..][..n].chunks_mut(L::WIDTH).enumerate() {
+                unsafe { add_clear_or_floor::<L>(clear, floor, pattern.marked(group, &blocked), sums) };
+            }
+        }
+        if let QuadrantOut::Sum(samples, sum) = out {
+            // Whole numbers of samples (at most 2²⁴): exact as floats.
+            *sum += clear * (samples as u32 - dark) as f32 + floor * dark as f32;
+        }
+        (traced as u64, cycles)
+    }
+}

@@ -1,0 +1,265 @@
+//! The shadow rays of a direction run ([`PlacedLight::sample_directions`]): set up a SIMD
+//! vector of samples at a time, laid out quadrant by quadrant around the surface normal so
+//! that consecutive rays make coherent packets, traced in one call, and their answers added
+//! back to each sample's arriving light. Every sample gets exactly what
+//! [`DirectionTerms::light_sample`] and its own shadow ray give it. A cosine run
+//! ([`PlacedLight::cosine_run`]) can go from sample points to packets in one pass instead
+//! ([`DirectionRays::add_cosine`]), and where its samples are whole correlated multi-jittered
+//! patterns it needs no sort: the patterns' columns give each sample's quadrant of azimuth
+//! ([`QuadrantPattern`](crate::sampling::cmj::QuadrantPattern)).
+//!
+//! [`PlacedLight::sample_directions`]: crate::light::PlacedLight::sample_directions
+//! [`PlacedLight::cosine_run`]: crate::light::PlacedLight::cosine_run
+
+#[cfg(target_arch = "x86_64")]
+mod cosine;
+#[cfg(target_arch = "x86_64")]
+mod lanes;
+
+#[cfg(target_arch = "x86_64")]
+use lanes::PassLanes;
+
+use glam::{BVec3A, Vec3A};
+
+use crate::{
+    geometry::{
+        accel::{RayOrder, SceneGeometry},
+        hit::SpawnOrigins,
+        ray::Ray,
+    },
+    integrator::RunSum,
+    light::{DirectionRun, DirectionTerms},
+    math::Onb,
+    sampling::SampleSets,
+    stats::{cycle_count, cycles_since},
+};
+#[cfg(target_arch = "x86_64")]
+use crate::{
+    sampling::{cmj::Cmj, cosine_table::CosineTable},
+    simd::{Avx, Avx512},
+};
+
+/// The lanes of a group that need a ray, by the quadrant of their direction around the
+/// surface normal, in azimuth order: (+u, +v), (−u, +v), (−u, −v), (+u, −v) for the signs of
+/// its components along the tangents u and v; bit k for lane k. Neighbouring quadrants come
+/// one after the other, so a packet that spans two holds two adjacent quarters of the
+/// hemisphere.
+#[cfg(target_arch = "x86_64")]
+type QuadrantLanes = [u32; 4];
+
+/// Where each quadrant's rays start, given how many each has (each where the previous one's
+/// end), and how many there are in all.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn quadrant_starts(count: [u32; 4]) -> ([u32; 4], usize) {
+    let mut start = [0u32; 4];
+    let mut at = 0;
+    for (start, count) in start.iter_mut().zip(count) {
+        (*start, at) = (at, at + count);
+    }
+    (start, at as usize)
+}
+
+/// [`QuadrantLanes`] from the lanes that need a ray and those negative along each tangent.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn quadrant_lanes(needs: u32, negative: [u32; 2]) -> QuadrantLanes {
+    let [nu, nv] = negative;
+    let (pu, nu) = (needs & !nu, needs & nu);
+    [pu & !nv, nu & !nv, nu & nv, pu & nv]
+}
+
+/// Where [`DirectionRays::add_cosine_quadrants`] puts a run's light: one element per sample,
+/// or summed over the run (its samples, and the sum it adds to).
+#[cfg(target_arch = "x86_64")]
+enum QuadrantOut<'a> {
+    Each(&'a mut [Vec3A]),
+    Sum(usize, &'a mut Vec3A),
+}
+
+/// A run of whole passes of quadrant patterns ([`SampleSets::quadrant_passes`]): the sets'
+/// patterns, the table of their cosine directions, the patterns' size n, and each pass's
+/// pattern number.
+#[cfg(target_arch = "x86_64")]
+struct QuadrantPasses<'a, P> {
+    cmj: &'a Cmj,
+    table: &'a CosineTable,
+    n: usize,
+    passes: P,
+}
+
+/// Scratch buffers for [`DirectionRays::add`], kept between runs.
+#[derive(Debug, Default)]
+pub(crate) struct DirectionRays {
+    rays: Vec<Ray>,
+    /// Which rays are blocked, plus one entry past them that stays false.
+    blocked: Vec<bool>,
+    /// Per sample: its ray's index in `rays`, or the number of rays traced for none.
+    slots: Vec<u32>,
+    #[cfg(target_arch = "x86_64")]
+    groups: Vec<QuadrantLanes>,
+    /// A cosine run's sample points (x, y) and world directions (x, y, z), sample by sample.
+    #[cfg(target_arch = "x86_64")]
+    samples: [Vec<f32>; 5],
+    /// A cosine run's ray directions (x, y, z) in tracing order.
+    #[cfg(target_arch = "x86_64")]
+    ray_dirs: [Vec<f32>; 3],
+    /// Each of those rays' sample.
+    #[cfg(target_arch = "x86_64")]
+    ray_samples: Vec<u32>,
+    /// A cosine run's blocked samples, bit k of entry g for sample 16g + k.
+    #[cfg(target_arch = "x86_64")]
+    dark: Vec<u32>,
+    /// Whether [`DirectionRays::add`] times its scene query (in the pixels whose queries the
+    /// tracer times, [`crate::stats::query_timed_pixel`]).
+    pub(crate) timing: bool,
+}
+
+/// The light a clear sample of weight `w` brings (per channel) and the floor a blocked one
+/// brings: `radiance·(floor + (1 − floor)·w)` and `radiance·floor`.
+#[inline(always)]
+fn clear_and_floor(terms: &DirectionTerms, w: f32) -> (Vec3A, Vec3A) {
+    let (radiance, f) = (terms.radiance, terms.floor);
+    let s = f + (1.0 - f) * w;
+    (Vec3A::new(radiance.x * s, radiance.y * s, radiance.z * s), Vec3A::from(radiance * f))
+}
+
+impl DirectionRays {
+    /// Adds the light of `run` (samples at one point, rays leaving from `spawn`, under `terms`)
+    /// to `arriving` (one element per sample), tracing in `geometry` the shadow rays whose
+    /// answer matters. Returns how many rays it traced, and the cycles its scene query took
+    /// ([`cycle_count`]) when [`DirectionRays::timing`] is set (0 otherwise).
+    pub(crate) fn add(
+        &mut self,
+        geometry: &SceneGeometry,
+        stack: &mut Vec<(u32, f32)>,
+        spawn: &SpawnOrigins,
+        run: &DirectionRun,
+        terms: &DirectionTerms,
+        arriving: &mut [Vec3A],
+    ) -> (u64, u64) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            let lanes = geometry.packet_lanes();
+            if matches!(lanes, 8 | 16) {
+                let kernel = lanes::AddRun { rays: self, geometry, stack, spawn, run, terms, arriving };
+                // SAFETY: sixteen- and eight-lane packets are used only where AVX-512 and
+                // x86-64-v3 were detected.
+                return unsafe { crate::simd::run_in(lanes, kernel) }.expect("eight or sixteen lanes");
+            }
+        }
+        self.add_each(geometry, stack, spawn, run, terms, arriving)
+    }
+
+    /// [`DirectionRays::add`] for a light whose samples are cosine directions around
+    /// `frame`'s normal ([`PlacedLight::cosine_run`](crate::light::PlacedLight::cosine_run)),
+    /// drawn from `sets` for samples `first, first + 1, …` of `pixel` in dimension `dim`: the
+    /// same rays, answers and sums, in one pass from sample points to packets, where the
+    /// scene's packets are eight or sixteen wide and the sets are computed in lanes: straight
+    /// from the patterns in quadrant order where the run is whole passes that split into
+    /// quadrants ([`SampleSets::quadrant_passes`]), else, with sixteen-lane packets, sorted
+    /// into quadrants from columns ([`SampleSets::fill_columns`]). `None`, having done
+    /// nothing, elsewhere. With `sum`, whole quadrant passes add the run's light there,
+    /// summed, instead of to `arriving`.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn add_cosine(
+        &mut self,
+        geometry: &SceneGeometry,
+        stack: &mut Vec<(u32, f32)>,
+        spawn: &SpawnOrigins,
+        frame: &Onb,
+        sets: &SampleSets,
+        (pixel, first, dim): (u32, u32, u32),
+        terms: &DirectionTerms,
+        arriving: &mut [Vec3A],
+        sum: Option<&mut RunSum>,
+    ) -> Option<(u64, u64)> {
+        #[cfg(target_arch = "x86_64")]
+        if let lanes @ (8 | 16) = geometry.packet_lanes()
+            && let Some((cmj, table, passes)) = sets.quadrant_passes(pixel, first, dim, arriving.len())
+            && table.lanes() == lanes
+        {
+            let passes = QuadrantPasses { cmj, table, n: sets.set_size() as usize, passes };
+            let out = match sum {
+                Some(sum) => QuadrantOut::Sum(arriving.len(), &mut sum.light),
+                None => QuadrantOut::Each(arriving),
+            };
+            // SAFETY: sixteen-lane packets are used only where AVX-512 was detected, eight-lane
+            // ones only where AVX2 was ([`crate::simd::isa`]), and quadrant patterns need AVX2.
+            return Some(unsafe {
+                if lanes == 16 {
+                    Avx512::add_quadrants(self, geometry, stack, spawn, frame, passes, terms, out)
+                } else {
+                    Avx::add_quadrants(self, geometry, stack, spawn, frame, passes, terms, out)
+                }
+            });
+        }
+        #[cfg(target_arch = "x86_64")]
+        if geometry.packet_lanes() == 16 {
+            let n = arriving.len().next_multiple_of(16);
+            let [xs, ys, ..] = &mut self.samples;
+            xs.resize(n, 0.5);
+            ys.resize(n, 0.5);
+            let len = arriving.len();
+            if sets.fill_columns(pixel, first, dim, &mut xs[..len], &mut ys[..len]) {
+                if let Some(sum) = sum {
+                    sum.per_sample = true;
+                }
+                // SAFETY: sixteen-lane packets are used only where AVX-512 (and POPCNT) was detected.
+                return Some(unsafe { self.add_cosine_avx512(geometry, stack, spawn, frame, terms, arriving) });
+            }
+        }
+        let _ = (geometry, stack, spawn, frame, sets, pixel, first, dim, terms, arriving, sum);
+        None
+    }
+
+    /// [`DirectionRays::add`] one sample at a time, in sample order: for trees traversed
+    /// without packets, where the order of the rays does not matter.
+    fn add_each(
+        &mut self,
+        geometry: &SceneGeometry,
+        stack: &mut Vec<(u32, f32)>,
+        spawn: &SpawnOrigins,
+        run: &DirectionRun,
+        terms: &DirectionTerms,
+        arriving: &mut [Vec3A],
+    ) -> (u64, u64) {
+        self.rays.clear();
+        self.slots.clear();
+        for j in 0..arriving.len() {
+            let (clear, floor) = clear_and_floor(terms, run.weight[j]);
+            let slot = if run.weight[j] > 0.0 && clear.cmpne(floor).any() {
+                let dir = run.dir(j);
+                self.rays.push(Ray::new(spawn.towards(dir), dir, terms.max_distance));
+                self.rays.len() - 1
+            } else {
+                usize::MAX
+            };
+            self.slots.push(slot as u32);
+        }
+        let traced = self.rays.len();
+        // No ray: the entry past the rays, which stays false.
+        for slot in &mut self.slots {
+            *slot = (*slot).min(traced as u32);
+        }
+        let cycles = self.trace(geometry, stack, traced, RayOrder::Mixed);
+        for (j, sum) in arriving.iter_mut().enumerate() {
+            let (clear, floor) = clear_and_floor(terms, run.weight[j]);
+            let dark = run.weight[j] <= 0.0 || self.blocked[self.slots[j] as usize];
+            *sum += Vec3A::select(BVec3A::splat(dark), floor, clear);
+        }
+        (traced as u64, cycles)
+    }
+
+    /// Traces the first `traced` of `rays` into `blocked`, which gets one more entry, false.
+    /// Returns the cycles the query took when `timing`, else 0.
+    fn trace(&mut self, geometry: &SceneGeometry, stack: &mut Vec<(u32, f32)>, traced: usize, order: RayOrder) -> u64 {
+        // The query writes every ray's entry, so only the one past them is set here (no
+        // clearing pass over the others first).
+        self.blocked.resize(traced + 1, false);
+        self.blocked[traced] = false;
+        let start = self.timing.then(cycle_count);
+        geometry.occluded_many(&self.rays[..traced], order, stack, &mut self.blocked[..traced]);
+        start.map_or(0, cycles_since)
+    }
+}

@@ -1,0 +1,284 @@
+//! Correlated multi-jittered sampling (Kensler 2013, "Correlated Multi-Jittered Sampling"):
+//! stateless multi-jittered patterns of any size, each a pure function of (index, pattern).
+
+mod lanes;
+#[cfg(test)]
+mod tests;
+
+#[cfg(target_arch = "x86_64")]
+pub(crate) use lanes::{GridLanes, QuadrantPattern, SmallGrid8, SmallGrid16};
+#[cfg(target_arch = "x86_64")]
+use lanes::{consecutive8, quadrant_bits, quadrant_sample};
+
+use glam::Vec2;
+
+use super::{
+    ONE_MINUS_EPSILON,
+    generators::grid_shape,
+    hash::{Modulus, permute, permute_pow2},
+};
+
+/// Kensler's hash to a float in [0, 1).
+#[inline]
+fn randfloat(mut i: u32, p: u32) -> f32 {
+    i ^= p;
+    i ^= i >> 17;
+    i ^= i >> 10;
+    i = i.wrapping_mul(0xb365_34e5);
+    i ^= i >> 12;
+    i ^= i >> 21;
+    i = i.wrapping_mul(0x93fc_4795);
+    i ^= 0xdf6e_307f;
+    i ^= i >> 17;
+    i = i.wrapping_mul(1 | p >> 18);
+    (i as f32 * (1.0 / 4_294_967_808.0)).min(ONE_MINUS_EPSILON)
+}
+
+/// The `n`-point correlated multi-jittered patterns, with the grid shape worked out once. Each
+/// pattern is stratified on an m × k grid (m·k = n) and in both 1-D projections, with the
+/// sample order itself shuffled. Computed per sample, so every (pixel, pass, dimension) gets a pattern of its own without a
+/// stored table (a table lookup per sample is a cache miss on large images).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Cmj {
+    n: Modulus,
+    m: Modulus,
+    k: Modulus,
+    /// 1/m and 1/k.
+    inv: [f32; 2],
+    /// Where the patterns have quadrants: for packets of eight and of sixteen slots, each
+    /// slot's shuffled sample number ([`QuadrantPattern`]). It depends on the grid alone, not
+    /// on the pattern, so it is worked out once: made per packet from the slot's bit fields,
+    /// it cost the AO kernel measurable time.
+    #[cfg(target_arch = "x86_64")]
+    quadrant_samples: [[u32; 256]; 2],
+}
+
+impl Cmj {
+    /// Patterns of `n` ≥ 1 points.
+    pub fn new(n: u32) -> Self {
+        let n = n.max(1);
+        let (m, k) = grid_shape(n);
+        let mut cmj = Cmj {
+            n: Modulus::new(n),
+            m: Modulus::new(m),
+            k: Modulus::new(k),
+            inv: [1.0 / m as f32, 1.0 / k as f32],
+            #[cfg(target_arch = "x86_64")]
+            quadrant_samples: [[0; 256]; 2],
+        };
+        #[cfg(target_arch = "x86_64")]
+        if cmj.has_quadrant_grid() {
+            for (w, (width, column_bits)) in
+                [(8, SmallGrid8::PACKET_COLUMN_BITS), (16, SmallGrid16::PACKET_COLUMN_BITS)].into_iter().enumerate()
+            {
+                let (bits, packet_bits) = quadrant_bits(&cmj, width, column_bits);
+                for t in 0..n {
+                    cmj.quadrant_samples[w][t as usize] = quadrant_sample(t, bits, packet_bits);
+                }
+            }
+        }
+        cmj
+    }
+
+    /// Sample `s` (< n) of pattern `p`.
+    #[inline]
+    pub fn sample(&self, s: u32, p: u32) -> [f32; 2] {
+        let sc = Scrambles::new(p);
+        let s = permute(s, self.n, sc.order);
+        let (col, row) = (self.m.remainder(s), self.m.quotient(s));
+        let (sx, sy) = (permute(col, self.m, sc.x), permute(row, self.k, sc.y));
+        self.point(s, col, row, sx, sy, &sc)
+    }
+
+    /// Samples `first..first + out.len()` (all < n) of pattern `p`, in order: the values of
+    /// [`Cmj::sample`], with the pattern's scrambles derived once. For a power-of-two n (then m
+    /// and k are powers of two too) every permutation is a single round and every division a
+    /// shift or mask: a loop without branches that the compiler can vectorise.
+    #[inline]
+    pub fn fill(&self, first: u32, p: u32, out: &mut [Vec2]) {
+        debug_assert!(first as u64 + out.len() as u64 <= self.n.get() as u64);
+        // Where n is a power of two and the grid at most 16 × 16, the column and row shuffles
+        // are worked out once per call and looked up by lane permutes.
+        #[cfg(target_arch = "x86_64")]
+        if self.has_small_grid16() {
+            if crate::simd::avx512() {
+                // SAFETY: the CPU has AVX-512F, checked just above.
+                return unsafe { self.fill_small_grid_avx512(first, p, out) };
+            }
+            if crate::simd::avx2() {
+                // SAFETY: the CPU has AVX2, checked just above.
+                return unsafe { self.fill_small_grid_avx2(first, p, out) };
+            }
+        }
+        fill_in_lanes(self, first, p, out);
+    }
+
+    /// [`Cmj::fill_small_grid_avx512`] eight samples at a time in AVX2 lanes
+    /// ([`SmallGrid8`]), stored as the `Vec2`s they are.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn fill_small_grid_avx2(&self, first: u32, p: u32, out: &mut [Vec2]) {
+        use std::arch::x86_64::*;
+
+        // SAFETY (both blocks): this function is compiled for AVX2.
+        let grid = unsafe { SmallGrid8::new(self, p) };
+        let iota = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+        for (i, chunk) in out.chunks_mut(8).enumerate() {
+            let (x, y) = unsafe { grid.points_of(grid.shuffled(consecutive8(first + 8 * i as u32))) };
+            // (x, y) pairs as `Vec2`s lie in memory: samples 0–3, then 4–7.
+            let (low, high) = (_mm256_unpacklo_ps(x, y), _mm256_unpackhi_ps(x, y));
+            let pairs = [_mm256_permute2f128_ps::<0x20>(low, high), _mm256_permute2f128_ps::<0x31>(low, high)];
+            let floats = chunk.as_mut_ptr().cast::<f32>();
+            for (h, pair) in pairs.into_iter().enumerate() {
+                // The floats of this half that the chunk holds (a chunk may be short).
+                let n = (2 * chunk.len()).saturating_sub(8 * h).min(8) as i32;
+                let keep = _mm256_cmpgt_epi32(_mm256_set1_epi32(n), iota);
+                // SAFETY: the masked store writes only the chunk's first 2·len floats.
+                unsafe { _mm256_maskstore_ps(floats.add(8 * h), keep, pair) };
+            }
+        }
+    }
+
+    /// [`Cmj::fill`] for a power-of-two n on a grid of at most 16 × 16, sixteen samples at a
+    /// time ([`SmallGrid16::points`]), stored as the `Vec2`s they are.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    fn fill_small_grid_avx512(&self, first: u32, p: u32, out: &mut [Vec2]) {
+        use std::arch::x86_64::*;
+
+        let grid = SmallGrid16::new(self, p);
+        // x and y of lanes 0–7, then of lanes 8–15, interleaved as `Vec2`s lie in memory.
+        let low = _mm512_setr_epi32(0, 16, 1, 17, 2, 18, 3, 19, 4, 20, 5, 21, 6, 22, 7, 23);
+        let high = _mm512_add_epi32(low, _mm512_set1_epi32(8));
+        for (i, chunk) in out.chunks_mut(16).enumerate() {
+            let (x, y) = grid.points(first + 16 * i as u32);
+            let pairs = [_mm512_permutex2var_ps(x, low, y), _mm512_permutex2var_ps(x, high, y)];
+            let floats = chunk.as_mut_ptr().cast::<f32>();
+            for (h, pair) in pairs.into_iter().enumerate() {
+                // The floats of this half that the chunk holds (a chunk may be short).
+                let n = (2 * chunk.len()).saturating_sub(16 * h).min(16);
+                // SAFETY: the masked store writes only the chunk's first 2·len floats.
+                unsafe { _mm512_mask_storeu_ps(floats.add(16 * h), ((1u32 << n) - 1) as __mmask16, pair) };
+            }
+        }
+    }
+
+    /// Samples `first..first + xs.len()` (all < n) of pattern `p` as two columns, x into `xs`
+    /// and y into `ys` (same length): [`Cmj::fill`]'s values. Returns false, writing nothing,
+    /// unless this CPU has AVX-512 (see [`crate::simd::isa`]) and n is a power of two on a grid of at
+    /// most 16 × 16, where sixteen samples at a time go straight from lanes to the columns.
+    pub(crate) fn fill_columns(&self, first: u32, p: u32, xs: &mut [f32], ys: &mut [f32]) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if self.has_small_grid16() && crate::simd::avx512() {
+            // SAFETY: the CPU has AVX-512F, checked just above.
+            unsafe { self.fill_columns_avx512(first, p, xs, ys) };
+            return true;
+        }
+        let _ = (first, p, xs, ys);
+        false
+    }
+
+    /// Whether this CPU has AVX2 (see [`crate::simd::isa`]) and the patterns are
+    /// [`QuadrantPattern`]s ([`Cmj::has_quadrant_grid`]).
+    #[cfg(target_arch = "x86_64")]
+    pub(crate) fn has_quadrants(&self) -> bool {
+        self.has_quadrant_grid() && crate::simd::avx2()
+    }
+
+    /// Whether the grid suits [`QuadrantPattern`]s, whatever the CPU: n a power of two on a
+    /// grid of at most 16 × 16 whose m columns split into quarters (n = 16 … 256).
+    #[cfg(target_arch = "x86_64")]
+    fn has_quadrant_grid(&self) -> bool {
+        self.has_small_grid16() && self.m.get().is_multiple_of(4)
+    }
+
+    /// Whether n is a power of two on a grid of at most 16 × 16 ([`SmallGrid16`]'s patterns).
+    #[cfg(target_arch = "x86_64")]
+    fn has_small_grid16(&self) -> bool {
+        self.n.is_power_of_two() && self.m.get() <= 16 && self.k.get() <= 16
+    }
+
+    /// [`Cmj::fill_columns`] in AVX-512 lanes.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    fn fill_columns_avx512(&self, first: u32, p: u32, xs: &mut [f32], ys: &mut [f32]) {
+        use std::arch::x86_64::*;
+
+        assert_eq!(xs.len(), ys.len(), "one column per coordinate");
+        let grid = SmallGrid16::new(self, p);
+        for (i, (xs, ys)) in xs.chunks_mut(16).zip(ys.chunks_mut(16)).enumerate() {
+            let (x, y) = grid.points(first + 16 * i as u32);
+            let keep = ((1u32 << xs.len()) - 1) as __mmask16;
+            // SAFETY: the masked stores write only the chunks' floats.
+            unsafe {
+                _mm512_mask_storeu_ps(xs.as_mut_ptr(), keep, x);
+                _mm512_mask_storeu_ps(ys.as_mut_ptr(), keep, y);
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn fill_portable(&self, first: u32, p: u32, out: &mut [Vec2]) {
+        if !self.n.is_power_of_two() {
+            for (s, o) in (first..).zip(out) {
+                *o = Vec2::from(self.sample(s, p));
+            }
+            return;
+        }
+        let sc = Scrambles::new(p);
+        let (wn, wm, wk, shift) = (self.n.mask(), self.m.mask(), self.k.mask(), self.m.get().trailing_zeros());
+        for (s, o) in (first..).zip(out) {
+            let s = permute_pow2(s, wn, sc.order);
+            let (col, row) = (s & wm, s >> shift);
+            let (sx, sy) = (permute_pow2(col, wm, sc.x), permute_pow2(row, wk, sc.y));
+            *o = Vec2::from(self.point(s, col, row, sx, sy, &sc));
+        }
+    }
+
+    /// The point of (shuffled) sample `s` in cell (`col`, `row`), with `sx`, `sy` its
+    /// permuted sub-cell coordinates.
+    #[inline(always)]
+    fn point(&self, s: u32, col: u32, row: u32, sx: u32, sy: u32, sc: &Scrambles) -> [f32; 2] {
+        let [inv_m, inv_k] = self.inv;
+        let jx = randfloat(s, sc.jx);
+        let jy = randfloat(s, sc.jy);
+        let x = (col as f32 + (sy as f32 + jx) * inv_k) * inv_m;
+        let y = (row as f32 + (sx as f32 + jy) * inv_m) * inv_k;
+        let below_one = |v: f32| v.min(ONE_MINUS_EPSILON);
+        [below_one(x), below_one(y)]
+    }
+}
+
+crate::simd::multiversion! {
+    /// [`Cmj::fill`]'s loop ([`Cmj::fill_portable`]), compiled for each instruction set: with
+    /// AVX2, eight lanes of 32-bit multiplies (SSE2 has no 32-bit lane multiply, so the
+    /// baseline copy vectorises poorly), with AVX-512 sixteen. Same operations, same values.
+    fn fill_in_lanes(cmj: &Cmj, first: u32, p: u32, out: &mut [Vec2]) {
+        cmj.fill_portable(first, p, out);
+    }
+}
+
+/// The per-pattern seeds of Kensler's five hashes, derived from the pattern number.
+struct Scrambles {
+    /// Sample order.
+    order: u32,
+    /// Column and row shuffles.
+    x: u32,
+    y: u32,
+    /// Jitter within the sub-cell.
+    jx: u32,
+    jy: u32,
+}
+
+impl Scrambles {
+    #[inline(always)]
+    fn new(p: u32) -> Self {
+        Scrambles {
+            order: p.wrapping_mul(0x5163_3e2d),
+            x: p.wrapping_mul(0xa511_e9b3),
+            y: p.wrapping_mul(0x63d8_3595),
+            jx: p.wrapping_mul(0xa399_d265),
+            jy: p.wrapping_mul(0x711a_d6a5),
+        }
+    }
+}

@@ -1,0 +1,192 @@
+use super::*;
+
+#[test]
+fn cmj_is_stratified_on_the_grid_and_both_axes() {
+    for n in [16u32, 12, 64] {
+        let (m, k) = grid_shape(n);
+        for p in [1u32, 99, 12345] {
+            let pts: Vec<[f32; 2]> = (0..n).map(|s| Cmj::new(n).sample(s, p)).collect();
+            let mut cells = vec![0; n as usize];
+            let mut xs = vec![0; n as usize];
+            let mut ys = vec![0; n as usize];
+            for [x, y] in &pts {
+                cells[((y * k as f32) as u32 * m + (x * m as f32) as u32) as usize] += 1;
+                xs[(x * n as f32) as usize] += 1;
+                ys[(y * n as f32) as usize] += 1;
+            }
+            assert!(cells.iter().all(|&c| c == 1), "grid, n={n}");
+            assert!(xs.iter().all(|&c| c == 1) && ys.iter().all(|&c| c == 1), "1-D, n={n}");
+        }
+    }
+}
+
+/// Every fill path gives `sample`'s values: each small-grid vector copy this CPU has (AVX-512
+/// and AVX2 lanes for power-of-two grids up to 16 × 16, n ≤ 256), the portable loop, and the
+/// dispatch (the copy of the loop the environment picks, above 256 and for other n);
+/// one sample at a time for other n. So do the columns, wherever they are computed.
+#[test]
+fn fill_gives_the_samples_of_sample() {
+    type Fill = fn(&Cmj, u32, u32, &mut [Vec2]);
+    let mut fills: Vec<(&str, Fill)> = vec![("fill", Cmj::fill), ("portable", |c, f, p, o| c.fill_portable(f, p, o))];
+    #[cfg(target_arch = "x86_64")]
+    {
+        if crate::simd::cpu_isa() >= crate::simd::Isa::Avx2 {
+            // SAFETY: the CPU has AVX2, checked just above.
+            fills.push(("avx2", |c, f, p, o| {
+                if c.has_small_grid16() { unsafe { c.fill_small_grid_avx2(f, p, o) } } else { c.fill_portable(f, p, o) }
+            }));
+        }
+        if crate::simd::cpu_isa() >= crate::simd::Isa::Avx512 {
+            // SAFETY: the CPU has AVX-512F, checked just above.
+            fills.push(("avx512", |c, f, p, o| {
+                if c.has_small_grid16() {
+                    unsafe { c.fill_small_grid_avx512(f, p, o) }
+                } else {
+                    c.fill_portable(f, p, o)
+                }
+            }));
+        }
+    }
+    for n in [1u32, 2, 8, 12, 16, 32, 64, 128, 256, 1024] {
+        let cmj = Cmj::new(n);
+        for p in [0u32, 1, 99, 0xdead_beef] {
+            for first in [0, n / 3, n - 1] {
+                for (name, fill) in &fills {
+                    let mut out = vec![Vec2::NAN; (n - first) as usize];
+                    fill(&cmj, first, p, &mut out);
+                    for (s, v) in (first..).zip(&out) {
+                        assert_eq!(v.to_array(), cmj.sample(s, p), "{name}: n {n}, p {p}, s {s}");
+                    }
+                }
+                let (mut xs, mut ys) = (vec![f32::NAN; (n - first) as usize], vec![f32::NAN; (n - first) as usize]);
+                if cmj.fill_columns(first, p, &mut xs, &mut ys) {
+                    for (s, (&x, &y)) in (first..).zip(xs.iter().zip(&ys)) {
+                        assert_eq!([x, y], cmj.sample(s, p), "columns: n {n}, p {p}, s {s}");
+                    }
+                } else {
+                    #[cfg(target_arch = "x86_64")]
+                    assert!(!(crate::simd::avx512() && cmj.has_small_grid16()), "n {n}: columns refused");
+                    assert!(xs.iter().chain(&ys).all(|v| v.is_nan()), "refused, yet written");
+                }
+            }
+        }
+    }
+}
+
+/// The slot tables of both packet widths, on every CPU (the patterns' own test below runs
+/// each width only where the CPU has its lanes): each is a permutation of the samples, and
+/// slot t holds a sample of quarter t / (n/4), its coarse column in that quarter of the m.
+#[cfg(target_arch = "x86_64")]
+#[test]
+fn quadrant_slot_tables_put_each_sample_once_in_its_quarter() {
+    for n in [16u32, 32, 64, 128, 256] {
+        let cmj = Cmj::new(n);
+        let (m, a) = (cmj.m.get(), cmj.m.get().trailing_zeros() - 2);
+        for (w, table) in cmj.quadrant_samples.iter().enumerate() {
+            let mut seen = vec![false; n as usize];
+            for (t, &s) in table[..n as usize].iter().enumerate() {
+                assert!(s < n && !seen[s as usize], "n {n}, width {}: sample {s} twice or out of range", 8 << w);
+                seen[s as usize] = true;
+                // The shuffled sample number's bits: column within the quarter, quarter, row;
+                // the low a + 2 are the coarse column.
+                let column = s & ((4 << a) - 1);
+                assert_eq!(column / (m / 4), t as u32 / (n / 4), "n {n}, width {}: slot {t}", 8 << w);
+            }
+            assert!(table[n as usize..].iter().all(|&s| s == 0), "n {n}: entries past n");
+        }
+    }
+}
+
+/// A quadrant pattern's slots hold every sample of the pattern once, each at
+/// [`Cmj::sample`]'s point, quarter by quarter of x (so of the azimuth 2πx); and a mark on
+/// a slot reads back on exactly the sample whose point that slot holds. For each width
+/// this CPU has: eight lanes (AVX2) and sixteen (AVX-512).
+#[cfg(target_arch = "x86_64")]
+#[test]
+fn quadrant_patterns_hold_each_sample_once_in_its_quarter() {
+    use std::arch::x86_64::*;
+
+    for n in [4u32, 8, 12, 16, 32, 64, 128, 256, 512] {
+        let cmj = Cmj::new(n);
+        let splits = [16, 32, 64, 128, 256].contains(&n);
+        if !crate::simd::avx2() {
+            assert!(!cmj.has_quadrants(), "n {n}: quadrants without AVX2");
+            continue;
+        }
+        assert_eq!(cmj.has_quadrants(), splits, "n {n}");
+        if !splits {
+            continue;
+        }
+        for p in [0u32, 1, 99, 0xdead_beef] {
+            // SAFETY (every block): the CPU has AVX2, checked above.
+            let pattern = unsafe { QuadrantPattern::<SmallGrid8>::new(&cmj, p) };
+            let points = |packet| {
+                let (mut x, mut y) = ([0.0f32; 8], [0.0f32; 8]);
+                unsafe {
+                    let (xs, ys) = pattern.points(packet);
+                    _mm256_storeu_ps(x.as_mut_ptr(), xs);
+                    _mm256_storeu_ps(y.as_mut_ptr(), ys);
+                }
+                (x.to_vec(), y.to_vec())
+            };
+            let marked = |g, marks: &[u32; 16]| unsafe { pattern.marked(g, marks) };
+            slots_hold_their_samples(&cmj, p, 8, points, marked);
+            if !crate::simd::avx512() {
+                continue;
+            }
+            // SAFETY (every block): the CPU has AVX-512F, checked just above.
+            let pattern = unsafe { QuadrantPattern::<SmallGrid16>::new(&cmj, p) };
+            let points = |packet| {
+                let (mut x, mut y) = ([0.0f32; 16], [0.0f32; 16]);
+                unsafe {
+                    let (xs, ys) = pattern.points(packet);
+                    _mm512_storeu_ps(x.as_mut_ptr(), xs);
+                    _mm512_storeu_ps(y.as_mut_ptr(), ys);
+                }
+                (x.to_vec(), y.to_vec())
+            };
+            let marked = |g, marks: &[u32; 16]| unsafe { pattern.marked(g, marks) };
+            slots_hold_their_samples(&cmj, p, 16, points, marked);
+        }
+    }
+}
+
+/// The checks of the test above for one pattern `p` of `cmj` taken `width` slots at a time
+/// (n / `width` packets): `points(packet)` gives a packet's x and y, `marked(group, marks)`
+/// the samples of a group that `marks` (bit t % 16 of word t / 16 for slot t) marks.
+#[cfg(target_arch = "x86_64")]
+fn slots_hold_their_samples(
+    cmj: &Cmj,
+    p: u32,
+    width: usize,
+    points: impl Fn(usize) -> (Vec<f32>, Vec<f32>),
+    marked: impl Fn(usize, &[u32; 16]) -> u32,
+) {
+    let n = cmj.n.get();
+    let packets = n as usize / width;
+    // Each slot's point, bit for bit.
+    let slots: Vec<[f32; 2]> = (0..packets)
+        .flat_map(|packet| {
+            let (x, y) = points(packet);
+            x.into_iter().zip(y).map(|(x, y)| [x, y])
+        })
+        .collect();
+    let samples: Vec<[f32; 2]> = (0..n).map(|s| cmj.sample(s, p)).collect();
+    let quarter = n as usize / 4;
+    for (t, point) in slots.iter().enumerate() {
+        let q = (t / quarter) as f32;
+        assert!((q / 4.0..(q + 1.0) / 4.0).contains(&point[0]), "n {n}, p {p}: slot {t} at x {}", point[0]);
+        let owners: Vec<usize> = (0..n as usize).filter(|&s| samples[s] == *point).collect();
+        assert_eq!(owners.len(), 1, "n {n}, p {p}: slot {t} holds no single sample");
+        // A mark on this slot alone reads back on its sample alone.
+        let mut marks = [0u32; 16];
+        marks[t / 16] = 1 << (t % 16);
+        let marked: Vec<usize> = (0..packets)
+            .flat_map(|g| {
+                let bits = marked(g, &marks);
+                (0..width).filter(move |k| bits & (1 << k) != 0).map(move |k| width * g + k)
+            })
+            .collect();
+        assert_eq!(marked, owners, "n {n}, p {p}, width {width}: slot {t}");
+    }
+}

@@ -1,0 +1,229 @@
+//! Sixteen lanes in an AVX-512 register ([`super::avx512()`]).
+
+use std::arch::x86_64::*;
+
+use glam::Vec3A;
+
+use super::{FusedLanes, Lanes};
+
+/// Sixteen lanes in an AVX-512 register.
+#[derive(Clone, Copy)]
+pub(crate) struct Avx512(pub(crate) __m512);
+
+impl FusedLanes for Avx512 {
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn mul_add(self, b: Self, c: Self) -> Self {
+        Avx512(_mm512_fmadd_ps(self.0, b.0, c.0))
+    }
+}
+
+/// The transpose of sixteen rows of sixteen floats: lane k of row c becomes lane c of row k.
+#[target_feature(enable = "avx512f")]
+#[inline]
+pub(crate) fn transpose16(row: &[__m512; 16]) -> [__m512; 16] {
+    // Rows 2i and 2i + 1 interleaved: pairs[2i] holds elements 0 and 1 of each 128-bit block,
+    // pairs[2i + 1] elements 2 and 3.
+    let mut pairs = [_mm512_setzero_pd(); 16];
+    for i in 0..8 {
+        pairs[2 * i] = _mm512_castps_pd(_mm512_unpacklo_ps(row[2 * i], row[2 * i + 1]));
+        pairs[2 * i + 1] = _mm512_castps_pd(_mm512_unpackhi_ps(row[2 * i], row[2 * i + 1]));
+    }
+    let mut out = [_mm512_setzero_ps(); 16];
+    for e in 0..4 {
+        // Element e of each block of rows 4q..4q + 4.
+        let h = e / 2;
+        let mut quad = [_mm512_setzero_ps(); 4];
+        for (q, quad) in quad.iter_mut().enumerate() {
+            let (x, y) = (pairs[4 * q + h], pairs[4 * q + 2 + h]);
+            let v = if e % 2 == 0 { _mm512_unpacklo_pd(x, y) } else { _mm512_unpackhi_pd(x, y) };
+            *quad = _mm512_castpd_ps(v);
+        }
+        // Blocks 0, 1 (front) and 2, 3 (back) of the four quads, then each block's four.
+        let front = [_mm512_shuffle_f32x4::<0x44>(quad[0], quad[1]), _mm512_shuffle_f32x4::<0x44>(quad[2], quad[3])];
+        let back = [_mm512_shuffle_f32x4::<0xEE>(quad[0], quad[1]), _mm512_shuffle_f32x4::<0xEE>(quad[2], quad[3])];
+        out[e] = _mm512_shuffle_f32x4::<0x88>(front[0], front[1]);
+        out[4 + e] = _mm512_shuffle_f32x4::<0xDD>(front[0], front[1]);
+        out[8 + e] = _mm512_shuffle_f32x4::<0x88>(back[0], back[1]);
+        out[12 + e] = _mm512_shuffle_f32x4::<0xDD>(back[0], back[1]);
+    }
+    out
+}
+
+impl Lanes for Avx512 {
+    const WIDTH: usize = 16;
+    type Mask = __mmask16;
+
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn splat(x: f32) -> Self {
+        Avx512(_mm512_set1_ps(x))
+    }
+    /// One expand per group: `start[q], start[q] + 1, …` spread over the group's lanes in
+    /// order.
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn places(groups: &[u32; 4], start: &[u32; 4], none: u32) -> [u32; 16] {
+        let iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+        let mut at = _mm512_set1_epi32(none as i32);
+        for (&lanes, &start) in groups.iter().zip(start) {
+            let run = _mm512_add_epi32(_mm512_set1_epi32(start as i32), iota);
+            at = _mm512_mask_expand_epi32(at, lanes as __mmask16, run);
+        }
+        let mut out = [0u32; 16];
+        // SAFETY: `out` holds sixteen u32.
+        unsafe { _mm512_storeu_si512(out.as_mut_ptr().cast(), at) };
+        out
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn load(x: &[f32]) -> Self {
+        let x = &x[..16];
+        // SAFETY: sixteen floats, checked above.
+        unsafe { Avx512(_mm512_loadu_ps(x.as_ptr())) }
+    }
+    #[inline(always)]
+    fn lane(&self, j: usize) -> f32 {
+        // SAFETY: an `__m512` is sixteen f32 in memory.
+        let floats = unsafe { &*(&raw const self.0).cast::<[f32; 16]>() };
+        floats[j]
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn add_to(x: Self, y: Self, z: Self, out: &mut [Vec3A]) {
+        let out = &mut out[..16];
+        let xy_lo = _mm512_castps_pd(_mm512_unpacklo_ps(x.0, y.0));
+        let xy_hi = _mm512_castps_pd(_mm512_unpackhi_ps(x.0, y.0));
+        let zz_lo = _mm512_castps_pd(_mm512_unpacklo_ps(z.0, z.0));
+        let zz_hi = _mm512_castps_pd(_mm512_unpackhi_ps(z.0, z.0));
+        // Block i of rows[j]: element 4i + j as (x, y, z, z).
+        let rows = [
+            _mm512_castpd_ps(_mm512_unpacklo_pd(xy_lo, zz_lo)),
+            _mm512_castpd_ps(_mm512_unpackhi_pd(xy_lo, zz_lo)),
+            _mm512_castpd_ps(_mm512_unpacklo_pd(xy_hi, zz_hi)),
+            _mm512_castpd_ps(_mm512_unpackhi_pd(xy_hi, zz_hi)),
+        ];
+        let front = [_mm512_shuffle_f32x4::<0x44>(rows[0], rows[1]), _mm512_shuffle_f32x4::<0x44>(rows[2], rows[3])];
+        let back = [_mm512_shuffle_f32x4::<0xEE>(rows[0], rows[1]), _mm512_shuffle_f32x4::<0xEE>(rows[2], rows[3])];
+        // Elements 4j..4j + 4, as they lie in memory.
+        let quads = [
+            _mm512_shuffle_f32x4::<0x88>(front[0], front[1]),
+            _mm512_shuffle_f32x4::<0xDD>(front[0], front[1]),
+            _mm512_shuffle_f32x4::<0x88>(back[0], back[1]),
+            _mm512_shuffle_f32x4::<0xDD>(back[0], back[1]),
+        ];
+        let p = out.as_mut_ptr().cast::<f32>();
+        for (j, quad) in quads.into_iter().enumerate() {
+            // SAFETY: `out` holds sixteen `Vec3A`s (16 bytes each), checked above.
+            unsafe {
+                let at = p.add(16 * j);
+                _mm512_storeu_ps(at, _mm512_add_ps(_mm512_loadu_ps(at), quad));
+            }
+        }
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn add(self, b: Self) -> Self {
+        Avx512(_mm512_add_ps(self.0, b.0))
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn sub(self, b: Self) -> Self {
+        Avx512(_mm512_sub_ps(self.0, b.0))
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn mul(self, b: Self) -> Self {
+        Avx512(_mm512_mul_ps(self.0, b.0))
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn div(self, b: Self) -> Self {
+        Avx512(_mm512_div_ps(self.0, b.0))
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn neg(self) -> Self {
+        Avx512(_mm512_castsi512_ps(_mm512_xor_si512(_mm512_castps_si512(self.0), _mm512_set1_epi32(i32::MIN))))
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn abs(self) -> Self {
+        Avx512(_mm512_abs_ps(self.0))
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn max_keep(self, b: Self) -> Self {
+        Avx512(_mm512_max_ps(self.0, b.0))
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn min_keep(self, b: Self) -> Self {
+        Avx512(_mm512_min_ps(self.0, b.0))
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn lt(self, b: Self) -> __mmask16 {
+        _mm512_cmp_ps_mask::<_CMP_LT_OQ>(self.0, b.0)
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn gt(self, b: Self) -> __mmask16 {
+        _mm512_cmp_ps_mask::<_CMP_GT_OQ>(self.0, b.0)
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn le(self, b: Self) -> __mmask16 {
+        _mm512_cmp_ps_mask::<_CMP_LE_OQ>(self.0, b.0)
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn eq_or_nan(self, b: Self) -> __mmask16 {
+        _mm512_cmp_ps_mask::<_CMP_EQ_UQ>(self.0, b.0)
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn ne(self, b: Self) -> __mmask16 {
+        _mm512_cmp_ps_mask::<_CMP_NEQ_UQ>(self.0, b.0)
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn select(self, m: __mmask16, if_set: Self) -> Self {
+        Avx512(_mm512_mask_blend_ps(m, self.0, if_set.0))
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn and(a: __mmask16, b: __mmask16) -> __mmask16 {
+        a & b
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn or(a: __mmask16, b: __mmask16) -> __mmask16 {
+        a | b
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn andnot(a: __mmask16, b: __mmask16) -> __mmask16 {
+        !a & b
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn least(self) -> f32 {
+        _mm512_reduce_min_ps(self.0)
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn greatest(self) -> f32 {
+        _mm512_reduce_max_ps(self.0)
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn bits(m: __mmask16) -> u32 {
+        m as u32
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn mask(bits: u32) -> __mmask16 {
+        bits as __mmask16
+    }
+}

@@ -1,0 +1,82 @@
+//! Lane types: a vector of f32 lanes with a mask of one bit per lane, one implementation per
+//! instruction set ([`super::Avx`], [`super::Avx512`], [`super::Portable`]). Each operation is one
+//! IEEE operation of the scalar code (no fused multiply-adds unless asked for), so a lane computes
+//! bit for bit what the scalar code does.
+//!
+//! Every method is `unsafe` and compiled for its type's instruction set, which the CPU must
+//! have; callers are generic code inlined into functions compiled for it, where the methods
+//! inline in turn.
+
+use glam::Vec3A;
+
+/// A vector of f32 lanes, one per ray or sample of a packet, with a mask of one bit per lane.
+pub(crate) trait Lanes: Copy {
+    /// Lanes per vector.
+    const WIDTH: usize;
+    /// A lane mask.
+    type Mask: Copy;
+
+    /// `x` in every lane.
+    unsafe fn splat(x: f32) -> Self;
+    /// Each lane's place in a run laid out group by group: for lane k in `groups[q]` (disjoint
+    /// masks), `start[q]` plus the number of lanes below k in `groups[q]`; `none` for a lane
+    /// in no group.
+    unsafe fn places(groups: &[u32; 4], start: &[u32; 4], none: u32) -> [u32; 16];
+    /// `x[0..WIDTH]`.
+    unsafe fn load(x: &[f32]) -> Self;
+    /// Lane `j` (below `WIDTH`), read from where `self` lies in memory.
+    fn lane(&self, j: usize) -> f32;
+    /// Adds lane k of `x`, `y` and `z` to `out[k]`, for a full vector of `out` (`WIDTH`
+    /// elements); the fourth lane of each element gets z's lane, as [`Vec3A::new`] gives it.
+    unsafe fn add_to(x: Self, y: Self, z: Self, out: &mut [Vec3A]);
+    /// `self + b`.
+    unsafe fn add(self, b: Self) -> Self;
+    /// `self − b`.
+    unsafe fn sub(self, b: Self) -> Self;
+    /// `self · b`.
+    unsafe fn mul(self, b: Self) -> Self;
+    /// `self / b`.
+    unsafe fn div(self, b: Self) -> Self;
+    /// `−self`.
+    unsafe fn neg(self) -> Self;
+    /// `|self|`.
+    unsafe fn abs(self) -> Self;
+    /// `max(self, b)`, `b` where either is NaN (`maxps`).
+    unsafe fn max_keep(self, b: Self) -> Self;
+    /// `min(self, b)`, `b` where either is NaN (`minps`).
+    unsafe fn min_keep(self, b: Self) -> Self;
+    /// `self < b` (false for NaN).
+    unsafe fn lt(self, b: Self) -> Self::Mask;
+    /// `self > b` (false for NaN).
+    unsafe fn gt(self, b: Self) -> Self::Mask;
+    /// `self ≤ b` (false for NaN).
+    unsafe fn le(self, b: Self) -> Self::Mask;
+    /// `self != b`, or either is NaN.
+    unsafe fn ne(self, b: Self) -> Self::Mask;
+    /// `self == b`, or either is NaN.
+    unsafe fn eq_or_nan(self, b: Self) -> Self::Mask;
+    /// `if_set` in the lanes of `m`, `self` elsewhere.
+    unsafe fn select(self, m: Self::Mask, if_set: Self) -> Self;
+    /// Lanes in both masks.
+    unsafe fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask;
+    /// Lanes in either mask.
+    unsafe fn or(a: Self::Mask, b: Self::Mask) -> Self::Mask;
+    /// Lanes in `b` and not in `a`.
+    unsafe fn andnot(a: Self::Mask, b: Self::Mask) -> Self::Mask;
+    /// The least lane (of numbers, none NaN).
+    unsafe fn least(self) -> f32;
+    /// The greatest lane (of numbers, none NaN).
+    unsafe fn greatest(self) -> f32;
+    /// Bit `i` set for lane `i` in the mask.
+    unsafe fn bits(m: Self::Mask) -> u32;
+    /// The mask with lane `i` set for bit `i` of `bits`.
+    unsafe fn mask(bits: u32) -> Self::Mask;
+}
+
+/// Lanes with a fused multiply-add (one rounding), for [`FusedPacket`]'s node test.
+///
+/// [`FusedPacket`]: crate::geometry::wide_bvh::FusedPacket
+pub(crate) trait FusedLanes: Lanes {
+    /// `self · b + c`, rounded once.
+    unsafe fn mul_add(self, b: Self, c: Self) -> Self;
+}

@@ -1,0 +1,120 @@
+//! `hemi view`: its options and what it runs (feature `view`).
+
+use std::{path::PathBuf, time::Instant};
+
+use super::{SceneSource, Viewer, ViewerOptions, window};
+use crate::{error::HemiError, resources::RenderSettings, sampling::SamplerKind};
+
+/// Options of `hemi view`.
+#[derive(clap::Args, Debug)]
+pub struct ViewArgs {
+    /// A .gltf/.glb scene, or a peer scene .json (default: the built-in scene).
+    scene: Option<PathBuf>,
+    /// Window (full render) size, WIDTHxHEIGHT [default: 640x360, or a peer scene's own].
+    #[arg(long, value_parser = parse_size)]
+    size: Option<(u32, u32)>,
+    /// The glTF camera to start from, by name or index (default: the scene's first camera, or
+    /// one that frames the whole scene when it has none).
+    #[arg(long)]
+    camera: Option<String>,
+    /// The glTF animation Space plays, by name or index (default: the first).
+    #[arg(long)]
+    animation: Option<String>,
+    /// Samples per pixel a still view converges to [default: 1024, or a peer scene's
+    /// ao.samples]: the image `hemi render --spp N` writes (byte for byte with --spf).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    spp: Option<u32>,
+    /// Samples per frame of a still view [default: as many as fit --target-ms]; with k, the
+    /// view converges to `hemi render --spp N --spf k` byte for byte.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65_536))]
+    spf: Option<u32>,
+    /// Target frame time in milliseconds: samples per frame and, while moving, the internal
+    /// resolution adapt to it.
+    #[arg(long, default_value_t = 33.0, value_parser = parse_ms)]
+    target_ms: f64,
+    /// Keep the full resolution while moving.
+    #[arg(long)]
+    no_dynamic_resolution: bool,
+    /// Seed [default: 0, or a peer scene's seed].
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Sample pattern (as `hemi render --sampler`).
+    #[arg(long, default_value = "cmj", value_parser = parse_sampler)]
+    sampler: SamplerKind,
+    /// Worker threads (default: one per core).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    threads: Option<u32>,
+    /// Orbit once around the scene in this many seconds.
+    #[arg(long, value_name = "SECONDS", value_parser = parse_ms)]
+    turntable: Option<f64>,
+    /// Start with the animation playing.
+    #[arg(long)]
+    play: bool,
+    /// Start with the overlay shown (H toggles it).
+    #[arg(long)]
+    overlay: bool,
+    /// Close the window after N frames.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    quit_after_frames: Option<u64>,
+    /// Write what the window showed on its last frame (PNG).
+    #[arg(long, value_name = "FILE")]
+    screenshot: Option<PathBuf>,
+    /// Write per-frame fps, latency, spp and resolution (JSON).
+    #[arg(long, value_name = "FILE")]
+    stats_json: Option<PathBuf>,
+}
+
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s.split_once(['x', 'X']).ok_or("expected WIDTHxHEIGHT, e.g. 640x360")?;
+    let w: u32 = w.trim().parse().map_err(|_| format!("width '{w}' is not a whole number"))?;
+    let h: u32 = h.trim().parse().map_err(|_| format!("height '{h}' is not a whole number"))?;
+    RenderSettings { width: w, height: h, ..Default::default() }.validate()?;
+    Ok((w, h))
+}
+
+fn parse_ms(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("'{s}' must be a positive number")),
+    }
+}
+
+fn parse_sampler(s: &str) -> Result<SamplerKind, String> {
+    SamplerKind::from_name(s).ok_or_else(|| {
+        let names: Vec<&str> = SamplerKind::ALL.iter().map(|k| k.name()).collect();
+        format!("unknown sampler '{s}' (expected one of: {})", names.join(", "))
+    })
+}
+
+/// Runs `hemi view`.
+pub fn run(args: ViewArgs) -> Result<(), HemiError> {
+    let launched = Instant::now();
+    let warn = |w: String| crate::cli::console::note(&format!("hemi: warning: {w}"));
+    let source = SceneSource::open(args.scene.as_deref(), args.camera.clone(), args.animation.clone(), warn)?;
+    let (size, spp, seed) = source.defaults();
+    let settings = RenderSettings { seed: args.seed.unwrap_or(seed), sampler: args.sampler, ..Default::default() };
+    let mut renderer = source.renderer(settings, warn)?;
+    if let Some(threads) = args.threads {
+        renderer = renderer.with_threads(threads as usize)?;
+    }
+    let options = ViewerOptions {
+        size: args.size.unwrap_or(size),
+        spp: args.spp.or(spp).unwrap_or(1024),
+        spf: args.spf,
+        target: std::time::Duration::from_secs_f64(args.target_ms / 1e3),
+        dynamic_resolution: !args.no_dynamic_resolution,
+        turntable: args.turntable,
+        overlay: args.overlay,
+        play: args.play,
+        ..Default::default()
+    };
+    let viewer = Viewer::new(renderer, source.name(), options)?;
+    let window_options = window::WindowOptions {
+        quit_after_frames: args.quit_after_frames,
+        screenshot: args.screenshot,
+        stats_json: args.stats_json,
+        launched: Some(launched),
+        load_seconds: launched.elapsed().as_secs_f64(),
+    };
+    window::run(viewer, window_options)
+}
