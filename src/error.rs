@@ -23,6 +23,8 @@ pub enum HemiError {
     },
     /// A command-line argument is unusable.
     Usage(String),
+    /// Work that is not finished, e.g. frames of a sequence still missing (`hemi status`).
+    Incomplete(String),
     /// Something in the scene changed in every one of `frames` frames in a row (a system that
     /// moves an entity each frame, say), so accumulation restarted each time and a render to a
     /// sample count would never finish.
@@ -43,7 +45,7 @@ impl fmt::Display for HemiError {
             HemiError::Io { path, message } | HemiError::Load { path, message } => {
                 write!(f, "{}: {message}", path.display())
             }
-            HemiError::Usage(m) | HemiError::Window(m) => write!(f, "{m}"),
+            HemiError::Usage(m) | HemiError::Incomplete(m) | HemiError::Window(m) => write!(f, "{m}"),
             HemiError::KeepsChanging { frames, what } => write!(
                 f,
                 "the scene never settles: accumulation restarted in each of {frames} frames in a row (last: {what})"

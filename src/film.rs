@@ -160,6 +160,11 @@ impl OutputFile {
         self.finish("cannot write", |out| out.write_all(text.as_bytes()).map_err(|e| e.to_string()))
     }
 
+    /// Writes raw bytes (an already encoded file), then puts the file in place.
+    pub fn write_bytes(self, bytes: &[u8]) -> Result<(), HemiError> {
+        self.finish("cannot write", |out| out.write_all(bytes).map_err(|e| e.to_string()))
+    }
+
     /// Writes an 8-bit RGB picture (plots and the like) as PNG, then puts the file in place.
     pub fn write_rgb8(self, rgb: &RgbImage) -> Result<(), HemiError> {
         self.finish("cannot write image", |out| {
@@ -213,6 +218,18 @@ pub fn write_image<W: Write + Seek>(image: &Image, format: OutputFormat, out: &m
             let rgb = Rgb32FImage::from_raw(image.width, image.height, data).expect("buffer size matches");
             rgb.write_to(out, ImageFormat::OpenExr)
         }
+    }
+}
+
+/// Whether `path` holds a complete image: it decodes, entirely, as a PNG or EXR, and is
+/// `size` (width, height) when given. Decoding a whole frame costs far less than rendering it.
+pub fn is_complete_image(path: &Path, size: Option<(u32, u32)>) -> bool {
+    let Ok(reader) = image::ImageReader::open(path).and_then(|r| r.with_guessed_format()) else {
+        return false;
+    };
+    match reader.decode() {
+        Ok(img) => size.is_none_or(|s| (img.width(), img.height()) == s),
+        Err(_) => false,
     }
 }
 

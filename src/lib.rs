@@ -31,11 +31,13 @@ mod huge_pages;
 pub mod integrator;
 pub mod light;
 pub mod math;
+pub mod partial;
 pub mod random;
 pub mod renderer;
 pub mod resources;
 pub mod sampling;
 pub mod scene;
+pub mod sequence;
 mod simd;
 pub mod stats;
 #[path = "../systems/mod.rs"]

@@ -205,12 +205,13 @@ impl Renderer {
         Ok(frames)
     }
 
-    /// Whether tracing has stopped: the accumulation reached `max_spp`, or, with a
+    /// Whether tracing has stopped: the accumulation reached `max_spp` (or, for a part of a
+    /// render, its sample range: [`RenderSettings::target_spp`]), or, with a
     /// `target_error`, the last frame found every pixel done (never true without a target).
     pub fn converged(&self) -> bool {
         let acc = self.world.resource::<Accumulation>();
         let settings = self.settings();
-        let spp_done = settings.max_spp.is_some_and(|max| acc.spp >= max);
+        let spp_done = settings.target_spp().is_some_and(|target| acc.spp >= target);
         let error_done =
             settings.target_error.is_some() && acc.spp > 0 && self.world.resource::<FrameSamples>().active_pixels == 0;
         spp_done || error_done

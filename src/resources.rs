@@ -19,6 +19,15 @@ pub struct RenderSettings {
     pub samples_per_set: u32,
     /// Stop tracing a static scene once every pixel has this many samples (`None`: never stop).
     pub max_spp: Option<u32>,
+    /// Global index of the first sample the accumulation takes: a pixel's samples are numbered
+    /// from here (0: a whole render). With [`RenderSettings::end_sample`] it renders one part
+    /// of a render split by sample index; the parts' sums add up to the whole render's.
+    pub first_sample: u32,
+    /// Global index at which the accumulation stops, in place of `max_spp` (`None`: at
+    /// `max_spp`): the accumulation then holds the samples `first_sample..end_sample`.
+    /// `max_spp` stays the whole render's total, which other choices (such as baking shared
+    /// meshes) follow, so that every part traces what the whole render would.
+    pub end_sample: Option<u32>,
     /// Seed of every random decision.
     pub seed: u64,
     /// Sample pattern.
@@ -51,6 +60,8 @@ impl Default for RenderSettings {
             samples_per_frame: 4,
             samples_per_set: 16,
             max_spp: None,
+            first_sample: 0,
+            end_sample: None,
             seed: 0,
             sampler: SamplerKind::default(),
             tile_size: 16,
@@ -99,6 +110,14 @@ impl RenderSettings {
         if self.samples_per_set == 0 {
             return Err("samples per set must be at least 1".into());
         }
+        if let Some(end) = self.end_sample
+            && end <= self.first_sample
+        {
+            return Err(format!("sample range {}..{end} is empty", self.first_sample));
+        }
+        if (self.first_sample > 0 || self.end_sample.is_some()) && self.target_error.is_some() {
+            return Err("a sample range cannot be combined with a target error (adaptive sampling)".into());
+        }
         if self.tile_size == 0 {
             return Err("tile size must be at least 1".into());
         }
@@ -114,6 +133,12 @@ impl RenderSettings {
             return Err(format!("ray offset {} must be finite and non-negative", self.ray_offset));
         }
         Ok(())
+    }
+
+    /// Samples per pixel the accumulation aims for: `max_spp`, or `end_sample - first_sample`
+    /// for a part of a render (`None`: no target).
+    pub fn target_spp(&self) -> Option<u32> {
+        self.end_sample.or(self.max_spp).map(|end| end.saturating_sub(self.first_sample))
     }
 
     /// Number of pixels.

@@ -16,8 +16,14 @@ use crate::{
 /// Writes [`Image`] from [`Accumulation`].
 pub fn resolve(accumulation: Res<Accumulation>, mut image: ResMut<Image>, mut stats: ResMut<FrameStats>) {
     let start = Instant::now();
+    resolve_into(&accumulation, &mut image);
+    stats.record("resolve", start.elapsed(), format!("{} spp", accumulation.spp));
+}
+
+/// Averages `accumulation` into `image` (resized to it): what every frame's resolve does, for
+/// sums made elsewhere too (e.g. merged parts of a render split by sample index).
+pub fn resolve_into(accumulation: &Accumulation, image: &mut Image) {
     let n = accumulation.sums.len();
-    let image = &mut *image;
     image.width = accumulation.width;
     image.height = accumulation.height;
     image.linear.resize(n, Vec3::ZERO);
@@ -47,5 +53,4 @@ pub fn resolve(accumulation: Res<Accumulation>, mut image: ResMut<Image>, mut st
             mean
         }));
     }
-    stats.record("resolve", start.elapsed(), format!("{} spp", accumulation.spp));
 }

@@ -39,7 +39,7 @@ struct TileResult {
     nonfinite: u64,
 }
 
-/// Traces `samples_per_frame` samples per pixel (fewer once `max_spp` is near) into
+/// Traces `samples_per_frame` samples per pixel (fewer once the target spp is near) into
 /// [`FrameSamples`]; traces nothing when the scene is invalid or has converged.
 #[allow(clippy::too_many_arguments)]
 pub fn trace(
@@ -54,7 +54,7 @@ pub fn trace(
     mut stats: ResMut<FrameStats>,
 ) {
     let start = Instant::now();
-    let remaining = settings.max_spp.map_or(u32::MAX, |max| max.saturating_sub(accumulation.spp));
+    let remaining = settings.target_spp().map_or(u32::MAX, |target| target.saturating_sub(accumulation.spp));
     let count = settings.samples_per_frame.min(remaining);
     let camera = cameras.active(settings.width, settings.height);
     let (Some(camera), None, true) = (camera, problems.first(), count > 0) else {
@@ -79,6 +79,7 @@ pub fn trace(
     let tiles = tiles(settings.width, settings.height, settings.tile_size);
     let job = Job {
         width: settings.width,
+        first_sample: settings.first_sample,
         count,
         jitter: settings.jitter,
         aovs: settings.aovs,
@@ -150,6 +151,8 @@ fn tiles(width: u32, height: u32, size: u32) -> Vec<Tile> {
 /// What every tile of this frame traces.
 struct Job {
     width: u32,
+    /// Global index of the accumulation's first sample.
+    first_sample: u32,
     count: u32,
     jitter: bool,
     aovs: bool,
@@ -190,7 +193,7 @@ fn trace_tile<C: CameraRays>(
                 let pixel = y * job.width + x;
                 if !acc.pixel_done(pixel as usize, target) {
                     camera_rays.push(camera.ray(x, y, Vec2::splat(0.5), Vec2::ZERO));
-                    row_pixels.push((pixel, acc.counts[pixel as usize]));
+                    row_pixels.push((pixel, job.first_sample.wrapping_add(acc.counts[pixel as usize])));
                     timed += u64::from(timed_pixel(pixel));
                 }
             }
@@ -212,9 +215,9 @@ fn trace_tile<C: CameraRays>(
             let mut sum = Vec3::ZERO;
             let mut sq_sum = 0.0;
             let mut aov = [0.0; AOV_FLOATS];
-            // A pixel's samples are numbered 0, 1, … whatever the others do (adaptive sampling
-            // retires pixels independently).
-            let first = acc.counts[pixel as usize];
+            // A pixel's samples are numbered 0, 1, … (from `first_sample` for a part of a
+            // render) whatever the others do (adaptive sampling retires pixels independently).
+            let first = job.first_sample.wrapping_add(acc.counts[pixel as usize]);
             let count = if acc.pixel_done(pixel as usize, target) { 0 } else { job.count };
             if count == 0 {
                 sums.push(sum);

@@ -7,6 +7,7 @@ mod compare;
 pub mod console;
 pub mod convergence;
 mod error_study;
+mod merge;
 pub mod npy;
 pub mod peer_compare;
 pub mod peer_scene;
@@ -42,6 +43,12 @@ enum Command {
     /// Compare AO with the peer renderers' references: bias and RMSE per scene.
     #[command(arg_required_else_help = true)]
     Compare(compare::CompareArgs),
+    /// Sum the partials of a still split by sample index (`render --sample-range`) into the
+    /// image a single render makes.
+    Merge(merge::MergeArgs),
+    /// Which frames of a sequence are done, partial (being written, or a writer was killed) or
+    /// missing; exits 0 when all are done, 1 otherwise.
+    Status(merge::StatusArgs),
     /// Open a window on the scene and watch it converge; move the camera, play the animation.
     #[cfg(feature = "view")]
     View(crate::viewer::command::ViewArgs),
@@ -168,6 +175,8 @@ where
         Command::Render(args) => render::render(args),
         Command::Error(args) => error_study::error_study(args),
         Command::Compare(args) => compare::compare(args),
+        Command::Merge(args) => merge::merge(args),
+        Command::Status(args) => merge::status(args),
         #[cfg(feature = "view")]
         Command::View(args) => crate::viewer::command::run(args),
     }

@@ -11,10 +11,12 @@ use super::{
 use crate::{
     Renderer,
     error::HemiError,
-    film::{OutputFile, OutputFormat},
+    film::{OutputFile, OutputFormat, is_complete_image},
+    partial::{self, Partial},
     resources::{Aov, RenderSettings},
     sampling::SamplerKind,
     scene::gltf::{LoadOptions, SpawnOptions},
+    sequence::frame_path,
     stats::{RayCounts, mrays_per_second},
 };
 
@@ -44,6 +46,17 @@ pub(super) struct RenderArgs {
     /// every frame is identical to the one an unsharded run writes.
     #[arg(long, value_parser = parse_shard)]
     shard: Option<(u32, u32)>,
+    /// With --frames, leave out frames whose file is already complete (it decodes as an image
+    /// of the right size, and so do its AOV files): a re-run after a failure or a cancel
+    /// renders only what is missing. With --sample-range, keep a partial already there for
+    /// the same render and range.
+    #[arg(long)]
+    skip_existing: bool,
+    /// Render part K of N of a still split by sample index, `K/N`, into a partial (.exr) for
+    /// `hemi merge`: whole frames of --spf samples (default: spp/N, up to 4096), shared out
+    /// evenly, so that the merged image equals one render with that --spf bit for bit.
+    #[arg(long, value_name = "K/N", value_parser = parse_shard)]
+    sample_range: Option<(u32, u32)>,
     /// Scene time in seconds of a single image.
     #[arg(long, default_value_t = 0.0, value_parser = parse_time)]
     time: f32,
@@ -97,16 +110,9 @@ fn shard_frames((start, end): (u32, u32), (i, n): (u32, u32)) -> Vec<u32> {
     (start..end).skip(i as usize).step_by(n as usize).collect()
 }
 
-/// The output path of `frame`: `{:04}` becomes the zero-padded number, `{}` the plain one.
-fn frame_path(pattern: &std::path::Path, frame: u32) -> Option<PathBuf> {
-    let s = pattern.to_str()?;
-    if s.contains("{:04}") {
-        Some(PathBuf::from(s.replace("{:04}", &format!("{frame:04}"))))
-    } else if s.contains("{}") {
-        Some(PathBuf::from(s.replace("{}", &frame.to_string())))
-    } else {
-        None
-    }
+/// Whether frame `out` and its AOV files are all complete images of `size`.
+fn frame_complete(out: &std::path::Path, aovs: &[Aov], size: (u32, u32)) -> bool {
+    is_complete_image(out, Some(size)) && aovs.iter().all(|&a| is_complete_image(&aov_path(out, a), Some(size)))
 }
 
 pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
@@ -143,8 +149,27 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
                 args.out.display()
             )));
         }
+        None if args.skip_existing && args.sample_range.is_none() => {
+            return Err(HemiError::Usage("--skip-existing needs --frames or --sample-range".into()));
+        }
         None => None,
     };
+    if args.sample_range.is_some() {
+        let conflict = [
+            (args.frames.is_some(), "--frames"),
+            (args.target_error.is_some(), "--target-error"),
+            (!args.aov.is_empty(), "--aov"),
+        ];
+        if let Some((_, what)) = conflict.iter().find(|(on, _)| *on) {
+            return Err(HemiError::Usage(format!("--sample-range renders one still: drop {what}")));
+        }
+        if !args.out.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
+            return Err(HemiError::Usage(format!(
+                "--sample-range writes a partial: --out {} must end in .exr",
+                args.out.display()
+            )));
+        }
+    }
     // Check the outputs first: a bad or colliding path fails before any work is done, and
     // nothing is written under an output's name until that output is complete.
     let first_out = match &frames {
@@ -175,14 +200,15 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
     let size = args.size.or(peer.as_ref().map(|p| (p.width, p.height))).unwrap_or((640, 360));
     let spp = args.spp.or(peer.as_ref().map(|p| p.samples)).unwrap_or(16);
     let set = spp.min(RenderSettings::ONE_FRAME_SPP);
+    let default_spf = match args.sample_range {
+        Some((_, parts)) => partial::default_spf(spp, parts),
+        None if args.target_error.is_some() => RenderSettings::ADAPTIVE_MIN_SPP,
+        None => set,
+    };
     let settings = RenderSettings {
         width: size.0,
         height: size.1,
-        samples_per_frame: args.spf.unwrap_or(if args.target_error.is_some() {
-            RenderSettings::ADAPTIVE_MIN_SPP
-        } else {
-            set
-        }),
+        samples_per_frame: args.spf.unwrap_or(default_spf),
         samples_per_set: set,
         max_spp: Some(spp),
         seed: args.seed.or(peer.as_ref().map(|p| p.seed)).unwrap_or(0),
@@ -237,6 +263,9 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
     let mut totals =
         Totals { json: stats_file.is_some().then(Vec::new), display: display.transpose()?, ..Default::default() };
     match frames {
+        None if args.sample_range.is_some() => {
+            render_partial(&args, &mut renderer, spp)?;
+        }
         None => {
             renderer.set_time(args.time)?;
             render_image(&mut renderer, spp, args.stats, &mut totals)?;
@@ -255,6 +284,10 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
         Some(list) => {
             for &frame in &list {
                 let out = frame_path(&args.out, frame).unwrap_or_else(|| args.out.clone());
+                if args.skip_existing && frame_complete(&out, &args.aov, size) {
+                    super::console::note(&format!("hemi: frame {frame} exists, skipped: {}", out.display()));
+                    continue;
+                }
                 let file = OutputFile::create(&out)?;
                 renderer.set_time((frame as f64 / args.fps) as f32)?;
                 render_image(&mut renderer, spp, args.stats, &mut totals)?;
@@ -270,6 +303,75 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
     if let Some(file) = stats_file {
         file.write_text(&totals.to_json(start.elapsed().as_secs_f64()).to_string())?;
     }
+    Ok(())
+}
+
+/// Renders this process's part of a still split by sample index (`--sample-range K/N`) and
+/// writes it as a partial.
+fn render_partial(args: &RenderArgs, renderer: &mut Renderer, spp: u32) -> Result<(), HemiError> {
+    let (k, n) = args.sample_range.expect("called with --sample-range");
+    let settings = renderer.settings().clone();
+    let spf = settings.samples_per_frame;
+    let (first, end) = partial::part_range(spp, spf, k, n).ok_or_else(|| {
+        HemiError::Usage(format!(
+            "--sample-range {k}/{n}: {spp} spp make {} frames of {spf}, fewer than {n} parts (lower --spf)",
+            spp.div_ceil(spf)
+        ))
+    })?;
+    let (scene, scene_hash) = match &args.scene {
+        Some(path) => (path.display().to_string(), partial::file_hash(path)?),
+        None => ("default".to_string(), String::new()),
+    };
+    let all = RenderSettings { max_spp: None, first_sample: 0, end_sample: None, ..settings.clone() };
+    let mut info = partial::PartialInfo {
+        hemi_version: env!("CARGO_PKG_VERSION").to_string(),
+        scene,
+        scene_hash,
+        settings: Default::default(),
+        width: settings.width,
+        height: settings.height,
+        spp,
+        spf,
+        first,
+        end,
+        frames: vec![],
+    };
+    let keyed: [(&str, serde_json::Value); 6] = [
+        ("seed", settings.seed.into()),
+        ("sampler", settings.sampler.name().into()),
+        ("time", args.time.into()),
+        ("camera", args.camera.clone().into()),
+        ("animation", args.animation.clone().into()),
+        (partial::ALL_SETTINGS, format!("{all:?}").into()),
+    ];
+    for (key, value) in keyed {
+        info.settings.insert(key.to_string(), value);
+    }
+    if args.skip_existing
+        && let Ok(existing) = Partial::load(&args.out)
+        && (partial::PartialInfo { frames: vec![], ..existing.info }) == info
+    {
+        super::console::note(&format!("hemi: partial exists, skipped: {}", args.out.display()));
+        return Ok(());
+    }
+    let file = OutputFile::create_any(&args.out)?;
+    super::console::note(&format!(
+        "hemi: samples {first}..{end} of {spp} in frames of {spf} (merged, the same image as one render with --spf {spf})"
+    ));
+    renderer.set_time(args.time)?;
+    let start = Instant::now();
+    let part = partial::render(renderer, info, |_| {})?;
+    let bytes =
+        part.to_exr().map_err(|e| HemiError::Io { path: args.out.clone(), message: format!("cannot encode: {e}") })?;
+    file.write_bytes(&bytes)?;
+    super::console::note(&format!(
+        "hemi: {}x{}, samples {first}..{end} in {} frames, {:.2} s -> {}",
+        settings.width,
+        settings.height,
+        part.frames.len(),
+        start.elapsed().as_secs_f64(),
+        args.out.display()
+    ));
     Ok(())
 }
 

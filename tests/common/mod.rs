@@ -15,6 +15,8 @@ pub fn settings(width: u32, height: u32, spp: u32, sampler: SamplerKind) -> Rend
         samples_per_frame: spp,
         samples_per_set: spp,
         max_spp: None,
+        first_sample: 0,
+        end_sample: None,
         seed: 7,
         sampler,
         tile_size: 8,
