@@ -10,14 +10,16 @@ use rayon::prelude::*;
 #[cfg(target_arch = "x86_64")]
 use super::{
     cmj::{Cmj, GridLanes, QuadrantPattern, SmallGrid8, SmallGrid16},
-    warp::{cosine_hemisphere8, cosine_hemisphere16},
+    warp::cosine_hemisphere_lanes,
 };
+#[cfg(target_arch = "x86_64")]
+use crate::simd::{Avx, Avx512, Kernel, Lanes};
 
 /// The local cosine directions (around +z) of patterns `first, first + 1, …` (`count` of
 /// them, wrapping) of a [`Cmj`] with quadrants ([`Cmj::has_quadrants`]), each pattern packet
 /// by packet as its [`QuadrantPattern`] orders the slots for packets `lanes` wide: per packet,
 /// its `lanes` x, then its y, then its z. Every direction has the bits that
-/// [`cosine_hemisphere8`] (or `16`) gives its sample's point.
+/// [`cosine_hemisphere_lanes`] gives its sample's point.
 #[cfg(target_arch = "x86_64")]
 #[derive(Clone, Debug)]
 pub(crate) struct CosineTable {
@@ -36,20 +38,23 @@ impl CosineTable {
     /// eight: AVX2). Patterns are filled in parallel, each on its own, so the table does not
     /// depend on the thread count.
     pub(crate) fn build(cmj: &Cmj, n: u32, first: u32, count: u32, lanes: usize) -> Option<Self> {
-        type Fill = unsafe fn(&Cmj, u32, &mut [f32]);
-        let fill: Fill = match lanes {
-            16 if crate::simd::avx512() => <SmallGrid16 as WarpLanes>::fill,
-            8 if crate::simd::avx2() => <SmallGrid8 as WarpLanes>::fill,
-            _ => return None,
+        let lanes_allowed = match lanes {
+            16 => crate::simd::avx512(),
+            8 => crate::simd::avx2(),
+            _ => false,
         };
+        if !lanes_allowed {
+            return None;
+        }
         if !cmj.has_quadrants() {
             return None;
         }
         let per_pattern = 3 * n as usize;
         let mut dirs = vec![0.0; per_pattern * count as usize];
         dirs.par_chunks_mut(per_pattern).enumerate().for_each(|(i, out)| {
-            // SAFETY: `fill` is the copy for lanes the CPU was just found to have.
-            unsafe { fill(cmj, first.wrapping_add(i as u32), out) }
+            let fill = FillPattern { cmj, p: first.wrapping_add(i as u32), out };
+            // SAFETY: the CPU was just found to have these lanes' instruction set.
+            unsafe { crate::simd::run_in(lanes, fill) };
         });
         Some(CosineTable { lanes, first, count, per_pattern, dirs })
     }
@@ -74,44 +79,61 @@ impl CosineTable {
     }
 }
 
-/// A pattern grid whose points map to cosine directions in the same lanes.
+/// Lanes whose pattern grid gives their sample points.
 #[cfg(target_arch = "x86_64")]
-trait WarpLanes: GridLanes {
-    /// Writes pattern `p`'s directions to `out`, packet by packet in these lanes.
-    ///
-    /// # Safety
-    /// The CPU must have the lanes' instruction set.
-    unsafe fn fill(cmj: &Cmj, p: u32, out: &mut [f32]);
+pub(crate) trait WarpLanes: Lanes {
+    /// The pattern grid of this width.
+    type Grid: GridLanes;
+    /// The grid's points in these lanes.
+    fn from_points(points: <Self::Grid as GridLanes>::Point) -> Self;
 }
 
-/// [`WarpLanes`] for one grid: its instruction set, cosine map and store.
 #[cfg(target_arch = "x86_64")]
-macro_rules! warp_lanes {
-    ($grid:ty, $feature:literal, $cosine:ident, $store:ident) => {
-        impl WarpLanes for $grid {
-            #[target_feature(enable = $feature)]
-            unsafe fn fill(cmj: &Cmj, p: u32, out: &mut [f32]) {
-                let width = <$grid as GridLanes>::WIDTH as usize;
-                // SAFETY: this function is compiled for the grid's instruction set, and each
-                // store writes `width` floats inside `out`'s chunk of `3 · width`.
-                unsafe {
-                    let pattern = QuadrantPattern::<$grid>::new(cmj, p);
-                    for (packet, out) in out.chunks_exact_mut(3 * width).enumerate() {
-                        let (x, y) = pattern.points(packet);
-                        for (axis, v) in $cosine(x, y).into_iter().enumerate() {
-                            std::arch::x86_64::$store(out[axis * width..][..width].as_mut_ptr(), v);
-                        }
-                    }
+impl WarpLanes for Avx {
+    type Grid = SmallGrid8;
+    #[inline(always)]
+    fn from_points(points: std::arch::x86_64::__m256) -> Self {
+        Avx(points)
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl WarpLanes for Avx512 {
+    type Grid = SmallGrid16;
+    #[inline(always)]
+    fn from_points(points: std::arch::x86_64::__m512) -> Self {
+        Avx512(points)
+    }
+}
+
+/// Writes pattern `p`'s directions to `out`, packet by packet in the kernel's lanes.
+#[cfg(target_arch = "x86_64")]
+struct FillPattern<'a> {
+    cmj: &'a Cmj,
+    p: u32,
+    out: &'a mut [f32],
+}
+
+#[cfg(target_arch = "x86_64")]
+impl<L: WarpLanes> Kernel<L> for FillPattern<'_> {
+    type Output = ();
+    #[inline(always)]
+    unsafe fn run(self) {
+        let FillPattern { cmj, p, out } = self;
+        let width = L::WIDTH;
+        // SAFETY: the caller's CPU has `L`'s instruction set.
+        unsafe {
+            let pattern = QuadrantPattern::<L::Grid>::new(cmj, p);
+            for (packet, out) in out.chunks_exact_mut(3 * width).enumerate() {
+                let (x, y) = pattern.points(packet);
+                let dirs = cosine_hemisphere_lanes(L::from_points(x), L::from_points(y));
+                for (axis, v) in dirs.into_iter().enumerate() {
+                    v.store(&mut out[axis * width..]);
                 }
             }
         }
-    };
+    }
 }
-
-#[cfg(target_arch = "x86_64")]
-warp_lanes!(SmallGrid8, "avx2,fma,bmi1,bmi2,lzcnt,popcnt", cosine_hemisphere8, _mm256_storeu_ps);
-#[cfg(target_arch = "x86_64")]
-warp_lanes!(SmallGrid16, "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt", cosine_hemisphere16, _mm512_storeu_ps);
 
 #[cfg(all(test, target_arch = "x86_64"))]
 mod tests {

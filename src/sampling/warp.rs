@@ -75,78 +75,34 @@ pub fn cosine_power_hemisphere4(u0: Vec4, u1: Vec4, e: f32) -> HemisphereSamples
     HemisphereSamples4 { x: sin_theta * cos_phi, y: sin_theta * sin_phi, z: cos_theta, weight }
 }
 
-/// The directions of [`cosine_power_hemisphere`] with e = 1 for sixteen sample points
-/// (u₀, u₁) in AVX-512 lanes: x, y and z lanes, each lane the scalar code's bits (same
-/// operations in the same order, [`sin_cos_2pi_one`]'s quarter turns by lane masks).
+/// The directions of [`cosine_power_hemisphere`] with e = 1 for a vector of sample points
+/// (u₀, u₁) in lanes `L`: x, y and z lanes, each lane the scalar code's bits (same operations
+/// in the same order, [`sin_cos_2pi_one`]'s quarter turns by lane masks).
 ///
 /// # Safety
-/// The CPU must have AVX-512F.
+/// The CPU must have `L`'s instruction set.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-#[inline]
-pub(crate) unsafe fn cosine_hemisphere16(
-    u0: std::arch::x86_64::__m512,
-    u1: std::arch::x86_64::__m512,
-) -> [std::arch::x86_64::__m512; 3] {
-    use std::arch::x86_64::*;
-
-    let k = |x: f32| _mm512_set1_ps(x);
-    let (add, sub, mul) = (_mm512_add_ps, _mm512_sub_ps, _mm512_mul_ps);
-    let round = |x| sub(add(x, k(ROUNDER)), k(ROUNDER));
-    let q = round(mul(u0, k(4.0)));
-    let x = mul(sub(u0, mul(q, k(0.25))), k(TAU));
-    let z = mul(x, x);
-    let sin = add(mul(mul(add(mul(add(mul(k(SIN[0]), z), k(SIN[1])), z), k(SIN[2])), z), x), x);
-    let cos =
-        add(sub(mul(mul(add(mul(add(mul(k(COS[0]), z), k(COS[1])), z), k(COS[2])), z), z), mul(z, k(0.5))), k(1.0));
-    let half = mul(q, k(0.5));
-    let odd = _mm512_cmp_ps_mask::<_CMP_NEQ_UQ>(half, round(half));
-    let (s, c) = (_mm512_mask_blend_ps(odd, sin, cos), _mm512_mask_blend_ps(odd, cos, sin));
-    let within =
-        |lo: f32, hi: f32| _mm512_cmp_ps_mask::<_CMP_GE_OQ>(q, k(lo)) & _mm512_cmp_ps_mask::<_CMP_LT_OQ>(q, k(hi));
-    let flip = |v: __m512, m| {
-        let v = _mm512_castps_si512(v);
-        _mm512_castsi512_ps(_mm512_mask_xor_epi32(v, m, v, _mm512_set1_epi32(i32::MIN)))
-    };
-    let (sin_phi, cos_phi) = (flip(s, within(2.0, 4.0)), flip(c, within(1.0, 3.0)));
-    let cos_theta = _mm512_sqrt_ps(sub(k(1.0), u1));
-    let sin_theta = _mm512_sqrt_ps(_mm512_max_ps(sub(k(1.0), mul(cos_theta, cos_theta)), k(0.0)));
-    [mul(sin_theta, cos_phi), mul(sin_theta, sin_phi), cos_theta]
-}
-
-/// [`cosine_hemisphere16`] for eight sample points in AVX2 lanes: the same operations, so
-/// each lane is the scalar code's bits.
-///
-/// # Safety
-/// The CPU must have AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-#[inline]
-pub(crate) unsafe fn cosine_hemisphere8(
-    u0: std::arch::x86_64::__m256,
-    u1: std::arch::x86_64::__m256,
-) -> [std::arch::x86_64::__m256; 3] {
-    use std::arch::x86_64::*;
-
-    let k = |x: f32| _mm256_set1_ps(x);
-    let (add, sub, mul) = (_mm256_add_ps, _mm256_sub_ps, _mm256_mul_ps);
-    let round = |x| sub(add(x, k(ROUNDER)), k(ROUNDER));
-    let q = round(mul(u0, k(4.0)));
-    let x = mul(sub(u0, mul(q, k(0.25))), k(TAU));
-    let z = mul(x, x);
-    let sin = add(mul(mul(add(mul(add(mul(k(SIN[0]), z), k(SIN[1])), z), k(SIN[2])), z), x), x);
-    let cos =
-        add(sub(mul(mul(add(mul(add(mul(k(COS[0]), z), k(COS[1])), z), k(COS[2])), z), z), mul(z, k(0.5))), k(1.0));
-    let half = mul(q, k(0.5));
-    let odd = _mm256_cmp_ps::<_CMP_NEQ_UQ>(half, round(half));
-    let (s, c) = (_mm256_blendv_ps(sin, cos, odd), _mm256_blendv_ps(cos, sin, odd));
-    let within =
-        |lo: f32, hi: f32| _mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(q, k(lo)), _mm256_cmp_ps::<_CMP_LT_OQ>(q, k(hi)));
-    let flip = |v: __m256, m: __m256| _mm256_xor_ps(v, _mm256_and_ps(m, k(-0.0)));
-    let (sin_phi, cos_phi) = (flip(s, within(2.0, 4.0)), flip(c, within(1.0, 3.0)));
-    let cos_theta = _mm256_sqrt_ps(sub(k(1.0), u1));
-    let sin_theta = _mm256_sqrt_ps(_mm256_max_ps(sub(k(1.0), mul(cos_theta, cos_theta)), k(0.0)));
-    [mul(sin_theta, cos_phi), mul(sin_theta, sin_phi), cos_theta]
+#[inline(always)]
+pub(crate) unsafe fn cosine_hemisphere_lanes<L: crate::simd::Lanes>(u0: L, u1: L) -> [L; 3] {
+    // SAFETY: the caller's CPU has `L`'s instruction set.
+    unsafe {
+        let k = |x: f32| L::splat(x);
+        let round = |x: L| x.add(k(ROUNDER)).sub(k(ROUNDER));
+        let q = round(u0.mul(k(4.0)));
+        let x = u0.sub(q.mul(k(0.25))).mul(k(TAU));
+        let z = x.mul(x);
+        let sin = k(SIN[0]).mul(z).add(k(SIN[1])).mul(z).add(k(SIN[2])).mul(z).mul(x).add(x);
+        let cos = k(COS[0]).mul(z).add(k(COS[1])).mul(z).add(k(COS[2])).mul(z).mul(z).sub(z.mul(k(0.5))).add(k(1.0));
+        let half = q.mul(k(0.5));
+        let odd = half.ne(round(half));
+        let (s, c) = (sin.select(odd, cos), cos.select(odd, sin));
+        let within = |lo: f32, hi: f32| L::and(k(lo).le(q), q.lt(k(hi)));
+        let flip = |v: L, m: L::Mask| v.select(m, v.neg());
+        let (sin_phi, cos_phi) = (flip(s, within(2.0, 4.0)), flip(c, within(1.0, 3.0)));
+        let cos_theta = k(1.0).sub(u1).sqrt();
+        let sin_theta = k(1.0).sub(cos_theta.mul(cos_theta)).max_keep(k(0.0)).sqrt();
+        [sin_theta.mul(cos_phi), sin_theta.mul(sin_phi), cos_theta]
+    }
 }
 
 /// Adding and removing 2²³ rounds to the nearest integer (exactly, below 2²²).
@@ -246,52 +202,47 @@ mod tests {
         (0..n).map(|_| Vec2::new(rng.next_f32(), rng.next_f32())).collect()
     }
 
-    /// The sixteen- and eight-lane cosine directions give the scalar map's bits, for random
+    /// The cosine directions in portable, eight- and sixteen-lane vectors give the scalar
+    /// map's bits, for random
     /// points and for the quarter-turn and end values where a rounding or sign choice could
     /// differ.
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn lane_cosine_directions_give_the_scalar_bits() {
-        use std::arch::x86_64::*;
+        use crate::simd::Lanes;
         let below_one = crate::sampling::ONE_MINUS_EPSILON;
         let edges = [0.0, 0.125, 0.25, 0.375, 0.5, 0.625, 0.75, 0.875, below_one, 1e-8, 0.2499999, 0.7500001];
         let mut points: Vec<Vec2> = edges.iter().flat_map(|&x| edges.iter().map(move |&y| Vec2::new(x, y))).collect();
         points.extend(uniform_points(4000, 8));
         type Copy = fn(&[[f32; 16]; 2]) -> [[f32; 16]; 3];
-        let mut copies: Vec<(&str, Copy)> = Vec::new();
-        if crate::simd::cpu_isa() >= crate::simd::Isa::Avx2 {
-            copies.push(("avx2", |u| {
-                let mut out = [[0.0f32; 16]; 3];
-                // SAFETY: the CPU has AVX2, checked above; the loads and stores are of eight
-                // floats within rows of sixteen.
+        /// The directions of sixteen points in lanes `L`, a vector at a time.
+        ///
+        /// # Safety
+        /// The CPU must have `L`'s instruction set.
+        unsafe fn in_lanes<L: Lanes>(u: &[[f32; 16]; 2]) -> [[f32; 16]; 3] {
+            let mut out = [[0.0f32; 16]; 3];
+            for h in (0..16).step_by(L::WIDTH) {
+                // SAFETY: the caller's CPU has `L`'s instruction set.
                 unsafe {
-                    for h in [0, 8] {
-                        let d = cosine_hemisphere8(
-                            _mm256_loadu_ps(u[0][h..].as_ptr()),
-                            _mm256_loadu_ps(u[1][h..].as_ptr()),
-                        );
-                        for (o, d) in out.iter_mut().zip(d) {
-                            _mm256_storeu_ps(o[h..].as_mut_ptr(), d);
-                        }
+                    let d = cosine_hemisphere_lanes(L::load(&u[0][h..]), L::load(&u[1][h..]));
+                    for (o, d) in out.iter_mut().zip(d) {
+                        d.store(&mut o[h..]);
                     }
                 }
-                out
-            }));
+            }
+            out
+        }
+        // SAFETY: portable lanes need no instruction set.
+        let mut copies: Vec<(&str, Copy)> = vec![("portable", |u| unsafe { in_lanes::<crate::simd::Portable>(u) })];
+        if crate::simd::cpu_isa() >= crate::simd::Isa::Avx2 {
+            // SAFETY: the CPU has AVX2 and the rest of x86-64-v3, checked above.
+            copies.push(("avx2", |u| unsafe { in_lanes::<crate::simd::Avx>(u) }));
         }
         if crate::simd::cpu_isa() >= crate::simd::Isa::Avx512 {
-            copies.push(("avx512", |u| {
-                let mut out = [[0.0f32; 16]; 3];
-                // SAFETY: the CPU has AVX-512F, checked above; the loads and stores are of 16 floats.
-                unsafe {
-                    let d = cosine_hemisphere16(_mm512_loadu_ps(u[0].as_ptr()), _mm512_loadu_ps(u[1].as_ptr()));
-                    for (o, d) in out.iter_mut().zip(d) {
-                        _mm512_storeu_ps(o.as_mut_ptr(), d);
-                    }
-                }
-                out
-            }));
+            // SAFETY: the CPU has AVX-512F, checked above.
+            copies.push(("avx512", |u| unsafe { in_lanes::<crate::simd::Avx512>(u) }));
         }
-        if copies.len() < 2 {
+        if copies.len() < 3 {
             eprintln!("no AVX2 or no AVX-512 on this CPU: its copy is not used and not tested");
         }
         for group in points.chunks(16) {

@@ -84,6 +84,13 @@ impl Lanes for Avx {
     }
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
+    unsafe fn store(self, out: &mut [f32]) {
+        let out = &mut out[..8];
+        // SAFETY: eight floats, checked above.
+        unsafe { _mm256_storeu_ps(out.as_mut_ptr(), self.0) }
+    }
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    #[inline]
     unsafe fn add_to(x: Self, y: Self, z: Self, out: &mut [Vec3A]) {
         let out = &mut out[..8];
         let xy_lo = _mm256_castps_pd(_mm256_unpacklo_ps(x.0, y.0));
@@ -137,6 +144,11 @@ impl Lanes for Avx {
     #[inline]
     unsafe fn neg(self) -> Self {
         Avx(_mm256_xor_ps(self.0, _mm256_set1_ps(-0.0)))
+    }
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    #[inline]
+    unsafe fn sqrt(self) -> Self {
+        Avx(_mm256_sqrt_ps(self.0))
     }
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]

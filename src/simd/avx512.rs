@@ -90,6 +90,13 @@ impl Lanes for Avx512 {
     }
     #[target_feature(enable = "avx512f")]
     #[inline]
+    unsafe fn store(self, out: &mut [f32]) {
+        let out = &mut out[..16];
+        // SAFETY: sixteen floats, checked above.
+        unsafe { _mm512_storeu_ps(out.as_mut_ptr(), self.0) }
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
     unsafe fn add_to(x: Self, y: Self, z: Self, out: &mut [Vec3A]) {
         let out = &mut out[..16];
         let xy_lo = _mm512_castps_pd(_mm512_unpacklo_ps(x.0, y.0));
@@ -145,6 +152,11 @@ impl Lanes for Avx512 {
     #[inline]
     unsafe fn neg(self) -> Self {
         Avx512(_mm512_castsi512_ps(_mm512_xor_si512(_mm512_castps_si512(self.0), _mm512_set1_epi32(i32::MIN))))
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn sqrt(self) -> Self {
+        Avx512(_mm512_sqrt_ps(self.0))
     }
     #[target_feature(enable = "avx512f")]
     #[inline]

@@ -24,6 +24,8 @@ pub(crate) trait Lanes: Copy {
     unsafe fn places(groups: &[u32; 4], start: &[u32; 4], none: u32) -> [u32; 16];
     /// `x[0..WIDTH]`.
     unsafe fn load(x: &[f32]) -> Self;
+    /// Writes the lanes to `out[0..WIDTH]`.
+    unsafe fn store(self, out: &mut [f32]);
     /// Lane `j` (below `WIDTH`), read from where `self` lies in memory.
     fn lane(&self, j: usize) -> f32;
     /// Adds lane k of `x`, `y` and `z` to `out[k]`, for a full vector of `out` (`WIDTH`
@@ -39,6 +41,8 @@ pub(crate) trait Lanes: Copy {
     unsafe fn div(self, b: Self) -> Self;
     /// `−self`.
     unsafe fn neg(self) -> Self;
+    /// `√self`, correctly rounded.
+    unsafe fn sqrt(self) -> Self;
     /// `|self|`.
     unsafe fn abs(self) -> Self;
     /// `max(self, b)`, `b` where either is NaN (`maxps`).

@@ -64,6 +64,10 @@ impl Lanes for Portable {
         self.0[j]
     }
     #[inline(always)]
+    unsafe fn store(self, out: &mut [f32]) {
+        out[..8].copy_from_slice(&self.0);
+    }
+    #[inline(always)]
     unsafe fn add_to(x: Self, y: Self, z: Self, out: &mut [Vec3A]) {
         for (k, out) in out[..8].iter_mut().enumerate() {
             *out += Vec3A::new(x.0[k], y.0[k], z.0[k]);
@@ -88,6 +92,10 @@ impl Lanes for Portable {
     #[inline(always)]
     unsafe fn neg(self) -> Self {
         self.map(|a| -a)
+    }
+    #[inline(always)]
+    unsafe fn sqrt(self) -> Self {
+        self.map(f32::sqrt)
     }
     #[inline(always)]
     unsafe fn abs(self) -> Self {

@@ -15,14 +15,14 @@ use crate::{
 };
 #[cfg(target_arch = "x86_64")]
 use crate::{
-    sampling::{cmj::QuadrantPattern, warp::cosine_hemisphere16},
+    sampling::{cmj::QuadrantPattern, warp::cosine_hemisphere_lanes},
     simd::{Avx512, Lanes},
 };
 
 impl DirectionRays {
     /// [`DirectionRays::add_cosine`] in AVX-512 lanes, the sample points already in
     /// `samples[0]` and `samples[1]`. Each group of sixteen samples is mapped to directions
-    /// ([`cosine_hemisphere16`]) and sorted into the quadrants of [`DirectionRays::add_lanes`]
+    /// ([`cosine_hemisphere_lanes`]) and sorted into the quadrants of [`DirectionRays::add_lanes`]
     /// by lane compression; packets load their lanes straight from those columns.
     ///
     /// # Safety
@@ -65,13 +65,10 @@ impl DirectionRays {
                 // SAFETY (this block): the CPU has AVX-512F; the loads and stores are of
                 // sixteen floats within the columns, which hold whole groups.
                 let masks = unsafe {
-                    let local = cosine_hemisphere16(
-                        _mm512_loadu_ps(xs[at..at + 16].as_ptr()),
-                        _mm512_loadu_ps(ys[at..at + 16].as_ptr()),
-                    );
-                    let d = to_world(frame, local.map(Avx512));
+                    let local = cosine_hemisphere_lanes(Avx512::load(&xs[at..]), Avx512::load(&ys[at..]));
+                    let d = to_world(frame, local);
                     for (column, lanes) in [&mut *dx, &mut *dy, &mut *dz].into_iter().zip(d) {
-                        _mm512_storeu_ps(column[at..at + 16].as_mut_ptr(), lanes.0);
+                        lanes.store(&mut column[at..]);
                     }
                     let valid = (1u32 << (n - at).min(16)) - 1;
                     let negative = [Avx512::bits(along(&d, tu).lt(k(0.0))), Avx512::bits(along(&d, tv).lt(k(0.0)))];

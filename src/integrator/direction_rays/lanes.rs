@@ -7,7 +7,7 @@ use super::{DirectionRays, QuadrantOut, QuadrantPasses, quadrant_lanes, quadrant
 #[cfg(target_arch = "x86_64")]
 use crate::{
     geometry::lanes::{PacketLanes, RayLanes},
-    sampling::cmj::{GridLanes, SmallGrid8, SmallGrid16},
+    sampling::cosine_table::WarpLanes,
     simd::{Avx, Avx512, Kernel, Lanes},
 };
 use crate::{
@@ -192,12 +192,10 @@ pub(super) unsafe fn add_clear_or_floor<L: Lanes>(clear: Vec3A, floor: Vec3A, da
 }
 
 /// Lanes that trace whole passes of quadrant patterns
-/// ([`DirectionRays::add_cosine_quadrants`]): their pattern grid, cosine map and scene query.
-/// Every method needs the lanes' instruction set.
+/// ([`DirectionRays::add_cosine_quadrants`]): their pattern grid and cosine map
+/// ([`WarpLanes`]) and their scene query, which needs the lanes' instruction set.
 #[cfg(target_arch = "x86_64")]
-pub(super) trait PassLanes: Lanes {
-    /// The pattern grid of this width.
-    type Grid: GridLanes;
+pub(super) trait PassLanes: WarpLanes {
     /// [`SceneGeometry::occluded_lanes16`] or its eight-lane twin.
     unsafe fn occluded(
         geometry: &SceneGeometry,
@@ -206,62 +204,61 @@ pub(super) trait PassLanes: Lanes {
         live: u32,
         stack: &mut Vec<(u32, f32)>,
     ) -> u32;
-    /// [`DirectionRays::add_cosine_quadrants`] in these lanes, compiled for their instruction
-    /// set.
-    #[allow(clippy::too_many_arguments)]
-    unsafe fn add_quadrants(
-        rays: &mut DirectionRays,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl PassLanes for Avx512 {
+    #[inline(always)]
+    unsafe fn occluded(
         geometry: &SceneGeometry,
+        lanes: &RayLanes<Self>,
+        ray: impl Fn(usize) -> Ray,
+        live: u32,
         stack: &mut Vec<(u32, f32)>,
-        spawn: &SpawnOrigins,
-        frame: &Onb,
-        passes: QuadrantPasses<impl Iterator<Item = u32>>,
-        terms: &DirectionTerms,
-        out: QuadrantOut,
-    ) -> (u64, u64);
-}
-
-/// [`PassLanes`] for one lane type: its grid, its instruction set, its cosine map and its
-/// scene query.
-#[cfg(target_arch = "x86_64")]
-macro_rules! pass_lanes {
-    ($lanes:ident, $grid:ty, $feature:literal, $occluded:ident) => {
-        impl PassLanes for $lanes {
-            type Grid = $grid;
-            #[target_feature(enable = $feature)]
-            #[inline]
-            unsafe fn occluded(
-                geometry: &SceneGeometry,
-                lanes: &RayLanes<Self>,
-                ray: impl Fn(usize) -> Ray,
-                live: u32,
-                stack: &mut Vec<(u32, f32)>,
-            ) -> u32 {
-                geometry.$occluded(lanes, ray, live, stack)
-            }
-            #[target_feature(enable = $feature)]
-            #[allow(clippy::too_many_arguments)]
-            unsafe fn add_quadrants(
-                rays: &mut DirectionRays,
-                geometry: &SceneGeometry,
-                stack: &mut Vec<(u32, f32)>,
-                spawn: &SpawnOrigins,
-                frame: &Onb,
-                passes: QuadrantPasses<impl Iterator<Item = u32>>,
-                terms: &DirectionTerms,
-                out: QuadrantOut,
-            ) -> (u64, u64) {
-                // SAFETY: this function is compiled for the lanes' instruction set.
-                unsafe { rays.add_cosine_quadrants::<Self>(geometry, stack, spawn, frame, passes, terms, out) }
-            }
-        }
-    };
+    ) -> u32 {
+        // SAFETY: the caller's CPU has AVX-512 and x86-64-v3, the query's instruction set.
+        unsafe { geometry.occluded_lanes16(lanes, ray, live, stack) }
+    }
 }
 
 #[cfg(target_arch = "x86_64")]
-pass_lanes!(Avx512, SmallGrid16, "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt", occluded_lanes16);
+impl PassLanes for Avx {
+    #[inline(always)]
+    unsafe fn occluded(
+        geometry: &SceneGeometry,
+        lanes: &RayLanes<Self>,
+        ray: impl Fn(usize) -> Ray,
+        live: u32,
+        stack: &mut Vec<(u32, f32)>,
+    ) -> u32 {
+        // SAFETY: the caller's CPU has x86-64-v3, the query's instruction set.
+        unsafe { geometry.occluded_lanes8(lanes, ray, live, stack) }
+    }
+}
+
+/// [`DirectionRays::add_cosine_quadrants`] as a kernel over the lane type.
 #[cfg(target_arch = "x86_64")]
-pass_lanes!(Avx, SmallGrid8, "avx2,fma,bmi1,bmi2,lzcnt,popcnt", occluded_lanes8);
+pub(super) struct QuadrantRun<'a, I> {
+    pub(super) rays: &'a mut DirectionRays,
+    pub(super) geometry: &'a SceneGeometry,
+    pub(super) stack: &'a mut Vec<(u32, f32)>,
+    pub(super) spawn: &'a SpawnOrigins,
+    pub(super) frame: &'a Onb,
+    pub(super) passes: QuadrantPasses<'a, I>,
+    pub(super) terms: &'a DirectionTerms,
+    pub(super) out: QuadrantOut<'a>,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl<L: PassLanes, I: Iterator<Item = u32>> Kernel<L> for QuadrantRun<'_, I> {
+    type Output = (u64, u64);
+    #[inline(always)]
+    unsafe fn run(self) -> (u64, u64) {
+        let QuadrantRun { rays, geometry, stack, spawn, frame, passes, terms, out } = self;
+        // SAFETY: the caller's CPU has `L`'s instruction set.
+        unsafe { rays.add_cosine_quadrants::<L>(geometry, stack, spawn, frame, passes, terms, out) }
+    }
+}
 
 /// Local directions (x, y and z lanes) in `frame`, in world space: `u·x + v·y + w·z`,
 /// component by component (the frame's `to_world`).

@@ -16,11 +16,10 @@ mod cosine;
 #[cfg(target_arch = "x86_64")]
 mod lanes;
 
-#[cfg(target_arch = "x86_64")]
-use lanes::PassLanes;
-
 use glam::{BVec3A, Vec3A};
 
+#[cfg(target_arch = "x86_64")]
+use crate::sampling::{cmj::Cmj, cosine_table::CosineTable};
 use crate::{
     geometry::{
         accel::{RayOrder, SceneGeometry},
@@ -32,11 +31,6 @@ use crate::{
     math::Onb,
     sampling::SampleSets,
     stats::{cycle_count, cycles_since},
-};
-#[cfg(target_arch = "x86_64")]
-use crate::{
-    sampling::{cmj::Cmj, cosine_table::CosineTable},
-    simd::{Avx, Avx512},
 };
 
 /// The lanes of a group that need a ray, by the quadrant of their direction around the
@@ -184,15 +178,10 @@ impl DirectionRays {
                 Some(sum) => QuadrantOut::Sum(arriving.len(), &mut sum.light),
                 None => QuadrantOut::Each(arriving),
             };
+            let kernel = lanes::QuadrantRun { rays: self, geometry, stack, spawn, frame, passes, terms, out };
             // SAFETY: sixteen-lane packets are used only where AVX-512 was detected, eight-lane
             // ones only where AVX2 was ([`crate::simd::isa`]), and quadrant patterns need AVX2.
-            return Some(unsafe {
-                if lanes == 16 {
-                    Avx512::add_quadrants(self, geometry, stack, spawn, frame, passes, terms, out)
-                } else {
-                    Avx::add_quadrants(self, geometry, stack, spawn, frame, passes, terms, out)
-                }
-            });
+            return unsafe { crate::simd::run_in(lanes, kernel) };
         }
         #[cfg(target_arch = "x86_64")]
         if geometry.packet_lanes() == 16 {
