@@ -346,6 +346,10 @@ mod tests {
     fn a_device_is_written_in_place() {
         use std::os::unix::fs::FileTypeExt;
         let null = Path::new("/dev/null");
+        if !std::fs::metadata(null).is_ok_and(|m| m.file_type().is_char_device()) {
+            eprintln!("skipped: /dev/null is not a device on this machine");
+            return;
+        }
         OutputFile::create_any(null).unwrap().write_text("discarded").unwrap();
         assert!(std::fs::metadata(null).unwrap().file_type().is_char_device());
     }
