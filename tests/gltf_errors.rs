@@ -1,6 +1,8 @@
 //! Malformed glTF input is refused with one line naming the file and the element, never a
 //! panic; URIs with spaces and percent-encoding load.
 
+mod common;
+
 use std::path::PathBuf;
 
 use hemi::{HemiError, scene::gltf};
@@ -11,24 +13,12 @@ fn temp(name: &str) -> PathBuf {
     dir.join(name)
 }
 
-fn base64(bytes: &[u8]) -> String {
-    const T: &[u8] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut s = String::new();
-    for c in bytes.chunks(3) {
-        let n = c.iter().enumerate().fold(0u32, |acc, (i, &b)| acc | (b as u32) << (16 - 8 * i));
-        for i in 0..4 {
-            s.push(if i <= c.len() { T[(n >> (18 - 6 * i) & 63) as usize] as char } else { '=' });
-        }
-    }
-    s
-}
-
 /// A one-triangle glTF: 3 positions then 3 u32 indices in one 48-byte buffer at `uri`
 /// (`None`: a base64 data URI), with the index accessor's component type given.
 fn triangle(positions: [f32; 9], indices: [u32; 3], index_type: u32, uri: Option<&str>) -> (String, Vec<u8>) {
     let mut data: Vec<u8> = positions.iter().flat_map(|v| v.to_le_bytes()).collect();
     data.extend(indices.iter().flat_map(|v| v.to_le_bytes()));
-    let uri = uri.map_or(format!("data:application/octet-stream;base64,{}", base64(&data)), str::to_string);
+    let uri = uri.map_or(format!("data:application/octet-stream;base64,{}", common::base64(&data)), str::to_string);
     let json = format!(
         r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
         "meshes":[{{"name":"tri","primitives":[{{"attributes":{{"POSITION":0}},"indices":1}}]}}],

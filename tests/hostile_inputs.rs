@@ -2,6 +2,8 @@
 //! file and the element, quickly and without a large allocation; time stays finite; peer
 //! sample counts obey the `--spp` limit.
 
+mod common;
+
 use std::{
     path::{Path, PathBuf},
     time::Instant,
@@ -21,18 +23,6 @@ fn dir(name: &str) -> PathBuf {
     dir
 }
 
-fn base64(bytes: &[u8]) -> String {
-    const T: &[u8] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut s = String::new();
-    for c in bytes.chunks(3) {
-        let n = c.iter().enumerate().fold(0u32, |acc, (i, &b)| acc | (b as u32) << (16 - 8 * i));
-        for i in 0..4 {
-            s.push(if i <= c.len() { T[(n >> (18 - 6 * i) & 63) as usize] as char } else { '=' });
-        }
-    }
-    s
-}
-
 /// A one-triangle glTF with an animation: buffer = 3 positions (36 bytes), 2 key times
 /// (8 bytes), 2 rotation keys (32 bytes). Accessors: 0 POSITION, 1 times, 2 rotations.
 fn animated_triangle(positions: [f32; 9], rotations: [[f32; 4]; 2]) -> Value {
@@ -45,7 +35,7 @@ fn animated_triangle(positions: [f32; 9], rotations: [[f32; 4]; 2]) -> Value {
         "scenes": [{"nodes": [0]}],
         "nodes": [{"mesh": 0, "name": "spinner"}],
         "meshes": [{"name": "Body", "primitives": [{"attributes": {"POSITION": 0}}]}],
-        "buffers": [{"byteLength": data.len(), "uri": format!("data:application/octet-stream;base64,{}", base64(&data))}],
+        "buffers": [{"byteLength": data.len(), "uri": format!("data:application/octet-stream;base64,{}", common::base64(&data))}],
         "bufferViews": [
             {"buffer": 0, "byteLength": 36},
             {"buffer": 0, "byteOffset": 36, "byteLength": 8},

@@ -84,3 +84,19 @@ pub(crate) trait FusedLanes: Lanes {
     /// `self · b + c`, rounded once.
     unsafe fn mul_add(self, b: Self, c: Self) -> Self;
 }
+
+/// [`Lanes::places`] for eight lanes, one lane at a time: what the eight-lane types share (with
+/// AVX2's bit counts inlined where it is compiled for them).
+#[inline(always)]
+pub(crate) fn places8(groups: &[u32; 4], start: &[u32; 4], none: u32) -> [u32; 16] {
+    let mut at = [none; 16];
+    for (k, at) in at[..8].iter_mut().enumerate() {
+        let below = (1u32 << k) - 1;
+        for (lanes, start) in groups.iter().zip(start) {
+            if lanes >> k & 1 != 0 {
+                *at = start + (lanes & below).count_ones();
+            }
+        }
+    }
+    at
+}

@@ -44,16 +44,7 @@ impl Lanes for Portable {
     }
     #[inline(always)]
     unsafe fn places(groups: &[u32; 4], start: &[u32; 4], none: u32) -> [u32; 16] {
-        let mut at = [none; 16];
-        for (k, at) in at[..8].iter_mut().enumerate() {
-            let below = (1u32 << k) - 1;
-            for (lanes, start) in groups.iter().zip(start) {
-                if lanes >> k & 1 != 0 {
-                    *at = start + (lanes & below).count_ones();
-                }
-            }
-        }
-        at
+        super::lanes::places8(groups, start, none)
     }
     #[inline(always)]
     unsafe fn load(x: &[f32]) -> Self {

@@ -75,3 +75,16 @@ pub fn check_analytic(scene: AnalyticScene, sampler: SamplerKind, scale: f32, of
     let ao = |p: Vec3| scene.ao((p - offset) / scale);
     assert_matches_binomial(&renderer, &cam, (width, height, spp), offset.y, ao);
 }
+
+/// Standard base64 with padding, for `data:` URIs in hand-made glTF files.
+pub fn base64(bytes: &[u8]) -> String {
+    const T: &[u8] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut s = String::new();
+    for c in bytes.chunks(3) {
+        let n = c.iter().enumerate().fold(0u32, |acc, (i, &b)| acc | (b as u32) << (16 - 8 * i));
+        for i in 0..4 {
+            s.push(if i <= c.len() { T[(n >> (18 - 6 * i) & 63) as usize] as char } else { '=' });
+        }
+    }
+    s
+}
