@@ -1,7 +1,7 @@
-//! Node hierarchies, keyframe animation and skinning: the data the animation and skinning
-//! systems read. Sampling follows the glTF 2.0 rules (STEP, LINEAR with quaternion slerp,
-//! CUBICSPLINE Hermite splines), and a time before the first or after the last key holds the
-//! end value; clips loop over their duration.
+//! Node hierarchies, keyframe animation, skinning and morph targets: the data the animation
+//! and deformation systems read. Sampling follows the glTF 2.0 rules (STEP, LINEAR with
+//! quaternion slerp, CUBICSPLINE Hermite splines), and a time before the first or after the
+//! last key holds the end value; each clip loops over its own duration.
 
 use std::sync::Arc;
 
@@ -30,6 +30,14 @@ pub enum Keys {
     Rotation(Vec<Quat>),
     /// Node scales.
     Scale(Vec<Vec3>),
+    /// Morph-target weights of a node's mesh, `targets` values per key (for CUBICSPLINE:
+    /// `targets` in-tangents, values, then out-tangents per key).
+    Weights {
+        /// Weights per key, the node's number of morph targets.
+        targets: usize,
+        /// All values, key after key.
+        values: Vec<f32>,
+    },
 }
 
 /// One animated property of one node.
@@ -120,20 +128,87 @@ impl Channel {
             Interpolation::Linear => q[k].slerp(q[k + 1], s),
         }
     }
+
+    /// Samples a weights channel of `n` targets at time `t` into `out` (`v` holds whole keys,
+    /// so every index below is in range when `out` has `n` entries).
+    fn sample_weights(&self, v: &[f32], n: usize, t: f32, out: &mut [f32]) {
+        let (k, s, dt) = locate(&self.times, t);
+        for (j, w) in out.iter_mut().enumerate().take(n) {
+            *w = match self.interpolation {
+                Interpolation::CubicSpline => {
+                    let at = |key: usize, part: usize| v[(3 * key + part) * n + j];
+                    if s == 0.0 {
+                        at(k, 1)
+                    } else {
+                        hermite(at(k, 1), at(k, 2) * dt, at(k + 1, 0) * dt, at(k + 1, 1), s)
+                    }
+                }
+                _ if s == 0.0 => v[k * n + j],
+                Interpolation::Step => v[k * n + j],
+                Interpolation::Linear => v[k * n + j] * (1.0 - s) + v[(k + 1) * n + j] * s,
+            };
+        }
+    }
+
+    /// Whether the keys hold as many values as the times and interpolation ask for.
+    fn is_whole(&self) -> bool {
+        let per_key = if self.interpolation == Interpolation::CubicSpline { 3 } else { 1 };
+        let keys = self.times.len() * per_key;
+        match &self.keys {
+            Keys::Translation(v) | Keys::Scale(v) => v.len() == keys,
+            Keys::Rotation(q) => q.len() == keys,
+            Keys::Weights { targets, values } => values.len() == keys * targets,
+        }
+    }
 }
 
 impl Clip {
+    /// The time within the clip that scene time `t` shows (clips loop).
+    fn local_time(&self, t: f32) -> f32 {
+        if self.duration > 0.0 && t > self.duration { t.rem_euclid(self.duration) } else { t }
+    }
+
     /// Poses `locals` (indexed like [`NodeGraph::nodes`]) at time `t`, looping over the clip.
     pub fn apply(&self, t: f32, locals: &mut [Transform]) {
-        let t = if self.duration > 0.0 && t > self.duration { t.rem_euclid(self.duration) } else { t };
+        let t = self.local_time(t);
         for ch in &self.channels {
             let Some(local) = locals.get_mut(ch.node) else { continue };
             match &ch.keys {
-                Keys::Translation(v) => local.translation = ch.sample_vec(v, t),
-                Keys::Rotation(q) => local.rotation = ch.sample_quat(q, t),
-                Keys::Scale(v) => local.scale = ch.sample_vec(v, t),
+                Keys::Translation(v) if ch.is_whole() => local.translation = ch.sample_vec(v, t),
+                Keys::Rotation(q) if ch.is_whole() => local.rotation = ch.sample_quat(q, t),
+                Keys::Scale(v) if ch.is_whole() => local.scale = ch.sample_vec(v, t),
+                _ => {}
             }
         }
+    }
+
+    /// Sets the morph weights of the nodes it animates (`weights` indexed like
+    /// [`NodeGraph::nodes`]) at time `t`; a channel whose target count differs from the
+    /// node's is skipped.
+    pub fn apply_weights(&self, t: f32, weights: &mut [Vec<f32>]) {
+        let t = self.local_time(t);
+        for ch in &self.channels {
+            if let (Keys::Weights { targets, values }, Some(w)) = (&ch.keys, weights.get_mut(ch.node))
+                && w.len() == *targets
+                && ch.is_whole()
+            {
+                ch.sample_weights(values, *targets, t, w);
+            }
+        }
+    }
+
+    /// The (node, property) pairs the clip drives, property 0–3 being translation, rotation,
+    /// scale and weights.
+    pub fn targets(&self) -> impl Iterator<Item = (usize, usize)> + '_ {
+        self.channels.iter().map(|ch| {
+            let property = match ch.keys {
+                Keys::Translation(_) => 0,
+                Keys::Rotation(_) => 1,
+                Keys::Scale(_) => 2,
+                Keys::Weights { .. } => 3,
+            };
+            (ch.node, property)
+        })
     }
 }
 
@@ -146,6 +221,9 @@ pub struct Node {
     pub parent: Option<usize>,
     /// Local transform when no animation drives it.
     pub rest: Transform,
+    /// Morph weights when no animation drives them, one per morph target of the node's mesh
+    /// (empty without morph targets).
+    pub weights: Vec<f32>,
 }
 
 /// A node hierarchy with its animations: the animation system poses it from [`Time`] and
@@ -158,10 +236,12 @@ pub struct NodeGraph {
     pub nodes: Vec<Node>,
     /// Animation clips.
     pub clips: Vec<Clip>,
-    /// The clip that plays (`None`: the rest pose).
-    pub active: Option<usize>,
+    /// The clips that play together, indices into `clips` (none: the rest pose).
+    pub active: Vec<usize>,
     /// Current world transform of every node (written by the animation system).
     pub world: Vec<Affine3A>,
+    /// Current morph weights of every node (written by the animation system).
+    pub weights: Vec<Vec<f32>>,
 }
 
 impl NodeGraph {
@@ -181,10 +261,35 @@ impl NodeGraph {
         animated
     }
 
-    /// World transforms of every node at time `t` under the active clip.
+    /// The clips that play, in order.
+    pub fn playing(&self) -> impl Iterator<Item = &Clip> {
+        self.active.iter().filter_map(|&i| self.clips.get(i))
+    }
+
+    /// For every node, whether some clip animates its morph weights.
+    pub fn morphing(&self) -> Vec<bool> {
+        let mut morphing = vec![false; self.nodes.len()];
+        for ch in self.clips.iter().flat_map(|c| &c.channels) {
+            if let (Keys::Weights { .. }, Some(m)) = (&ch.keys, morphing.get_mut(ch.node)) {
+                *m = true;
+            }
+        }
+        morphing
+    }
+
+    /// Morph weights of every node at time `t` under the playing clips.
+    pub fn pose_weights(&self, t: f32) -> Vec<Vec<f32>> {
+        let mut weights: Vec<Vec<f32>> = self.nodes.iter().map(|n| n.weights.clone()).collect();
+        for clip in self.playing() {
+            clip.apply_weights(t, &mut weights);
+        }
+        weights
+    }
+
+    /// World transforms of every node at time `t` under the playing clips.
     pub fn pose(&self, t: f32) -> Vec<Affine3A> {
         let mut locals: Vec<Transform> = self.nodes.iter().map(|n| n.rest).collect();
-        if let Some(clip) = self.active.and_then(|i| self.clips.get(i)) {
+        for clip in self.playing() {
             clip.apply(t, &mut locals);
         }
         let mut world: Vec<Affine3A> = Vec::with_capacity(self.nodes.len());
@@ -229,14 +334,19 @@ pub struct Skin {
 impl Skin {
     /// The rest vertices deformed by the joints' world transforms `world`.
     pub fn deform(&self, world: &[Affine3A]) -> Vec<Vec3> {
+        self.deform_points(world, &self.rest.positions)
+    }
+
+    /// `points` (one per vertex of `rest`, e.g. the morphed rest pose) deformed by the
+    /// joints' world transforms `world`.
+    pub fn deform_points(&self, world: &[Affine3A], points: &[Vec3]) -> Vec<Vec3> {
         let joints: Vec<Affine3A> = self
             .joints
             .iter()
             .zip(&self.inverse_bind)
             .map(|(&j, ibm)| world.get(j).copied().unwrap_or(Affine3A::IDENTITY) * *ibm)
             .collect();
-        self.rest
-            .positions
+        points
             .iter()
             .zip(self.influences.iter())
             .map(|(&p, inf)| {
@@ -254,6 +364,40 @@ impl Skin {
             })
             .collect()
     }
+}
+
+/// Morph targets of a mesh entity: its `TriangleMesh` holds `rest` plus each target's
+/// position offsets times the node's current weight (before skinning, as glTF orders them).
+/// Shading uses geometric normals, so a target's NORMAL offsets have nothing to move and are
+/// not read.
+#[derive(Component, Clone, Debug)]
+pub struct Morph {
+    /// The node whose weights apply, an index into [`NodeGraph::nodes`].
+    pub node: usize,
+    /// Position offsets per target, one per vertex of `rest` (empty: the target moves none).
+    pub targets: Arc<Vec<Vec<Vec3>>>,
+    /// The undeformed mesh.
+    pub rest: Arc<Mesh>,
+}
+
+impl Morph {
+    /// The rest vertices moved by the targets under `weights`.
+    pub fn deform(&self, weights: &[f32]) -> Vec<Vec3> {
+        morph(&self.rest.positions, &self.targets, weights)
+    }
+}
+
+/// `positions` plus each target's offsets times its weight (a zero weight adds nothing).
+pub fn morph(positions: &[Vec3], targets: &[Vec<Vec3>], weights: &[f32]) -> Vec<Vec3> {
+    let mut out = positions.to_vec();
+    for (target, &w) in targets.iter().zip(weights) {
+        if w != 0.0 {
+            for (p, d) in out.iter_mut().zip(target) {
+                *p += *d * w;
+            }
+        }
+    }
+    out
 }
 
 #[cfg(test)]
@@ -307,6 +451,33 @@ mod tests {
         assert_eq!(c.sample_vec(&v, 1.0), Vec3::ONE);
         assert!((c.sample_vec(&v, 0.5) - Vec3::splat(0.5)).length() < 1e-6);
         assert!((c.sample_vec(&v, 0.25) - Vec3::splat(0.15625)).length() < 1e-6);
+    }
+
+    #[test]
+    fn weights_interpolate_per_target_and_short_channels_are_skipped() {
+        let keys = Keys::Weights { targets: 2, values: vec![0.0, 1.0, 1.0, 0.0, 0.5, 0.5] };
+        let weights = Channel { node: 0, times: vec![0.0, 1.0, 3.0], keys, interpolation: Interpolation::Linear };
+        let mut clip = Clip { name: "w".into(), channels: vec![weights], duration: 3.0 };
+        let mut w = vec![vec![9.0, 9.0]];
+        clip.apply_weights(0.25, &mut w);
+        assert_eq!(w[0], [0.25, 0.75]);
+        clip.apply_weights(2.0, &mut w);
+        assert_eq!(w[0], [0.75, 0.25]);
+        clip.channels[0].interpolation = Interpolation::Step;
+        clip.apply_weights(2.0, &mut w);
+        assert_eq!(w[0], [1.0, 0.0]);
+        // A node with another number of targets, or keys that do not fill the times, is left alone.
+        let mut three = vec![vec![9.0; 3]];
+        clip.apply_weights(2.0, &mut three);
+        assert_eq!(three[0], [9.0; 3]);
+        clip.channels[0].times.push(4.0);
+        let mut untouched = vec![vec![9.0; 2]];
+        clip.apply_weights(2.0, &mut untouched);
+        assert_eq!(untouched[0], [9.0; 2]);
+        assert_eq!(
+            morph(&[Vec3::ZERO, Vec3::X], &[vec![Vec3::Y, Vec3::Z], vec![]], &[0.5, 1.0]),
+            [Vec3::new(0.0, 0.5, 0.0), Vec3::new(1.0, 0.0, 0.5)]
+        );
     }
 
     #[test]

@@ -1,6 +1,7 @@
-//! Stage 0a: poses the [`NodeGraph`] for the current [`Time`] (active clip sampled from the rest
-//! pose, so a frame's pose depends only on its time) and moves every entity linked to a node:
-//! mesh instances, point lights and the camera. Values are only written when they differ, so a
+//! Stage 0a: poses the [`NodeGraph`] for the current [`Time`] (the playing clips sampled from
+//! the rest pose, so a frame's pose depends only on its time) and moves every entity linked to
+//! a node: mesh instances, lights and the camera; morph weights are posed for the deformation
+//! stage. Values are only written when they differ, so a
 //! static scene, or a held pose, changes nothing and costs no BVH work or accumulation reset.
 
 use std::time::Instant;
@@ -22,25 +23,33 @@ type Linked<'a> = (
     Has<PointLight>,
 );
 
-/// Samples the active clip at [`Time`] and updates the linked entities.
+/// Samples the playing clips at [`Time`] and updates the linked entities.
 pub fn animate(
     time: Option<Res<Time>>,
     mut graph: ResMut<NodeGraph>,
     mut linked: Query<Linked>,
     mut stats: ResMut<FrameStats>,
-    mut last: Local<Option<(f32, Option<usize>)>>,
+    mut last: Local<Option<(f32, Vec<usize>)>>,
 ) {
     let start = Instant::now();
     let seconds = time.map_or(0.0, |t| t.seconds);
-    let key = (seconds, graph.active);
-    if *last == Some(key) && !graph.is_changed() {
+    let key = (seconds, graph.active.clone());
+    if last.as_ref() == Some(&key) && !graph.is_changed() {
         stats.record("animation", start.elapsed(), "unchanged");
         return;
     }
     *last = Some(key);
     let pose = graph.pose(seconds);
-    if pose == graph.world {
+    let weights = graph.pose_weights(seconds);
+    if pose == graph.world && weights == graph.weights {
         stats.record("animation", start.elapsed(), format!("t = {seconds:.4} s: pose unchanged"));
+        return;
+    }
+    if weights != graph.weights {
+        graph.weights = weights;
+    }
+    if pose == graph.world {
+        stats.record("animation", start.elapsed(), format!("t = {seconds:.4} s: morph weights changed"));
         return;
     }
     graph.world = pose;

@@ -15,7 +15,7 @@ use crate::{
     partial::{self, Partial},
     resources::{Aov, RenderSettings},
     sampling::SamplerKind,
-    scene::gltf::{LoadOptions, SpawnOptions},
+    scene::gltf::{LoadOptions, MAX_FRAMING_POSES, SpawnOptions},
     sequence::frame_path,
     stats::{RayCounts, mrays_per_second},
 };
@@ -33,7 +33,8 @@ pub(super) struct RenderArgs {
     /// that frames the whole scene when it has none).
     #[arg(long)]
     camera: Option<String>,
-    /// The glTF animation to play, by name or index (default: the first).
+    /// The glTF animations to play together: `all`, or names and indices separated by commas
+    /// (default: all when no two animate the same node, else the first).
     #[arg(long)]
     animation: Option<String>,
     /// Render the frames A..B (B excluded) of the animation as a numbered sequence.
@@ -103,6 +104,15 @@ pub(super) struct RenderArgs {
     /// Stream the progressive image to a running tev (its --hostname, e.g. 127.0.0.1:14158).
     #[arg(long, value_name = "HOST:PORT")]
     display_server: Option<String>,
+}
+
+/// Times of at most `count` frames of `start..end` at `fps`, evenly spaced with the first and
+/// the last included (a long range is not listed frame by frame).
+fn frame_times(start: u32, end: u32, fps: f64, count: usize) -> Vec<f32> {
+    let n = (end - start) as u64;
+    let count = (count.max(2) as u64).min(n);
+    let frame = |i: u64| if count < 2 { start as u64 } else { start as u64 + i * (n - 1) / (count - 1) };
+    (0..count).map(|i| (frame(i) as f64 / fps) as f32).collect()
 }
 
 /// The frames of `start..end` that shard `i/n` renders: every n-th, starting at the i-th.
@@ -240,13 +250,16 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
                 console::note(&format!("hemi: warning: {}: {w}", path.display()));
             }
             let mut r = Renderer::new(settings);
-            // Posed (and, without a camera in the file, framed) at the start of the whole
-            // range, so that every shard of a sequence sees the same camera.
+            // Posed at the start of the whole range and, without a camera in the file, framed
+            // over all of its frames, so that every shard of a sequence sees the same camera.
             let time = args.frames.map_or(args.time, |(start, _)| (start as f64 / args.fps) as f32);
+            let framing_times =
+                args.frames.map_or(Vec::new(), |(start, end)| frame_times(start, end, args.fps, MAX_FRAMING_POSES));
             let options = SpawnOptions {
                 camera: args.camera.clone(),
                 animation: args.animation.clone(),
                 time,
+                framing_times,
                 geometry_only: false,
             };
             scene.spawn(r.world_mut(), &options)?;
@@ -484,5 +497,19 @@ fn report(size: (u32, u32), renderer: &Renderer, totals: &Totals, start: Instant
     ));
     if crate::geometry::TraversalCounts::ENABLED {
         console::note(&format!("hemi: {}", crate::stats::traversal_line(&totals.traversal, totals.rays.total())));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::frame_times;
+
+    #[test]
+    fn framing_samples_the_first_and_last_frame_and_evenly_between() {
+        assert_eq!(frame_times(0, 4, 2.0, 256), [0.0, 0.5, 1.0, 1.5]);
+        assert_eq!(frame_times(5, 6, 24.0, 256), [5.0 / 24.0]);
+        // 1000 frames from 10, three samples: frames 10, 10 + 999/2 and 1009.
+        let expected = [10.0f64, 509.0, 1009.0].map(|f| (f / 24.0) as f32);
+        assert_eq!(frame_times(10, 1010, 24.0, 3), expected);
     }
 }

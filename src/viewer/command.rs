@@ -17,7 +17,8 @@ pub struct ViewArgs {
     /// one that frames the whole scene when it has none).
     #[arg(long)]
     camera: Option<String>,
-    /// The glTF animation Space plays, by name or index (default: the first).
+    /// The glTF animations Space plays together: `all`, or names and indices separated by
+    /// commas (default: all when no two animate the same node, else the first).
     #[arg(long)]
     animation: Option<String>,
     /// Samples per pixel a still view converges to [default: 1024, or a peer scene's

@@ -244,10 +244,10 @@ impl Viewer {
         self.time
     }
 
-    /// Length of the active animation clip, if the scene has one.
+    /// Length of the longest playing animation clip, if the scene has one.
     pub fn animation_duration(&self) -> Option<f32> {
         let graph = self.renderer.world().get_resource::<NodeGraph>()?;
-        graph.active.and_then(|a| graph.clips.get(a)).map(|c| c.duration).filter(|d| *d > 0.0)
+        graph.playing().map(|c| c.duration).filter(|d| *d > 0.0).reduce(f32::max)
     }
 
     /// The frames so far.
@@ -624,6 +624,7 @@ impl SceneSource {
                     camera: camera.clone(),
                     animation: animation.clone(),
                     time: 0.0,
+                    framing_times: Vec::new(),
                     geometry_only: false,
                 };
                 scene.spawn(r.world_mut(), &options)?;

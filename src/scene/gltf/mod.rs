@@ -1,7 +1,7 @@
 //! glTF 2.0 scenes (`.gltf` with external or `data:` buffers, `.glb`): meshes (triangle lists,
 //! strips, fans; indexed or not; strided and sparse accessors), the default scene's node
 //! hierarchy, `EXT_mesh_gpu_instancing`, perspective and orthographic cameras,
-//! `KHR_lights_punctual` point lights, base colours, node animations and skins.
+//! `KHR_lights_punctual` point lights, base colours, node animations, skins and morph targets.
 //!
 //! [`load`] reads a file into a [`GltfScene`]; [`GltfScene::spawn`] puts it into a renderer's
 //! world as ordinary hemi entities (one `TriangleMesh` per primitive, shared by every node that
@@ -20,10 +20,12 @@
 
 pub mod accessors;
 pub mod buffers;
+mod clips;
+mod framing;
 mod spawn;
 pub mod validate;
 
-pub use spawn::framing_camera;
+pub use framing::framing_camera;
 
 use std::{
     cell::{Cell, RefCell},
@@ -35,6 +37,7 @@ use std::{
 
 use accessors::Data;
 pub use buffers::{LoadOptions, MAX_FILE_BYTES};
+pub use framing::MAX_FRAMING_POSES;
 
 use ::gltf::{
     Document,
@@ -66,6 +69,9 @@ pub struct Primitive {
     pub material: Matte,
     /// Skinning influences per vertex, when the primitive has JOINTS_0 and WEIGHTS_0.
     pub influences: Option<Influences>,
+    /// Position offsets of each morph target, one per vertex (empty for a target without
+    /// POSITION); no targets, no entries.
+    pub targets: Arc<Vec<Vec<Vec3>>>,
 }
 
 /// A camera's projection.
@@ -124,6 +130,10 @@ pub struct GltfScene {
     skins: Vec<SkinData>,
     /// `mesh 0 ('Body') primitive 0 (POSITION accessor 7)` for each entry of `meshes`.
     labels: Vec<Vec<String>>,
+    /// The file's index of each clip in `graph.clips`.
+    clip_index: Vec<usize>,
+    /// Animations that cannot be played: (file index, name, why).
+    refused_clips: Vec<(usize, String, String)>,
 }
 
 /// A `KHR_lights_punctual` light mapped to hemi's component: point and spot intensities are
@@ -144,10 +154,15 @@ pub enum GltfLight {
 pub struct SpawnOptions {
     /// Camera by name or index in the file's `cameras` (default: the first in the scene).
     pub camera: Option<String>,
-    /// Animation by name or index (default: the first, if any).
+    /// Animations that play together: `all`, or a comma-separated list of names and indices
+    /// (default: all of them when no two animate the same node, as exporters that write one
+    /// clip per object do; otherwise the first).
     pub animation: Option<String>,
     /// Time in seconds the scene is posed at (and, for a file without cameras, framed at).
     pub time: f32,
+    /// Further times that the camera framing a file without cameras keeps in view, such as
+    /// every frame of a sequence (at most [`MAX_FRAMING_POSES`] of them are sampled, evenly).
+    pub framing_times: Vec<f32>,
     /// Spawn only the posed, static geometry: no camera, lights, default occluder, animation
     /// graph or node links (for merging several files into one scene, as peer scenes do).
     pub geometry_only: bool,
@@ -256,6 +271,8 @@ fn parse(bytes: &[u8], base: &Path, options: &LoadOptions) -> Result<GltfScene, 
         placements: Vec::new(),
         skins: Vec::new(),
         labels: vec![Vec::new(); doc.meshes().len()],
+        clip_index: Vec::new(),
+        refused_clips: Vec::new(),
     };
     let mut mesh_read = vec![false; doc.meshes().len()];
     let mut skin_slot: HashMap<usize, usize> = HashMap::new();
@@ -309,6 +326,10 @@ fn parse(bytes: &[u8], base: &Path, options: &LoadOptions) -> Result<GltfScene, 
                     let size = prim.mesh.positions.len() + prim.mesh.indices.len();
                     buffers.charge(size, 12, &format!("{node_label} (skinned copy)"))?;
                 }
+                if !prim.targets.is_empty() {
+                    let size = (prim.mesh.positions.len() + prim.mesh.indices.len()).saturating_mul(offsets.len());
+                    buffers.charge(size, 12, &format!("{node_label} (morphed copy)"))?;
+                }
             }
             scene.placements.push(Placement { node: g, mesh: m, skin, offsets });
         }
@@ -340,10 +361,21 @@ fn parse(bytes: &[u8], base: &Path, options: &LoadOptions) -> Result<GltfScene, 
             scene.lights.push((g, mapped));
         }
     }
+    // A clip that cannot be played costs only itself: it is refused when chosen, and the
+    // others still load and play.
     for animation in doc.animations() {
-        let clip = read_clip(&animation, &buffers, &graph_index, &mut warnings)
-            .map_err(|e| format!("{}: {e}", label("animation", animation.index(), animation.name())))?;
-        scene.graph.clips.push(clip);
+        let name = animation.name().map_or(format!("animation {}", animation.index()), str::to_string);
+        match read_clip(&animation, &buffers, &graph_index, &scene.graph.nodes, &mut warnings) {
+            Ok(clip) => {
+                scene.graph.clips.push(Clip { name, ..clip });
+                scene.clip_index.push(animation.index());
+            }
+            Err(e) => {
+                let why = format!("{}: {e}", label("animation", animation.index(), animation.name()));
+                warnings.push(format!("{why}; it cannot be played"));
+                scene.refused_clips.push((animation.index(), name, why));
+            }
+        }
     }
     let sheared = sheared_nodes(&scene.graph, scene.placements.iter().map(|p| p.node));
     if sheared > 0 {
@@ -419,11 +451,36 @@ fn hierarchy(doc: &Document, warnings: &mut Vec<String>) -> Result<(Vec<Node>, V
         }
         let g = nodes.len();
         index[node.index()] = Some(g);
-        nodes.push(Node { name: node.name().map_or(format!("node {}", node.index()), str::to_string), parent, rest });
+        let weights = rest_weights(&node, &node_label, warnings);
+        nodes.push(Node {
+            name: node.name().map_or(format!("node {}", node.index()), str::to_string),
+            parent,
+            rest,
+            weights,
+        });
         let children: Vec<::gltf::Node> = node.children().collect();
         stack.extend(children.into_iter().rev().map(|c| (c, Some(g))));
     }
     Ok((nodes, index))
+}
+
+/// A node's morph weights without animation: its own `weights`, else its mesh's, one per
+/// morph target (targets without a given weight get 0).
+fn rest_weights(node: &::gltf::Node, node_label: &str, warnings: &mut Vec<String>) -> Vec<f32> {
+    let Some(mesh) = node.mesh() else { return Vec::new() };
+    let targets = mesh.primitives().map(|p| p.morph_targets().len()).max().unwrap_or(0);
+    let given = node.weights().or(mesh.weights()).unwrap_or(&[]);
+    if !given.is_empty() && given.len() != targets {
+        warnings.push(format!(
+            "{node_label}: {} morph weights for {targets} morph targets; missing ones are 0, extra ones unused",
+            given.len()
+        ));
+    }
+    let mut weights = vec![0.0; targets];
+    for (w, &g) in weights.iter_mut().zip(given) {
+        *w = if g.is_finite() { g } else { 0.0 };
+    }
+    weights
 }
 
 /// Triangles of one primitive, or `None` for points and lines.
@@ -474,7 +531,27 @@ fn read_primitive(p: &::gltf::Primitive, buffers: &Data) -> Result<Option<Primit
         }
         _ => None,
     };
-    Ok(Some(Primitive { mesh: Arc::new(mesh), material, influences }))
+    let mut targets = Vec::new();
+    for (i, target) in p.morph_targets().enumerate() {
+        let Some(acc) = target.positions() else {
+            targets.push(Vec::new());
+            continue;
+        };
+        let offsets = accessors::floats::<[f32; 3]>(&acc, Dimensions::Vec3, buffers)
+            .map_err(|e| format!("morph target {i} POSITION {e}"))?;
+        if offsets.len() != mesh.positions.len() {
+            return Err(format!(
+                "morph target {i} POSITION has {} offsets for {} vertices",
+                offsets.len(),
+                mesh.positions.len()
+            ));
+        }
+        if let Some(k) = offsets.iter().position(|o| !o.iter().all(|x| x.is_finite())) {
+            return Err(format!("morph target {i} POSITION offset {k} is not finite"));
+        }
+        targets.push(offsets.into_iter().map(Vec3::from).collect());
+    }
+    Ok(Some(Primitive { mesh: Arc::new(mesh), material, influences, targets: Arc::new(targets) }))
 }
 
 fn read_skin(skin: &::gltf::Skin, buffers: &Data, graph_index: &[Option<usize>]) -> Result<SkinData, String> {
@@ -537,15 +614,17 @@ fn gpu_instances(doc: &Document, node: &::gltf::Node, buffers: &Data) -> Result<
     Ok(offsets)
 }
 
+/// One animation's channels (its name is set by the caller). Any error refuses this clip
+/// alone; channels of nodes outside the scene are left out.
 fn read_clip(
     animation: &::gltf::Animation,
     buffers: &Data,
     graph_index: &[Option<usize>],
+    nodes: &[Node],
     warnings: &mut Vec<String>,
 ) -> Result<Clip, String> {
     let mut channels = Vec::new();
     let mut duration: f32 = 0.0;
-    let mut morph = false;
     for ch in animation.channels() {
         let target = ch.target().node();
         let Some(node) = graph_index[target.index()] else { continue };
@@ -563,35 +642,42 @@ fn read_clip(
             GltfInterpolation::Linear => Interpolation::Linear,
             GltfInterpolation::CubicSpline => Interpolation::CubicSpline,
         };
+        let cubic = interpolation == Interpolation::CubicSpline;
+        // Values per key: a spline keeps an in-tangent and an out-tangent beside each value.
+        let per_key = if cubic { 3 } else { 1 };
         let output = sampler.output();
         let out_err = |e: String| format!("{ch_label} output {e}");
         let vec3 = || -> Result<Vec<Vec3>, String> {
-            Ok(accessors::floats::<[f32; 3]>(&output, Dimensions::Vec3, buffers)
+            let v: Vec<Vec3> = accessors::floats::<[f32; 3]>(&output, Dimensions::Vec3, buffers)
                 .map_err(out_err)?
                 .into_iter()
                 .map(Vec3::from)
-                .collect())
+                .collect();
+            match v.iter().position(|x| !x.is_finite()) {
+                Some(i) => Err(format!("{ch_label} output value {i} is not finite ({})", v[i])),
+                None => Ok(v),
+            }
         };
         let keys = match ch.target().property() {
             Property::Translation => Keys::Translation(vec3()?),
             Property::Scale => Keys::Scale(vec3()?),
             Property::Rotation => {
                 let raw = accessors::quats(&output, buffers).map_err(out_err)?;
-                let cubic = interpolation == Interpolation::CubicSpline;
                 let mut keys = Vec::with_capacity(raw.len());
                 for (i, q) in raw.into_iter().enumerate() {
                     let q = Quat::from_array(q);
-                    let key = if cubic { i / 3 } else { i };
                     if !q.is_finite() {
-                        return Err(format!("{ch_label} key {key}: quaternion {q} is not finite"));
+                        return Err(format!("{ch_label} output value {i}: quaternion {q} is not finite"));
                     }
                     // A spline's in- and out-tangents (all but the middle of each three) are
-                    // not rotations and stay as they are.
+                    // not rotations: they stay as they are, zero included, and only the
+                    // interpolated value is normalised.
                     if cubic && i % 3 != 1 {
                         keys.push(q);
                         continue;
                     }
                     if q.length() <= 1e-6 {
+                        let key = i / per_key;
                         return Err(format!("{ch_label} key {key}: quaternion {q} is zero and cannot be normalised"));
                     }
                     keys.push(q.normalize());
@@ -599,35 +685,43 @@ fn read_clip(
                 Keys::Rotation(keys)
             }
             Property::MorphTargetWeights => {
-                morph = true;
-                continue;
+                let targets = nodes[node].weights.len();
+                if targets == 0 {
+                    warnings.push(format!(
+                        "{}: {ch_label}: the node's mesh has no morph targets; channel ignored",
+                        label("animation", animation.index(), animation.name())
+                    ));
+                    continue;
+                }
+                let values = accessors::floats::<f32>(&output, Dimensions::Scalar, buffers).map_err(out_err)?;
+                if let Some(i) = values.iter().position(|x| !x.is_finite()) {
+                    return Err(format!("{ch_label} output value {i} is not finite ({})", values[i]));
+                }
+                Keys::Weights { targets, values }
             }
         };
-        let per_key = if interpolation == Interpolation::CubicSpline { 3 } else { 1 };
-        let values = match &keys {
-            Keys::Translation(v) | Keys::Scale(v) => v.len(),
-            Keys::Rotation(q) => q.len(),
+        let (values, per_value) = match &keys {
+            Keys::Translation(v) | Keys::Scale(v) => (v.len(), 1),
+            Keys::Rotation(q) => (q.len(), 1),
+            Keys::Weights { targets, values } => (values.len(), *targets),
         };
-        if let Keys::Translation(v) | Keys::Scale(v) = &keys
-            && let Some(i) = v.iter().position(|x| !x.is_finite())
-        {
-            return Err(format!("{ch_label} output value {i} is not finite ({})", v[i]));
-        }
-        if values != times.len() * per_key {
+        let expected = times.len() * per_key * per_value;
+        if values != expected {
+            let what = match (cubic, per_value) {
+                (false, 1) => String::new(),
+                (true, 1) => " (in-tangent, value, out-tangent per key)".into(),
+                (false, n) => format!(" ({n} weights per key)"),
+                (true, n) => format!(" ({n} in-tangents, values and out-tangents per key)"),
+            };
             return Err(format!(
-                "{ch_label}: {values} output values for {} keys (expected {})",
-                times.len(),
-                times.len() * per_key
+                "{ch_label}: {values} output values for {} keys; expected {expected}{what}",
+                times.len()
             ));
         }
         duration = duration.max(*times.last().unwrap_or(&0.0));
         channels.push(Channel { node, times, keys, interpolation });
     }
-    let name = animation.name().map_or(format!("animation {}", animation.index()), str::to_string);
-    if morph {
-        warnings.push(format!("{name}: morph-target weights are not animated (no morph targets yet)"));
-    }
-    Ok(Clip { name, channels, duration })
+    Ok(Clip { name: String::new(), channels, duration })
 }
 
 fn property_name(p: Property) -> &'static str {

@@ -2,6 +2,7 @@
 //! camera (the file's, or one framing the scene), the node graph and its animation.
 
 use super::*;
+use crate::animation::Morph;
 
 impl GltfScene {
     /// Number of triangles the default scene places (each mesh counted once per node and
@@ -13,11 +14,6 @@ impl GltfScene {
             .sum()
     }
 
-    /// Names of the animations, in file order.
-    pub fn animation_names(&self) -> Vec<&str> {
-        self.graph.clips.iter().map(|c| c.name.as_str()).collect()
-    }
-
     /// Spawns the scene into `world`: mesh instances, lights, the chosen camera (or one that
     /// frames the scene when the file has none), a default ambient occluder when the world has
     /// none, the [`NodeGraph`] and [`Time`].
@@ -27,18 +23,9 @@ impl GltfScene {
             return Err(HemiError::Usage(format!("scene time {} s is not a finite number", options.time)));
         }
         let mut graph = self.graph.clone();
-        graph.active = match &options.animation {
-            None => (!graph.clips.is_empty()).then_some(0),
-            Some(key) => {
-                let clips: Vec<(usize, &str)> = graph.clips.iter().enumerate().map(|(i, c)| (i, &*c.name)).collect();
-                let found = choose(&clips, key, |c| c.0, |c| c.1).ok_or_else(|| {
-                    let names: Vec<String> = clips.iter().map(|(i, n)| format!("{i}: {n}")).collect();
-                    fail(format!("no animation '{key}' (available: {})", list(&names)))
-                })?;
-                Some(found.0)
-            }
-        };
+        graph.active = self.select_clips(options.animation.as_deref()).map_err(fail)?;
         graph.world = graph.pose(options.time);
+        graph.weights = graph.pose_weights(options.time);
         let camera = match &options.camera {
             None => self.cameras.first(),
             Some(key) => Some(choose(&self.cameras, key, |c| c.index, |c| &c.name).ok_or_else(|| {
@@ -70,12 +57,19 @@ impl GltfScene {
             Ok(())
         };
         let animated = graph.animated();
+        let morphing = graph.morphing();
         for (pi, placement) in self.placements.iter().enumerate() {
             let node_world = graph.world[placement.node];
             let node_name = &graph.nodes[placement.node].name;
             let skin = placement.skin.map(|s| &self.skins[s]);
             for (k, prim) in self.meshes[placement.mesh].iter().enumerate() {
                 let name = Name::new(format!("{node_name}/{k}"));
+                let morph = (!prim.targets.is_empty()).then(|| Morph {
+                    node: placement.node,
+                    targets: prim.targets.clone(),
+                    rest: prim.mesh.clone(),
+                });
+                let morphed = morph.as_ref().map(|m| m.deform(&graph.weights[placement.node]));
                 if let (Some(skin), Some(influences), false) = (skin, &prim.influences, options.geometry_only) {
                     // Skinned: vertices in world space, the node's own transform ignored (glTF).
                     let skin = Skin {
@@ -84,9 +78,13 @@ impl GltfScene {
                         influences: influences.clone(),
                         rest: prim.mesh.clone(),
                     };
-                    let posed = Mesh { positions: skin.deform(&graph.world), indices: prim.mesh.indices.clone() };
+                    let positions = match &morphed {
+                        Some(points) => skin.deform_points(&graph.world, points),
+                        None => skin.deform(&graph.world),
+                    };
+                    let posed = Mesh { positions, indices: prim.mesh.indices.clone() };
                     grow(&posed, &Affine3A::IDENTITY, (pi, k)).map_err(fail)?;
-                    world.spawn((
+                    let mut entity = world.spawn((
                         TriangleMesh(Arc::new(posed)),
                         Deforming { rest: prim.mesh.clone() },
                         skin,
@@ -94,13 +92,22 @@ impl GltfScene {
                         prim.material,
                         name,
                     ));
+                    if let Some(morph) = morph {
+                        entity.insert(morph);
+                    }
                     continue;
                 }
+                // A morph whose weights never change is a mesh like any other.
+                let mesh = match morphed {
+                    Some(positions) => Arc::new(Mesh { positions, indices: prim.mesh.indices.clone() }),
+                    None => prim.mesh.clone(),
+                };
+                let deforming = morph.filter(|_| morphing[placement.node] && !options.geometry_only);
                 for offset in &placement.offsets {
                     let m = node_world * *offset;
-                    grow(&prim.mesh, &m, (pi, k)).map_err(fail)?;
+                    grow(&mesh, &m, (pi, k)).map_err(fail)?;
                     let mut entity = world.spawn((
-                        TriangleMesh(prim.mesh.clone()),
+                        TriangleMesh(mesh.clone()),
                         Transform::from_affine(&m),
                         prim.material,
                         name.clone(),
@@ -110,6 +117,9 @@ impl GltfScene {
                         if animated[placement.node] {
                             entity.insert(Dynamic);
                         }
+                    }
+                    if let Some(morph) = &deforming {
+                        entity.insert((Deforming { rest: prim.mesh.clone() }, morph.clone()));
                     }
                 }
             }
@@ -140,6 +150,7 @@ impl GltfScene {
                 };
             }
             None => {
+                let bounds = framing::union(bounds, self.moving_bounds(&graph, &options.framing_times));
                 let camera = framing_camera(bounds.unwrap_or((Vec3::splat(-1.0), Vec3::ONE)));
                 if !(camera.eye.is_finite() && camera.target.is_finite()) {
                     let (_, p, k, i, q) = farthest;
@@ -162,15 +173,4 @@ impl GltfScene {
 
 fn list(names: &[String]) -> String {
     if names.is_empty() { "none".into() } else { names.join(", ") }
-}
-
-/// A 40° camera looking at the centre of `bounds` from the front-right and a little above,
-/// far enough back that the bounding sphere fits the view.
-pub fn framing_camera((lo, hi): (Vec3, Vec3)) -> Camera {
-    let center = (lo + hi) * 0.5;
-    let radius = ((hi - lo).length() * 0.5).max(1e-6);
-    let vfov: f32 = 40.0;
-    let distance = radius / (vfov.to_radians() * 0.5).sin() * 1.05;
-    let dir = Vec3::new(0.45, 0.35, 1.0).normalize();
-    Camera::look_at(center + dir * distance, center, vfov)
 }
