@@ -370,8 +370,9 @@ fn parse(bytes: &[u8], base: &Path, options: &LoadOptions) -> Result<GltfScene, 
                 scene.clip_index.push(animation.index());
             }
             Err(e) => {
-                let why = format!("{}: {e}", label("animation", animation.index(), animation.name()));
-                warnings.push(format!("{why}; it cannot be played"));
+                let clip = label("animation", animation.index(), animation.name());
+                warnings.push(format!("{clip} cannot be played and is left out: {e}"));
+                let why = format!("{clip}: {e}");
                 scene.refused_clips.push((animation.index(), name, why));
             }
         }
