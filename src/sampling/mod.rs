@@ -82,7 +82,7 @@ impl SampleSets {
     /// error looks like noise, not structure.
     pub const PREFERRED_SETS: u32 = 4096;
     /// Turns of the shading frame about the normal that pixels choose from
-    /// ([`SampleSets::frame_turn`]).
+    /// ([`SampleSets::frame_turn`]); a power of two.
     const FRAME_TURNS: u32 = 256;
 
     /// Generates the sets for `kind` with `n` points each, fixed by `seed`, for an image
@@ -146,7 +146,7 @@ impl SampleSets {
     #[inline]
     pub fn frame_turn(&self, pixel: u32) -> Option<(f32, f32)> {
         let h = mix64(self.key ^ 0x7a21_0f3e_c4d9_86b5 ^ u64::from(pixel));
-        self.turns.get(((h >> 32) * u64::from(Self::FRAME_TURNS) >> 32) as usize).copied()
+        self.turns.get((h >> (64 - Self::FRAME_TURNS.trailing_zeros())) as usize).copied()
     }
 
     /// The correlated multi-jittered pattern of (pixel, pass, dimension): one of the seed's
