@@ -60,6 +60,12 @@ impl Onb {
         Onb { u, v, w: n }
     }
 
+    /// The frame turned about its normal by the angle whose cosine and sine are `(c, s)`.
+    #[inline]
+    pub fn turned(&self, (c, s): (f32, f32)) -> Self {
+        Onb { u: self.u * c + self.v * s, v: self.v * c - self.u * s, w: self.w }
+    }
+
     /// Maps a direction from the local frame (z along the normal) to world space.
     #[inline]
     pub fn to_world(&self, local: Vec3) -> Vec3 {

@@ -31,12 +31,17 @@ pub struct Scene<'a> {
 }
 
 impl Scene<'_> {
-    /// Camera hit `hit` ready to be lit: its shading point (material from the scene) and where
-    /// its shadow rays start, [`Scene::ray_offset`] or more off the surface.
+    /// Camera hit `hit` in `pixel` ready to be lit: its shading point (material from the
+    /// scene, frame turned for the pixel by [`SampleSets::frame_turn`]) and where its shadow
+    /// rays start, [`Scene::ray_offset`] or more off the surface.
     #[inline]
-    fn lit_point(&self, hit: &SurfaceHit) -> (ShadingPoint, SpawnOrigins) {
+    fn lit_point(&self, hit: &SurfaceHit, pixel: u32) -> (ShadingPoint, SpawnOrigins) {
         let material = self.geometry.objects[hit.object as usize].material;
-        (ShadingPoint::new(hit.p, hit.normal, material), hit.spawn_origins(self.ray_offset))
+        let mut at = ShadingPoint::new(hit.p, hit.normal, material);
+        if let Some(turn) = self.sets.frame_turn(pixel) {
+            at.frame = at.frame.turned(turn);
+        }
+        (at, hit.spawn_origins(self.ray_offset))
     }
 
     /// The light groups that draw no samples ([`LightGroup::dims`] 0: point lights), with their
@@ -113,7 +118,7 @@ impl RunPoint {
     /// The point `j` of a run or row: camera hit `hit` ([`Scene::lit_point`]), sample `sample`
     /// of `pixel`.
     fn new(scene: &Scene, hit: &SurfaceHit, j: usize, pixel: u32, sample: u32) -> Self {
-        let (at, spawn) = scene.lit_point(hit);
+        let (at, spawn) = scene.lit_point(hit, pixel);
         RunPoint { j: j as u32, pixel, sample, at, spawn }
     }
 }
@@ -297,7 +302,7 @@ impl Tracer {
         skip_black: bool,
         out: &mut O,
     ) {
-        let (at, spawn) = scene.lit_point(&primary.hit);
+        let (at, spawn) = scene.lit_point(&primary.hit, pixel);
         out.start(primary, &at.material);
         let sample = (pixel, first, out.len());
         self.shade_groups(scene, (&at, &spawn), sample, skip_black, false, |term, reflectance, arriving, _| {
@@ -312,7 +317,7 @@ impl Tracer {
     /// rays as [`Tracer::shade`]; the sum may differ from adding its samples in the last bits.
     #[inline]
     pub fn shade_sum(&mut self, scene: &Scene, primary: &PrimaryHit, pixel: u32, first: u32, count: u32) -> Vec3A {
-        let (at, spawn) = scene.lit_point(&primary.hit);
+        let (at, spawn) = scene.lit_point(&primary.hit, pixel);
         let mut radiance = Vec3A::ZERO;
         let sample = (pixel, first, count as usize);
         self.shade_groups(scene, (&at, &spawn), sample, true, true, |_, reflectance, arriving, sum| {
