@@ -4,7 +4,7 @@ use std::arch::x86_64::*;
 
 use glam::Vec3A;
 
-use super::{FusedLanes, Lanes};
+use super::{FusedLanes, Kernel, Lanes};
 
 /// Sixteen lanes in an AVX-512 register.
 #[derive(Clone, Copy)]
@@ -237,5 +237,10 @@ impl Lanes for Avx512 {
     #[inline]
     unsafe fn mask(bits: u32) -> __mmask16 {
         bits as __mmask16
+    }
+    #[target_feature(enable = "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    unsafe fn compiled<K: Kernel<Self>>(kernel: K) -> K::Output {
+        // SAFETY: compiled for AVX-512 and x86-64-v3, which the caller's CPU has.
+        unsafe { kernel.run() }
     }
 }

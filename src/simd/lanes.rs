@@ -9,6 +9,8 @@
 
 use glam::Vec3A;
 
+use super::Kernel;
+
 /// A vector of f32 lanes, one per ray or sample of a packet, with a mask of one bit per lane.
 pub(crate) trait Lanes: Copy {
     /// Lanes per vector.
@@ -75,6 +77,10 @@ pub(crate) trait Lanes: Copy {
     unsafe fn bits(m: Self::Mask) -> u32;
     /// The mask with lane `i` set for bit `i` of `bits`.
     unsafe fn mask(bits: u32) -> Self::Mask;
+    /// Runs `kernel` compiled for this type's instruction set: the one place a kernel gets its
+    /// `#[target_feature]` copy, out of line unless the compiler inlines it into a caller
+    /// compiled for the same set.
+    unsafe fn compiled<K: Kernel<Self>>(kernel: K) -> K::Output;
 }
 
 /// Lanes with a fused multiply-add (one rounding), for [`FusedPacket`]'s node test.

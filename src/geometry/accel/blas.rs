@@ -10,10 +10,12 @@ use obvhs::{
 };
 use rayon::prelude::*;
 
+#[cfg(target_arch = "x86_64")]
+use super::kernels::BlasPackets;
 use super::{
     PAR_CHUNK, Prim, Shape, hit_prim,
     ray_order::RayOrder,
-    tree::{OccludedEach, Occluder, PacketWidth, Tree, TreeQuery, packet_width},
+    tree::{OccludedEach, Occluder, Tree, TreeQuery},
 };
 use crate::components::Mesh;
 #[cfg(target_arch = "x86_64")]
@@ -28,6 +30,8 @@ use crate::geometry::{
     tri4::{RayTri4, Tri4},
     wide_bvh::{Node, NodeTest, WideBvh, prefetch},
 };
+#[cfg(target_arch = "x86_64")]
+use crate::simd::{packet_lanes, run_in};
 
 /// The BVH2 build settings for small sets (under [`SMALL_SET`] primitives): obvhs's medium
 /// preset with leaves of at most one packet, collapsed less eagerly (traversal cost 1.5 instead
@@ -284,14 +288,10 @@ impl Blas {
             && !self.packets.is_empty()
             && rays.len() >= PACKET_RUN
         {
-            // SAFETY: an eight-wide tree is built only where AVX was detected, and sixteen-lane
-            // packets are chosen only where AVX-512 (with POPCNT) was.
-            return unsafe {
-                match packet_width() {
-                    PacketWidth::Sixteen => self.occluded_packets_avx512(tree, rays, order, stack, blocked),
-                    PacketWidth::Eight => self.occluded_packets_avx(tree, rays, order, stack, blocked),
-                }
-            };
+            let kernel = BlasPackets { blas: self, tree, rays, order, stack, blocked };
+            // SAFETY: an eight-wide tree is built only where AVX2 was detected, and sixteen-lane
+            // packets are chosen only where AVX-512 was.
+            return unsafe { run_in(packet_lanes(), kernel) }.expect("eight or sixteen lanes");
         }
         // Without packets the order does not matter.
         let _ = order;

@@ -133,31 +133,5 @@ pub(super) fn bvh_width() -> usize {
     *WIDTH.get_or_init(|| if std::env::var("HEMI_BVH_WIDTH").is_ok_and(|w| w.trim() == "4") { 4 } else { 8 })
 }
 
-/// Rays per packet: sixteen where the CPU has AVX-512 (and `HEMI_NO_AVX512` is not `1`, see
-/// [`crate::simd::isa`]), eight with AVX only.
-#[cfg(target_arch = "x86_64")]
-#[derive(Clone, Copy)]
-pub(super) enum PacketWidth {
-    Eight,
-    Sixteen,
-}
-
-#[cfg(target_arch = "x86_64")]
-impl PacketWidth {
-    /// Rays per packet.
-    pub(super) fn lanes(self) -> usize {
-        match self {
-            PacketWidth::Eight => 8,
-            PacketWidth::Sixteen => 16,
-        }
-    }
-}
-
 /// A closest hit in a scene: (instance, primitive slot, b1, b2).
 pub(super) type ClosestHit = (u32, u32, f32, f32);
-
-/// The packet width this CPU and environment get.
-#[cfg(target_arch = "x86_64")]
-pub(super) fn packet_width() -> PacketWidth {
-    if crate::simd::packet_lanes() == 16 { PacketWidth::Sixteen } else { PacketWidth::Eight }
-}
