@@ -243,4 +243,10 @@ impl Lanes for Avx512 {
         // SAFETY: compiled for AVX-512 and x86-64-v3, which the caller's CPU has.
         unsafe { kernel.run() }
     }
+    #[target_feature(enable = "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    #[inline(never)]
+    unsafe fn compiled_apart<K: Kernel<Self>>(kernel: K) -> K::Output {
+        // SAFETY: compiled for AVX-512 and x86-64-v3, which the caller's CPU has.
+        unsafe { kernel.run() }
+    }
 }

@@ -81,6 +81,9 @@ pub(crate) trait Lanes: Copy {
     /// `#[target_feature]` copy, out of line unless the compiler inlines it into a caller
     /// compiled for the same set.
     unsafe fn compiled<K: Kernel<Self>>(kernel: K) -> K::Output;
+    /// [`Lanes::compiled`], never inlined: for a kernel whose set-up must run where it is
+    /// called, not be hoisted into its caller's loops.
+    unsafe fn compiled_apart<K: Kernel<Self>>(kernel: K) -> K::Output;
 }
 
 /// Lanes with a fused multiply-add (one rounding), for [`FusedPacket`]'s node test.

@@ -38,6 +38,18 @@ pub(crate) use portable::Portable;
 #[cfg(target_arch = "x86_64")]
 pub(crate) use u32_lanes::U32Lanes;
 
+/// The time-stamp counter, read once every earlier instruction has completed (LFENCE), so that
+/// work issued before a reading is not counted after it.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub(crate) fn fenced_timestamp() -> u64 {
+    // SAFETY: every x86_64 CPU has LFENCE (SSE2) and RDTSC, and neither has another effect.
+    unsafe {
+        std::arch::x86_64::_mm_lfence();
+        std::arch::x86_64::_rdtsc()
+    }
+}
+
 /// An instruction set hemi's vector copies are compiled for, from least to most.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Isa {

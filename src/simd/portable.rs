@@ -157,6 +157,11 @@ impl Lanes for Portable {
         // SAFETY: the portable code needs no instruction set.
         unsafe { kernel.run() }
     }
+    #[inline(never)]
+    unsafe fn compiled_apart<K: Kernel<Self>>(kernel: K) -> K::Output {
+        // SAFETY: the portable code needs no instruction set.
+        unsafe { kernel.run() }
+    }
 }
 
 impl FusedLanes for Portable {
