@@ -4,7 +4,7 @@ use std::arch::x86_64::*;
 
 use glam::Vec3A;
 
-use super::{FusedLanes, Kernel, Lanes};
+use super::{CompressLanes, FusedLanes, Kernel, Lanes};
 
 /// Sixteen lanes in an AVX-512 register.
 #[derive(Clone, Copy)]
@@ -48,6 +48,40 @@ pub(crate) fn transpose16(row: &[__m512; 16]) -> [__m512; 16] {
         out[12 + e] = _mm512_shuffle_f32x4::<0xDD>(back[0], back[1]);
     }
     out
+}
+
+impl CompressLanes for Avx512 {
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn load_partial(x: &[f32]) -> Self {
+        let lanes = ((1u32 << x.len().min(16)) - 1) as __mmask16;
+        // SAFETY: the masked load reads only the first `x.len()` floats (at most sixteen).
+        unsafe { Avx512(_mm512_maskz_loadu_ps(lanes, x.as_ptr())) }
+    }
+    #[target_feature(enable = "avx512f,popcnt")]
+    #[inline]
+    unsafe fn compress_store(self, m: u32, out: &mut [f32]) {
+        let n = m.count_ones();
+        let out = &mut out[..n as usize];
+        // SAFETY: the masked store writes the first `n` floats of `out`, checked above.
+        unsafe {
+            _mm512_mask_storeu_ps(
+                out.as_mut_ptr(),
+                ((1u32 << n) - 1) as __mmask16,
+                _mm512_maskz_compress_ps(m as __mmask16, self.0),
+            )
+        }
+    }
+    #[target_feature(enable = "avx512f,popcnt")]
+    #[inline]
+    unsafe fn compress_indices(base: u32, m: u32, out: &mut [u32]) {
+        let n = m.count_ones();
+        let out = &mut out[..n as usize];
+        let iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+        let index = _mm512_maskz_compress_epi32(m as __mmask16, _mm512_add_epi32(iota, _mm512_set1_epi32(base as i32)));
+        // SAFETY: the masked store writes the first `n` integers of `out`, checked above.
+        unsafe { _mm512_mask_storeu_epi32(out.as_mut_ptr().cast(), ((1u32 << n) - 1) as __mmask16, index) }
+    }
 }
 
 impl Lanes for Avx512 {

@@ -86,6 +86,20 @@ pub(crate) trait Lanes: Copy {
     unsafe fn compiled_apart<K: Kernel<Self>>(kernel: K) -> K::Output;
 }
 
+/// Lanes that pack the lanes of a mask together (AVX-512's compress), for sorting a vector of
+/// samples into runs by mask without a permutation table.
+pub(crate) trait CompressLanes: Lanes {
+    /// `x[..n]` in the first `n` lanes and 0 in the rest, for `n` the lesser of `x.len()` and
+    /// `WIDTH`; reads nothing past `x`.
+    unsafe fn load_partial(x: &[f32]) -> Self;
+    /// Writes the lanes of `m` (bit k for lane k), in lane order, to `out[..m.count_ones()]`,
+    /// and nothing else.
+    unsafe fn compress_store(self, m: u32, out: &mut [f32]);
+    /// Writes `base + k` for each lane k of `m`, in lane order, to `out[..m.count_ones()]`, and
+    /// nothing else.
+    unsafe fn compress_indices(base: u32, m: u32, out: &mut [u32]);
+}
+
 /// Lanes with a fused multiply-add (one rounding), for [`FusedPacket`]'s node test.
 ///
 /// [`FusedPacket`]: crate::geometry::wide_bvh::FusedPacket

@@ -32,7 +32,7 @@ mod u32_lanes;
 pub(crate) use avx::Avx;
 #[cfg(target_arch = "x86_64")]
 pub(crate) use avx512::Avx512;
-pub(crate) use lanes::{FusedLanes, Lanes};
+pub(crate) use lanes::{CompressLanes, FusedLanes, Lanes};
 #[allow(unused_imports)]
 pub(crate) use portable::Portable;
 #[cfg(target_arch = "x86_64")]
