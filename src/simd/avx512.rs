@@ -284,3 +284,46 @@ impl Lanes for Avx512 {
         unsafe { kernel.run() }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::random::SplitMix64;
+
+    /// Compression keeps the lanes of the mask in lane order and writes nothing past them, and a
+    /// partial load fills the lanes past the slice with 0 (where the CPU has AVX-512).
+    #[test]
+    fn compression_packs_the_masked_lanes_in_order() {
+        crate::simd::both_widths(|| {}, packs);
+    }
+
+    /// [`compression_packs_the_masked_lanes_in_order`].
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512 and x86-64-v3.
+    unsafe fn packs() {
+        let mut rng = SplitMix64::new(7);
+        let x: [f32; 16] = std::array::from_fn(|k| k as f32 * 1.5 - 4.0);
+        for round in 0..500 {
+            let m = if round < 2 { [0, 0xffff][round] } else { (rng.next_u64() & 0xffff) as u32 };
+            let kept: Vec<usize> = (0..16).filter(|k| m >> k & 1 != 0).collect();
+            let (mut floats, mut indices) = ([-7.0f32; 17], [u32::MAX; 17]);
+            // SAFETY: the caller's CPU has AVX-512.
+            unsafe {
+                Avx512::load(&x).compress_store(m, &mut floats);
+                Avx512::compress_indices(100, m, &mut indices);
+            }
+            for (j, &k) in kept.iter().enumerate() {
+                assert_eq!((floats[j], indices[j]), (x[k], 100 + k as u32), "mask {m:#x}, place {j}");
+            }
+            assert!(floats[kept.len()..].iter().all(|&f| f == -7.0), "mask {m:#x}: wrote past its lanes");
+            assert!(indices[kept.len()..].iter().all(|&i| i == u32::MAX), "mask {m:#x}: wrote past its lanes");
+        }
+        for len in 0..=16 {
+            // SAFETY: the caller's CPU has AVX-512.
+            let lanes = unsafe { Avx512::load_partial(&x[..len]) };
+            let want: [f32; 16] = std::array::from_fn(|k| if k < len { x[k] } else { 0.0 });
+            assert_eq!(std::array::from_fn::<f32, 16, _>(|k| lanes.lane(k)), want, "length {len}");
+        }
+    }
+}
