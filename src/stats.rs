@@ -52,11 +52,7 @@ impl RayCounts {
 pub fn cycle_count() -> u64 {
     #[cfg(target_arch = "x86_64")]
     {
-        // SAFETY: every x86_64 CPU has LFENCE (SSE2) and RDTSC, and neither has another effect.
-        unsafe {
-            std::arch::x86_64::_mm_lfence();
-            std::arch::x86_64::_rdtsc()
-        }
+        crate::simd::fenced_timestamp()
     }
     #[cfg(not(target_arch = "x86_64"))]
     {

@@ -4,7 +4,7 @@ use std::arch::x86_64::*;
 
 use glam::Vec3A;
 
-use super::{FusedLanes, Lanes};
+use super::{FusedLanes, Kernel, Lanes};
 
 /// Eight lanes in an AVX register.
 #[derive(Clone, Copy)]
@@ -225,5 +225,16 @@ impl Lanes for Avx {
     unsafe fn mask(bits: u32) -> __m256 {
         let bit = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
         _mm256_castsi256_ps(_mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(bits as i32), bit), bit))
+    }
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    unsafe fn compiled<K: Kernel<Self>>(kernel: K) -> K::Output {
+        // SAFETY: compiled for x86-64-v3, which the caller's CPU has.
+        unsafe { kernel.run() }
+    }
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    #[inline(never)]
+    unsafe fn compiled_apart<K: Kernel<Self>>(kernel: K) -> K::Output {
+        // SAFETY: compiled for x86-64-v3, which the caller's CPU has.
+        unsafe { kernel.run() }
     }
 }

@@ -4,7 +4,7 @@ use std::arch::x86_64::*;
 
 use glam::Vec3A;
 
-use super::{FusedLanes, Lanes};
+use super::{CompressLanes, FusedLanes, Kernel, Lanes};
 
 /// Sixteen lanes in an AVX-512 register.
 #[derive(Clone, Copy)]
@@ -48,6 +48,40 @@ pub(crate) fn transpose16(row: &[__m512; 16]) -> [__m512; 16] {
         out[12 + e] = _mm512_shuffle_f32x4::<0xDD>(back[0], back[1]);
     }
     out
+}
+
+impl CompressLanes for Avx512 {
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn load_partial(x: &[f32]) -> Self {
+        let lanes = ((1u32 << x.len().min(16)) - 1) as __mmask16;
+        // SAFETY: the masked load reads only the first `x.len()` floats (at most sixteen).
+        unsafe { Avx512(_mm512_maskz_loadu_ps(lanes, x.as_ptr())) }
+    }
+    #[target_feature(enable = "avx512f,popcnt")]
+    #[inline]
+    unsafe fn compress_store(self, m: u32, out: &mut [f32]) {
+        let n = m.count_ones();
+        let out = &mut out[..n as usize];
+        // SAFETY: the masked store writes the first `n` floats of `out`, checked above.
+        unsafe {
+            _mm512_mask_storeu_ps(
+                out.as_mut_ptr(),
+                ((1u32 << n) - 1) as __mmask16,
+                _mm512_maskz_compress_ps(m as __mmask16, self.0),
+            )
+        }
+    }
+    #[target_feature(enable = "avx512f,popcnt")]
+    #[inline]
+    unsafe fn compress_indices(base: u32, m: u32, out: &mut [u32]) {
+        let n = m.count_ones();
+        let out = &mut out[..n as usize];
+        let iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+        let index = _mm512_maskz_compress_epi32(m as __mmask16, _mm512_add_epi32(iota, _mm512_set1_epi32(base as i32)));
+        // SAFETY: the masked store writes the first `n` integers of `out`, checked above.
+        unsafe { _mm512_mask_storeu_epi32(out.as_mut_ptr().cast(), ((1u32 << n) - 1) as __mmask16, index) }
+    }
 }
 
 impl Lanes for Avx512 {
@@ -237,5 +271,59 @@ impl Lanes for Avx512 {
     #[inline]
     unsafe fn mask(bits: u32) -> __mmask16 {
         bits as __mmask16
+    }
+    #[target_feature(enable = "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    unsafe fn compiled<K: Kernel<Self>>(kernel: K) -> K::Output {
+        // SAFETY: compiled for AVX-512 and x86-64-v3, which the caller's CPU has.
+        unsafe { kernel.run() }
+    }
+    #[target_feature(enable = "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    #[inline(never)]
+    unsafe fn compiled_apart<K: Kernel<Self>>(kernel: K) -> K::Output {
+        // SAFETY: compiled for AVX-512 and x86-64-v3, which the caller's CPU has.
+        unsafe { kernel.run() }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::random::SplitMix64;
+
+    /// Compression keeps the lanes of the mask in lane order and writes nothing past them, and a
+    /// partial load fills the lanes past the slice with 0 (where the CPU has AVX-512).
+    #[test]
+    fn compression_packs_the_masked_lanes_in_order() {
+        crate::simd::both_widths(|| {}, packs);
+    }
+
+    /// [`compression_packs_the_masked_lanes_in_order`].
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512 and x86-64-v3.
+    unsafe fn packs() {
+        let mut rng = SplitMix64::new(7);
+        let x: [f32; 16] = std::array::from_fn(|k| k as f32 * 1.5 - 4.0);
+        for round in 0..500 {
+            let m = if round < 2 { [0, 0xffff][round] } else { (rng.next_u64() & 0xffff) as u32 };
+            let kept: Vec<usize> = (0..16).filter(|k| m >> k & 1 != 0).collect();
+            let (mut floats, mut indices) = ([-7.0f32; 17], [u32::MAX; 17]);
+            // SAFETY: the caller's CPU has AVX-512.
+            unsafe {
+                Avx512::load(&x).compress_store(m, &mut floats);
+                Avx512::compress_indices(100, m, &mut indices);
+            }
+            for (j, &k) in kept.iter().enumerate() {
+                assert_eq!((floats[j], indices[j]), (x[k], 100 + k as u32), "mask {m:#x}, place {j}");
+            }
+            assert!(floats[kept.len()..].iter().all(|&f| f == -7.0), "mask {m:#x}: wrote past its lanes");
+            assert!(indices[kept.len()..].iter().all(|&i| i == u32::MAX), "mask {m:#x}: wrote past its lanes");
+        }
+        for len in 0..=16 {
+            // SAFETY: the caller's CPU has AVX-512.
+            let lanes = unsafe { Avx512::load_partial(&x[..len]) };
+            let want: [f32; 16] = std::array::from_fn(|k| if k < len { x[k] } else { 0.0 });
+            assert_eq!(std::array::from_fn::<f32, 16, _>(|k| lanes.lane(k)), want, "length {len}");
+        }
     }
 }

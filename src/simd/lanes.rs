@@ -9,6 +9,8 @@
 
 use glam::Vec3A;
 
+use super::Kernel;
+
 /// A vector of f32 lanes, one per ray or sample of a packet, with a mask of one bit per lane.
 pub(crate) trait Lanes: Copy {
     /// Lanes per vector.
@@ -75,6 +77,27 @@ pub(crate) trait Lanes: Copy {
     unsafe fn bits(m: Self::Mask) -> u32;
     /// The mask with lane `i` set for bit `i` of `bits`.
     unsafe fn mask(bits: u32) -> Self::Mask;
+    /// Runs `kernel` compiled for this type's instruction set: the one place a kernel gets its
+    /// `#[target_feature]` copy, out of line unless the compiler inlines it into a caller
+    /// compiled for the same set.
+    unsafe fn compiled<K: Kernel<Self>>(kernel: K) -> K::Output;
+    /// [`Lanes::compiled`], never inlined: for a kernel whose set-up must run where it is
+    /// called, not be hoisted into its caller's loops.
+    unsafe fn compiled_apart<K: Kernel<Self>>(kernel: K) -> K::Output;
+}
+
+/// Lanes that pack the lanes of a mask together (AVX-512's compress), for sorting a vector of
+/// samples into runs by mask without a permutation table.
+pub(crate) trait CompressLanes: Lanes {
+    /// `x[..n]` in the first `n` lanes and 0 in the rest, for `n` the lesser of `x.len()` and
+    /// `WIDTH`; reads nothing past `x`.
+    unsafe fn load_partial(x: &[f32]) -> Self;
+    /// Writes the lanes of `m` (bit k for lane k), in lane order, to `out[..m.count_ones()]`,
+    /// and nothing else.
+    unsafe fn compress_store(self, m: u32, out: &mut [f32]);
+    /// Writes `base + k` for each lane k of `m`, in lane order, to `out[..m.count_ones()]`, and
+    /// nothing else.
+    unsafe fn compress_indices(base: u32, m: u32, out: &mut [u32]);
 }
 
 /// Lanes with a fused multiply-add (one rounding), for [`FusedPacket`]'s node test.

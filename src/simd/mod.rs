@@ -32,11 +32,23 @@ mod u32_lanes;
 pub(crate) use avx::Avx;
 #[cfg(target_arch = "x86_64")]
 pub(crate) use avx512::Avx512;
-pub(crate) use lanes::{FusedLanes, Lanes};
+pub(crate) use lanes::{CompressLanes, FusedLanes, Lanes};
 #[allow(unused_imports)]
 pub(crate) use portable::Portable;
 #[cfg(target_arch = "x86_64")]
 pub(crate) use u32_lanes::U32Lanes;
+
+/// The time-stamp counter, read once every earlier instruction has completed (LFENCE), so that
+/// work issued before a reading is not counted after it.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub(crate) fn fenced_timestamp() -> u64 {
+    // SAFETY: every x86_64 CPU has LFENCE (SSE2) and RDTSC, and neither has another effect.
+    unsafe {
+        std::arch::x86_64::_mm_lfence();
+        std::arch::x86_64::_rdtsc()
+    }
+}
 
 /// An instruction set hemi's vector copies are compiled for, from least to most.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
@@ -109,10 +121,10 @@ pub(crate) fn packet_lanes() -> usize {
     if avx512() { 16 } else { 8 }
 }
 
-/// A kernel written once over the lane type `L`, which [`run_in`] compiles for `L`'s
-/// instruction set: the entry points marked `#[target_feature]` are generated here, once, and
-/// `run` (`#[inline(always)]` in each implementation) is inlined into them with everything it
-/// inlines in turn.
+/// A kernel written once over the lane type `L`, which [`Lanes::compiled`] compiles for `L`'s
+/// instruction set: the entry points marked `#[target_feature]` are generated there, once per
+/// lane type, and `run` (`#[inline(always)]` in each implementation) is inlined into them with
+/// everything it inlines in turn.
 pub(crate) trait Kernel<L> {
     /// What the kernel returns.
     type Output;
@@ -135,23 +147,11 @@ pub(crate) unsafe fn run_in<K, O>(lanes: usize, kernel: K) -> Option<O>
 where
     K: Kernel<Avx, Output = O> + Kernel<Avx512, Output = O>,
 {
-    /// [`Kernel::run`] compiled for AVX-512.
-    #[target_feature(enable = "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    unsafe fn avx512<K: Kernel<Avx512>>(kernel: K) -> K::Output {
-        // SAFETY: compiled for AVX-512, which the caller's CPU has.
-        unsafe { kernel.run() }
-    }
-    /// [`Kernel::run`] compiled for x86-64-v3.
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    unsafe fn avx2<K: Kernel<Avx>>(kernel: K) -> K::Output {
-        // SAFETY: compiled for x86-64-v3, which the caller's CPU has.
-        unsafe { kernel.run() }
-    }
     // SAFETY: the caller's CPU has the instruction set of the lane type of this width.
     unsafe {
         match lanes {
-            16 => Some(avx512(kernel)),
-            8 => Some(avx2(kernel)),
+            16 => Some(Avx512::compiled(kernel)),
+            8 => Some(Avx::compiled(kernel)),
             _ => None,
         }
     }

@@ -4,7 +4,7 @@
 
 use glam::Vec3A;
 
-use super::{FusedLanes, Lanes};
+use super::{FusedLanes, Kernel, Lanes};
 
 /// Eight f32 lanes in an array.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -151,6 +151,16 @@ impl Lanes for Portable {
     #[inline(always)]
     unsafe fn mask(bits: u32) -> u32 {
         bits & ALL
+    }
+    #[inline(always)]
+    unsafe fn compiled<K: Kernel<Self>>(kernel: K) -> K::Output {
+        // SAFETY: the portable code needs no instruction set.
+        unsafe { kernel.run() }
+    }
+    #[inline(never)]
+    unsafe fn compiled_apart<K: Kernel<Self>>(kernel: K) -> K::Output {
+        // SAFETY: the portable code needs no instruction set.
+        unsafe { kernel.run() }
     }
 }
 

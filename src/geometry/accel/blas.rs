@@ -10,10 +10,12 @@ use obvhs::{
 };
 use rayon::prelude::*;
 
+#[cfg(target_arch = "x86_64")]
+use super::kernels::BlasPackets;
 use super::{
     PAR_CHUNK, Prim, Shape, hit_prim,
     ray_order::RayOrder,
-    tree::{OccludedEach, Occluder, PacketWidth, Tree, TreeQuery, packet_width},
+    tree::{OccludedEach, Occluder, Tree, TreeQuery},
 };
 use crate::components::Mesh;
 #[cfg(target_arch = "x86_64")]
@@ -28,6 +30,9 @@ use crate::geometry::{
     tri4::{RayTri4, Tri4},
     wide_bvh::{Node, NodeTest, WideBvh, prefetch},
 };
+#[cfg(target_arch = "x86_64")]
+use crate::simd::{Avx, packet_lanes, run_in};
+use crate::simd::{Kernel, Lanes, Portable};
 
 /// The BVH2 build settings for small sets (under [`SMALL_SET`] primitives): obvhs's medium
 /// preset with leaves of at most one packet, collapsed less eagerly (traversal cost 1.5 instead
@@ -284,14 +289,10 @@ impl Blas {
             && !self.packets.is_empty()
             && rays.len() >= PACKET_RUN
         {
-            // SAFETY: an eight-wide tree is built only where AVX was detected, and sixteen-lane
-            // packets are chosen only where AVX-512 (with POPCNT) was.
-            return unsafe {
-                match packet_width() {
-                    PacketWidth::Sixteen => self.occluded_packets_avx512(tree, rays, order, stack, blocked),
-                    PacketWidth::Eight => self.occluded_packets_avx(tree, rays, order, stack, blocked),
-                }
-            };
+            let kernel = BlasPackets { blas: self, tree, rays, order, stack, blocked };
+            // SAFETY: an eight-wide tree is built only where AVX2 was detected, and sixteen-lane
+            // packets are chosen only where AVX-512 was.
+            return unsafe { run_in(packet_lanes(), kernel) }.expect("eight or sixteen lanes");
         }
         // Without packets the order does not matter.
         let _ = order;
@@ -357,43 +358,19 @@ impl Blas {
     }
 
     /// Whether a triangle in packets `first..first + count` blocks `ray`, by the copy of the
-    /// test compiled for a tree of width `W`: for AVX under eight-wide trees. Both copies are
+    /// test compiled for a tree of width `W`: for AVX2 under eight-wide trees. Both copies are
     /// out of line, so the packet test's set-up runs per leaf reached, not per ray (most AO
     /// rays reach none).
     #[inline(always)]
     pub(super) fn packets_block<const W: usize>(&self, first: u32, count: u32, ray: &Ray) -> bool {
+        let kernel = PacketsBlock { blas: self, first, count, ray };
         #[cfg(target_arch = "x86_64")]
         if W == 8 {
-            // SAFETY: eight-wide trees are built only where AVX was detected.
-            return unsafe { self.packets_block_avx(first, count, ray) };
+            // SAFETY: eight-wide trees are built only where AVX2 was detected.
+            return unsafe { Avx::compiled_apart(kernel) };
         }
-        self.packets_block_baseline(first, count, ray)
-    }
-
-    /// [`Blas::packets_block`] for the target's baseline instruction set.
-    #[inline(never)]
-    fn packets_block_baseline(&self, first: u32, count: u32, ray: &Ray) -> bool {
-        self.packets_block_body(first, count, ray)
-    }
-
-    /// [`Blas::packets_block`] compiled for AVX (three-operand encodings; same arithmetic).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline(never)]
-    fn packets_block_avx(&self, first: u32, count: u32, ray: &Ray) -> bool {
-        self.packets_block_body(first, count, ray)
-    }
-
-    #[inline(always)]
-    fn packets_block_body(&self, first: u32, count: u32, ray: &Ray) -> bool {
-        let r = RayTri4::new(ray);
-        let mut local = *ray;
-        for k in first as usize..(first + count) as usize {
-            if self.packet_hits(&self.packets[k], &r, &mut local, |_, _, _| true) {
-                return true;
-            }
-        }
-        false
+        // SAFETY: the portable code needs no instruction set.
+        unsafe { Portable::compiled_apart(kernel) }
     }
 
     /// Tests the triangles of `packet` in lane order, calling `hit(slot, (t, b1, b2), ray)` for
@@ -438,6 +415,30 @@ impl Blas {
             Shape::Triangle(tri) => tri.surface(ray, ray.tmax, b1, b2, object),
             Shape::Sphere(s) => s.surface(ray, ray.tmax, object),
         }
+    }
+}
+
+/// [`Blas::packets_block`] as a kernel: the single-ray packet test of one leaf.
+struct PacketsBlock<'a> {
+    blas: &'a Blas,
+    first: u32,
+    count: u32,
+    ray: &'a Ray,
+}
+
+impl<L> Kernel<L> for PacketsBlock<'_> {
+    type Output = bool;
+    #[inline(always)]
+    unsafe fn run(self) -> bool {
+        let PacketsBlock { blas, first, count, ray } = self;
+        let r = RayTri4::new(ray);
+        let mut local = *ray;
+        for k in first as usize..(first + count) as usize {
+            if blas.packet_hits(&blas.packets[k], &r, &mut local, |_, _, _| true) {
+                return true;
+            }
+        }
+        false
     }
 }
 

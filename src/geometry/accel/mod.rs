@@ -21,6 +21,8 @@ mod tree;
 pub use blas::Blas;
 #[cfg(test)]
 pub(crate) use blas::subtree_depth;
+#[cfg(target_arch = "x86_64")]
+pub(crate) use kernels::{KernelLanes, SceneLanes};
 pub use ray_order::RayOrder;
 pub use scene::{BvhWork, SceneGeometry};
 pub use tlas::Instance;

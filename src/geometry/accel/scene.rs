@@ -13,12 +13,14 @@ use obvhs::{
     bvh2::{builder::build_bvh2, node::Bvh2Node},
 };
 
+#[cfg(target_arch = "x86_64")]
+use super::kernels::{BlasClosestLanes, TopClosestLanes, TopPackets};
 use super::{
     Object, Prim, Shape,
     blas::{Blas, PACKET_RUN, SMALL_SET, subtree_depth},
     ray_order::RayOrder,
     tlas::Instance,
-    tree::{ClosestHit, OccludedEach, Occluder, PacketWidth, Tree, TreeQuery, packet_width},
+    tree::{ClosestHit, OccludedEach, Occluder, Tree, TreeQuery},
 };
 #[cfg(target_arch = "x86_64")]
 use crate::geometry::wide_bvh::LaneHits;
@@ -28,6 +30,8 @@ use crate::geometry::{
     shapes::{PlanePrim, SpherePrim, Triangle},
     wide_bvh::{Node, NodeTest, WideBvh},
 };
+#[cfg(target_arch = "x86_64")]
+use crate::simd::run_in;
 
 /// What the last BVH update did, for statistics.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -151,7 +155,7 @@ impl SceneGeometry {
     pub fn packet_lanes(&self) -> usize {
         #[cfg(target_arch = "x86_64")]
         if self.node_width() == 8 {
-            return packet_width().lanes();
+            return crate::simd::packet_lanes();
         }
         0
     }
@@ -238,7 +242,7 @@ impl SceneGeometry {
         if rays.len() >= PACKET_RUN
             && let Some(into) = self.camera_packets()
         {
-            let width = packet_width().lanes();
+            let width = crate::simd::packet_lanes();
             for (chunk, out) in rays.chunks(width).zip(hits.chunks_mut(width)) {
                 let mut found = LaneHits::new(chunk);
                 let live = (1u32 << chunk.len()) - 1;
@@ -286,17 +290,20 @@ impl SceneGeometry {
         hits: &mut LaneHits<ClosestHit>,
         stack: &mut Vec<(u32, f32)>,
     ) -> u32 {
-        let sixteen = matches!(packet_width(), PacketWidth::Sixteen);
-        // SAFETY: eight-wide trees are built only where AVX was detected, and sixteen-lane
-        // packets are chosen only where AVX-512 (with POPCNT) was.
+        // SAFETY: eight-wide trees are built only where AVX2 was detected, and sixteen-lane
+        // packets are chosen only where AVX-512 was.
         unsafe {
             match into {
-                CameraPackets::World(blas, tree) if sixteen => blas.closest_lanes_avx512(tree, rays, live, 0, hits),
-                CameraPackets::World(blas, tree) => blas.closest_lanes_avx(tree, rays, live, 0, hits),
-                CameraPackets::Top(top) if sixteen => self.closest_top_avx512(top, rays, live, hits, stack),
-                CameraPackets::Top(top) => self.closest_top_avx(top, rays, live, hits, stack),
+                CameraPackets::World(blas, tree) => {
+                    let kernel = BlasClosestLanes { blas, tree, rays, live, instance: 0, hits };
+                    run_in(crate::simd::packet_lanes(), kernel)
+                }
+                CameraPackets::Top(top) => {
+                    run_in(crate::simd::packet_lanes(), TopClosestLanes { scene: self, top, rays, live, hits, stack })
+                }
             }
         }
+        .expect("eight or sixteen lanes")
     }
 
     /// The closest hit along `ray` given the closest primitive hit `best` (instance, slot,
@@ -401,14 +408,10 @@ impl SceneGeometry {
             if let Tree::Eight(top) = &self.top
                 && rays.len() >= PACKET_RUN
             {
-                // SAFETY: an eight-wide tree is built only where AVX was detected, and
-                // sixteen-lane packets are chosen only where AVX-512 (with POPCNT) was.
-                return unsafe {
-                    match packet_width() {
-                        PacketWidth::Sixteen => self.occluded_packets_avx512(top, rays, order, stack, blocked),
-                        PacketWidth::Eight => self.occluded_packets_avx(top, rays, order, stack, blocked),
-                    }
-                };
+                let kernel = TopPackets { scene: self, top, rays, order, stack, blocked };
+                // SAFETY: an eight-wide tree is built only where AVX2 was detected, and
+                // sixteen-lane packets are chosen only where AVX-512 was.
+                return unsafe { run_in(crate::simd::packet_lanes(), kernel) }.expect("eight or sixteen lanes");
             }
             let _ = order;
             self.top.query(OccludedEach { target: self, rays, stack, blocked });

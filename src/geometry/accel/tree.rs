@@ -7,6 +7,8 @@ use crate::geometry::{
     ray::Ray,
     wide_bvh::{Bvh4, Node, NodeTest, WideBvh},
 };
+#[cfg(target_arch = "x86_64")]
+use crate::simd::{Avx, Kernel, Lanes};
 
 /// The wide tree traversal uses: eight children per node where the CPU has AVX, else four.
 #[derive(Clone, Debug)]
@@ -67,14 +69,14 @@ impl Tree {
         }
     }
 
-    /// Runs `query` over this tree; an eight-wide tree is traversed by code compiled for AVX.
+    /// Runs `query` over this tree; an eight-wide tree is traversed by code compiled for AVX2.
     #[inline(always)]
     pub(super) fn query<Q: TreeQuery>(&self, query: Q) -> Q::Output {
         match self {
             Tree::Four(tree) => query.run(tree),
-            // SAFETY: an eight-wide tree is built only where AVX was detected.
+            // SAFETY: an eight-wide tree is built only where AVX2 was detected.
             #[cfg(target_arch = "x86_64")]
-            Tree::Eight(tree) => unsafe { query_avx(tree, query) },
+            Tree::Eight(tree) => unsafe { Avx::compiled(OnTree { tree, query }) },
         }
     }
 }
@@ -87,12 +89,21 @@ pub(super) trait TreeQuery {
         Node<W>: NodeTest<W>;
 }
 
-/// [`TreeQuery::run`] compiled for the eight-lane instruction sets ([`crate::simd::avx2`]), so
-/// that the eight-wide node test inlines.
+/// A [`TreeQuery`] over an eight-wide tree as a kernel, so that it is compiled for the
+/// eight-lane instruction set and the node test inlines.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-pub(super) fn query_avx<Q: TreeQuery>(tree: &crate::geometry::wide_bvh::Bvh8, query: Q) -> Q::Output {
-    query.run(tree)
+struct OnTree<'a, Q> {
+    tree: &'a crate::geometry::wide_bvh::Bvh8,
+    query: Q,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl<L, Q: TreeQuery> Kernel<L> for OnTree<'_, Q> {
+    type Output = Q::Output;
+    #[inline(always)]
+    unsafe fn run(self) -> Q::Output {
+        self.query.run(self.tree)
+    }
 }
 
 /// Occlusion of each of `rays` not yet known to be blocked (`blocked`, same length), by
@@ -133,31 +144,5 @@ pub(super) fn bvh_width() -> usize {
     *WIDTH.get_or_init(|| if std::env::var("HEMI_BVH_WIDTH").is_ok_and(|w| w.trim() == "4") { 4 } else { 8 })
 }
 
-/// Rays per packet: sixteen where the CPU has AVX-512 (and `HEMI_NO_AVX512` is not `1`, see
-/// [`crate::simd::isa`]), eight with AVX only.
-#[cfg(target_arch = "x86_64")]
-#[derive(Clone, Copy)]
-pub(super) enum PacketWidth {
-    Eight,
-    Sixteen,
-}
-
-#[cfg(target_arch = "x86_64")]
-impl PacketWidth {
-    /// Rays per packet.
-    pub(super) fn lanes(self) -> usize {
-        match self {
-            PacketWidth::Eight => 8,
-            PacketWidth::Sixteen => 16,
-        }
-    }
-}
-
 /// A closest hit in a scene: (instance, primitive slot, b1, b2).
 pub(super) type ClosestHit = (u32, u32, f32, f32);
-
-/// The packet width this CPU and environment get.
-#[cfg(target_arch = "x86_64")]
-pub(super) fn packet_width() -> PacketWidth {
-    if crate::simd::packet_lanes() == 16 { PacketWidth::Sixteen } else { PacketWidth::Eight }
-}

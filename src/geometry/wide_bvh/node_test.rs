@@ -4,6 +4,8 @@
 use glam::Vec4;
 
 use super::{NEAR_START, Node, NodeTest, RayBox, far_scale};
+#[cfg(target_arch = "x86_64")]
+use crate::simd::Lanes;
 
 impl NodeTest<4> for Node<4> {
     #[inline(always)]
@@ -56,31 +58,32 @@ impl NodeTest<8> for Node<8> {
     #[inline(always)]
     fn test(&self, r: &RayBox, tmax: f32) -> (u32, [f32; 8]) {
         // SAFETY: a `Node<8>` exists only inside a `WideBvh<8>`, which `WideBvh::<8>::from_bvh2`
-        // builds only after detecting AVX.
-        unsafe { test8_avx(self, r, tmax) }
+        // builds only after detecting AVX2 ([`crate::simd::avx2`]).
+        unsafe { test8::<crate::simd::Avx>(self, r, tmax) }
     }
 }
 
-/// The eight-child node test: the four-child one's operations in 256-bit registers.
+/// The eight-child node test: the four-child one's operations in eight lanes (`L::WIDTH` is 8).
+///
+/// # Safety
+/// The CPU must have `L`'s instruction set.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-#[inline]
-fn test8_avx(n: &Node<8>, r: &RayBox, tmax: f32) -> (u32, [f32; 8]) {
-    use std::arch::x86_64::*;
-    // SAFETY: each row of `planes` is eight contiguous f32.
-    let load = |row: usize| unsafe { _mm256_loadu_ps(n.planes[row].as_ptr()) };
-    let mut near = _mm256_set1_ps(NEAR_START);
-    let mut far = _mm256_set1_ps(f32::INFINITY);
-    for a in 0..3 {
-        let (o, inv) = (_mm256_set1_ps(r.origin[a]), _mm256_set1_ps(r.inv_dir[a]));
-        // vmaxps / vminps return their second operand when either is NaN.
-        near = _mm256_max_ps(_mm256_mul_ps(_mm256_sub_ps(load(r.near[a]), o), inv), near);
-        far = _mm256_min_ps(_mm256_mul_ps(_mm256_sub_ps(load(r.far[a]), o), inv), far);
-    }
-    let far = _mm256_min_ps(_mm256_mul_ps(far, _mm256_set1_ps(far_scale())), _mm256_set1_ps(tmax));
-    let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
+#[inline(always)]
+unsafe fn test8<L: Lanes>(n: &Node<8>, r: &RayBox, tmax: f32) -> (u32, [f32; 8]) {
     let mut entry = [0.0; 8];
-    // SAFETY: `entry` holds eight f32.
-    unsafe { _mm256_storeu_ps(entry.as_mut_ptr(), near) };
+    // SAFETY: the caller's CPU has `L`'s instruction set.
+    let mask = unsafe {
+        let mut near = L::splat(NEAR_START);
+        let mut far = L::splat(f32::INFINITY);
+        for a in 0..3 {
+            let (o, inv) = (L::splat(r.origin[a]), L::splat(r.inv_dir[a]));
+            // `max_keep` / `min_keep` return their second operand when either is NaN.
+            near = L::load(&n.planes[r.near[a]]).sub(o).mul(inv).max_keep(near);
+            far = L::load(&n.planes[r.far[a]]).sub(o).mul(inv).min_keep(far);
+        }
+        let far = far.mul(L::splat(far_scale())).min_keep(L::splat(tmax));
+        near.store(&mut entry);
+        L::bits(near.le(far))
+    };
     (mask, entry)
 }

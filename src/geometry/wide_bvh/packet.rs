@@ -336,37 +336,37 @@ impl WideBvh<8> {
     pub(crate) unsafe fn entry_node_of<L: Lanes>(&self, rays: &RayLanes<L>, live: u32) -> Option<u32> {
         // SAFETY: the caller's CPU has `L`'s instruction set and AVX2.
         match unsafe { rays.segments_box(live, &self.bounds) } {
-            Some((lo, hi)) => unsafe { self.entry_node(lo, hi) },
+            Some((lo, hi)) => unsafe { self.entry_node::<crate::simd::Avx>(lo, hi) },
             None => (!self.nodes.is_empty()).then_some(0),
         }
     }
 
     /// The deepest node under which lie all leaves whose boxes overlap `lo..hi` (going down
     /// while exactly one child overlaps it and is not a leaf), or `None` where no child of a
-    /// node on that way does.
+    /// node on that way does; the children tested in eight lanes of `N`.
     ///
     /// # Safety
-    /// The CPU must have AVX2.
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    pub(crate) unsafe fn entry_node(&self, lo: glam::Vec3A, hi: glam::Vec3A) -> Option<u32> {
-        use std::arch::x86_64::*;
+    /// The CPU must have `N`'s instruction set.
+    #[inline(always)]
+    pub(crate) unsafe fn entry_node<N: Lanes>(&self, lo: glam::Vec3A, hi: glam::Vec3A) -> Option<u32> {
         if self.nodes.is_empty() {
             return None;
         }
         let mut node = 0u32;
         loop {
             let n = &self.nodes[node as usize];
-            // SAFETY: each row of `planes` is eight contiguous f32.
-            let load = |row: usize| unsafe { _mm256_loadu_ps(n.planes[row].as_ptr()) };
             // An empty slot's inverted box overlaps nothing.
-            let mut overlaps = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
-            for a in 0..3 {
-                let below = _mm256_cmp_ps::<_CMP_LE_OQ>(load(a), _mm256_set1_ps(hi[a]));
-                let above = _mm256_cmp_ps::<_CMP_GE_OQ>(load(a + 3), _mm256_set1_ps(lo[a]));
-                overlaps = _mm256_and_ps(overlaps, _mm256_and_ps(below, above));
-            }
-            let overlap = _mm256_movemask_ps(overlaps) as u32;
+            // SAFETY: the caller's CPU has `N`'s instruction set.
+            // (A loop, not a closure: a closure is compiled without the caller's instruction set.)
+            let overlap = unsafe {
+                let mut overlaps = N::mask(u32::MAX);
+                for a in 0..3 {
+                    let below = N::load(&n.planes[a]).le(N::splat(hi[a]));
+                    let above = N::splat(lo[a]).le(N::load(&n.planes[a + 3]));
+                    overlaps = N::and(overlaps, N::and(below, above));
+                }
+                N::bits(overlaps)
+            };
             if overlap == 0 {
                 return None;
             }

@@ -323,7 +323,7 @@ fn the_entry_node_holds_every_leaf_a_box_overlaps() {
                 .map(|n| (n.first_index, n.prim_count))
                 .collect();
             // SAFETY: the eight-wide tree exists, so the CPU has AVX2.
-            match unsafe { tree.entry_node(lo, hi) } {
+            match unsafe { tree.entry_node::<crate::simd::Avx>(lo, hi) } {
                 None => {
                     assert!(overlapping.is_empty(), "box {q}: no entry, yet it overlaps {overlapping:?}");
                     empty += 1;

@@ -16,20 +16,44 @@ use crate::{
 #[cfg(target_arch = "x86_64")]
 use crate::{
     sampling::{cmj::QuadrantPattern, warp::cosine_hemisphere_lanes},
-    simd::{Avx512, Lanes},
+    simd::{CompressLanes, Kernel},
 };
 
+/// [`DirectionRays::add_cosine_compressed`] as a kernel over the lane type.
+#[cfg(target_arch = "x86_64")]
+pub(super) struct CompressedRun<'a> {
+    pub(super) rays: &'a mut DirectionRays,
+    pub(super) geometry: &'a SceneGeometry,
+    pub(super) stack: &'a mut Vec<(u32, f32)>,
+    pub(super) spawn: &'a SpawnOrigins,
+    pub(super) frame: &'a Onb,
+    pub(super) terms: &'a DirectionTerms,
+    pub(super) arriving: &'a mut [Vec3A],
+}
+
+#[cfg(target_arch = "x86_64")]
+impl<L: PassLanes + CompressLanes> Kernel<L> for CompressedRun<'_> {
+    type Output = (u64, u64);
+    #[inline(always)]
+    unsafe fn run(self) -> (u64, u64) {
+        let CompressedRun { rays, geometry, stack, spawn, frame, terms, arriving } = self;
+        // SAFETY: the caller's CPU has `L`'s instruction set.
+        unsafe { rays.add_cosine_compressed::<L>(geometry, stack, spawn, frame, terms, arriving) }
+    }
+}
+
 impl DirectionRays {
-    /// [`DirectionRays::add_cosine`] in AVX-512 lanes, the sample points already in
-    /// `samples[0]` and `samples[1]`. Each group of sixteen samples is mapped to directions
-    /// ([`cosine_hemisphere_lanes`]) and sorted into the quadrants of [`DirectionRays::add_lanes`]
-    /// by lane compression; packets load their lanes straight from those columns.
+    /// [`DirectionRays::add_cosine`] in lanes that compress ([`CompressLanes`]), the sample
+    /// points already in `samples[0]` and `samples[1]`. Each group of `L::WIDTH` samples is
+    /// mapped to directions ([`cosine_hemisphere_lanes`]) and sorted into the quadrants of
+    /// [`DirectionRays::add_lanes`] by lane compression; packets load their lanes straight from
+    /// those columns.
     ///
     /// # Safety
-    /// The CPU must have AVX-512F and POPCNT ([`crate::simd::avx512()`]).
+    /// The CPU must have `L`'s instruction set.
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    pub(super) unsafe fn add_cosine_avx512(
+    #[inline(always)]
+    pub(super) unsafe fn add_cosine_compressed<L: PassLanes + CompressLanes>(
         &mut self,
         geometry: &SceneGeometry,
         stack: &mut Vec<(u32, f32)>,
@@ -38,10 +62,9 @@ impl DirectionRays {
         terms: &DirectionTerms,
         arriving: &mut [Vec3A],
     ) -> (u64, u64) {
-        use std::arch::x86_64::*;
-
+        let w = L::WIDTH;
         let n = arriving.len();
-        let groups = n.div_ceil(16);
+        let groups = n.div_ceil(w);
         // Every sample has weight 1: one clear value and one floor for all.
         let (clear, floor) = clear_and_floor(terms, 1.0);
         self.dark.clear();
@@ -51,27 +74,27 @@ impl DirectionRays {
         if clear.cmpne(floor).any() {
             let [xs, ys, dx, dy, dz] = &mut self.samples;
             for column in [&mut *dx, &mut *dy, &mut *dz] {
-                column.resize(groups * 16, 0.0);
+                column.resize(groups * w, 0.0);
             }
             let normal = spawn.normal();
             let tangents = Onb::from_normal(normal.into());
             let (tu, tv) = (Vec3A::from(tangents.u), Vec3A::from(tangents.v));
-            let k = |x: f32| Avx512(_mm512_set1_ps(x));
             // Directions, quadrants and their counts.
             self.groups.clear();
             let mut count = [0u32; 4];
             for g in 0..groups {
-                let at = g * 16;
-                // SAFETY (this block): the CPU has AVX-512F; the loads and stores are of
-                // sixteen floats within the columns, which hold whole groups.
+                let at = g * w;
+                // SAFETY (this block): the caller's CPU has `L`'s instruction set; the columns
+                // hold whole groups.
                 let masks = unsafe {
-                    let local = cosine_hemisphere_lanes(Avx512::load(&xs[at..]), Avx512::load(&ys[at..]));
+                    let local = cosine_hemisphere_lanes(L::load(&xs[at..]), L::load(&ys[at..]));
                     let d = to_world(frame, local);
                     for (column, lanes) in [&mut *dx, &mut *dy, &mut *dz].into_iter().zip(d) {
                         lanes.store(&mut column[at..]);
                     }
-                    let valid = (1u32 << (n - at).min(16)) - 1;
-                    let negative = [Avx512::bits(along(&d, tu).lt(k(0.0))), Avx512::bits(along(&d, tv).lt(k(0.0)))];
+                    let valid = (1u32 << (n - at).min(w)) - 1;
+                    let zero = L::splat(0.0);
+                    let negative = [L::bits(along(&d, tu).lt(zero)), L::bits(along(&d, tv).lt(zero))];
                     quadrant_lanes(valid, negative)
                 };
                 for (count, lanes) in count.iter_mut().zip(masks) {
@@ -85,40 +108,36 @@ impl DirectionRays {
                 column.resize(traced, 0.0);
             }
             self.ray_samples.resize(traced, 0);
-            let iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
             for (g, masks) in self.groups.iter().enumerate() {
-                let at = g * 16;
+                let at = g * w;
                 for (cursor, &lanes) in cursor.iter_mut().zip(masks) {
                     if lanes == 0 {
                         continue;
                     }
-                    let (m, to) = (lanes as __mmask16, *cursor as usize);
-                    let keep = ((1u32 << lanes.count_ones()) - 1) as __mmask16;
-                    // SAFETY (this block): the CPU has AVX-512F; the loads read one group of
-                    // the sample columns and the masked stores write the quadrant's next
-                    // `lanes.count_ones()` entries, within the `traced` of each ray column.
+                    let to = *cursor as usize;
+                    // SAFETY (this block): the caller's CPU has `L`'s instruction set; the
+                    // loads read one group of the sample columns and the stores write the
+                    // quadrant's next `lanes.count_ones()` entries, within the `traced` of each
+                    // ray column.
                     unsafe {
                         for (from, to_column) in [&*dx, &*dy, &*dz].into_iter().zip(&mut self.ray_dirs) {
-                            let lanes = _mm512_maskz_compress_ps(m, _mm512_loadu_ps(from[at..at + 16].as_ptr()));
-                            _mm512_mask_storeu_ps(to_column[to..].as_mut_ptr(), keep, lanes);
+                            L::load(&from[at..]).compress_store(lanes, &mut to_column[to..]);
                         }
-                        let index =
-                            _mm512_maskz_compress_epi32(m, _mm512_add_epi32(iota, _mm512_set1_epi32(at as i32)));
-                        _mm512_mask_storeu_epi32(self.ray_samples[to..].as_mut_ptr().cast(), keep, index);
+                        L::compress_indices(at as u32, lanes, &mut self.ray_samples[to..]);
                     }
                     *cursor += lanes.count_ones();
                 }
             }
-            // Packets of sixteen consecutive rays, as `RayOrder::Grouped` cuts them, each
+            // Packets of `L::WIDTH` consecutive rays, as `RayOrder::Grouped` cuts them, each
             // query timed (when timing) as `DirectionRays::trace` times the whole call.
             stack.clear();
-            for p in (0..traced).step_by(16) {
-                let live = (1u32 << (traced - p).min(16)) - 1;
-                // SAFETY: the CPU has AVX-512F; the masked loads read the packet's `live` rays
-                // within the ray columns.
+            for p in (0..traced).step_by(w) {
+                let live = (1u32 << (traced - p).min(w)) - 1;
+                // SAFETY: the caller's CPU has `L`'s instruction set; the loads read the
+                // packet's `live` rays, the rest of the ray columns from `p`.
                 let (hit, took) = unsafe {
-                    let load = |c: &Vec<f32>| Avx512(_mm512_maskz_loadu_ps(live as __mmask16, c[p..].as_ptr()));
-                    let d = [load(&self.ray_dirs[0]), load(&self.ray_dirs[1]), load(&self.ray_dirs[2])];
+                    let [x, y, z] = &self.ray_dirs;
+                    let d = [L::load_partial(&x[p..]), L::load_partial(&y[p..]), L::load_partial(&z[p..])];
                     let lanes = spawned_lanes(d, spawn, terms.max_distance);
                     occluded_lanes(geometry, stack, &lanes, live, self.timing)
                 };
@@ -127,13 +146,13 @@ impl DirectionRays {
                 while each != 0 {
                     let j = self.ray_samples[p + each.trailing_zeros() as usize] as usize;
                     each &= each - 1;
-                    self.dark[j / 16] |= 1 << (j % 16);
+                    self.dark[j / w] |= 1 << (j % w);
                 }
             }
         }
-        for (sums, &dark) in arriving.chunks_mut(16).zip(&self.dark) {
-            // SAFETY: the CPU has AVX-512F.
-            unsafe { add_clear_or_floor::<Avx512>(clear, floor, dark, sums) };
+        for (sums, &dark) in arriving.chunks_mut(w).zip(&self.dark) {
+            // SAFETY: the caller's CPU has `L`'s instruction set.
+            unsafe { add_clear_or_floor::<L>(clear, floor, dark, sums) };
         }
         (traced as u64, cycles)
     }

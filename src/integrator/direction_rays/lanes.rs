@@ -6,9 +6,12 @@ use glam::Vec3A;
 use super::{DirectionRays, QuadrantOut, QuadrantPasses, quadrant_lanes, quadrant_starts};
 #[cfg(target_arch = "x86_64")]
 use crate::{
-    geometry::lanes::{PacketLanes, RayLanes},
+    geometry::{
+        accel::{KernelLanes, SceneLanes},
+        lanes::{PacketLanes, RayLanes},
+    },
     sampling::cosine_table::WarpLanes,
-    simd::{Avx, Avx512, Kernel, Lanes},
+    simd::{Kernel, Lanes},
 };
 use crate::{
     geometry::{
@@ -193,48 +196,12 @@ pub(super) unsafe fn add_clear_or_floor<L: Lanes>(clear: Vec3A, floor: Vec3A, da
 
 /// Lanes that trace whole passes of quadrant patterns
 /// ([`DirectionRays::add_cosine_quadrants`]): their pattern grid and cosine map
-/// ([`WarpLanes`]) and their scene query, which needs the lanes' instruction set.
+/// ([`WarpLanes`]) and the packet kernels' lanes ([`KernelLanes`]) for their scene query.
 #[cfg(target_arch = "x86_64")]
-pub(super) trait PassLanes: WarpLanes {
-    /// [`SceneGeometry::occluded_lanes16`] or its eight-lane twin.
-    unsafe fn occluded(
-        geometry: &SceneGeometry,
-        lanes: &RayLanes<Self>,
-        ray: impl Fn(usize) -> Ray,
-        live: u32,
-        stack: &mut Vec<(u32, f32)>,
-    ) -> u32;
-}
+pub(super) trait PassLanes: WarpLanes + KernelLanes {}
 
 #[cfg(target_arch = "x86_64")]
-impl PassLanes for Avx512 {
-    #[inline(always)]
-    unsafe fn occluded(
-        geometry: &SceneGeometry,
-        lanes: &RayLanes<Self>,
-        ray: impl Fn(usize) -> Ray,
-        live: u32,
-        stack: &mut Vec<(u32, f32)>,
-    ) -> u32 {
-        // SAFETY: the caller's CPU has AVX-512 and x86-64-v3, the query's instruction set.
-        unsafe { geometry.occluded_lanes16(lanes, ray, live, stack) }
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-impl PassLanes for Avx {
-    #[inline(always)]
-    unsafe fn occluded(
-        geometry: &SceneGeometry,
-        lanes: &RayLanes<Self>,
-        ray: impl Fn(usize) -> Ray,
-        live: u32,
-        stack: &mut Vec<(u32, f32)>,
-    ) -> u32 {
-        // SAFETY: the caller's CPU has x86-64-v3, the query's instruction set.
-        unsafe { geometry.occluded_lanes8(lanes, ray, live, stack) }
-    }
-}
+impl<L: WarpLanes + KernelLanes> PassLanes for L {}
 
 /// [`DirectionRays::add_cosine_quadrants`] as a kernel over the lane type.
 #[cfg(target_arch = "x86_64")]
@@ -332,7 +299,7 @@ pub(super) unsafe fn occluded_lanes<L: PassLanes>(
     };
     let start = timing.then(cycle_count);
     // SAFETY: the caller's CPU has `L`'s instruction set.
-    let hit = unsafe { L::occluded(geometry, lanes, ray, live, stack) };
+    let hit = unsafe { L::compiled(SceneLanes { scene: geometry, lanes, ray, live, stack }) };
     (hit, start.map_or(0, cycles_since))
 }
 

@@ -194,8 +194,9 @@ impl DirectionRays {
                 if let Some(sum) = sum {
                     sum.per_sample = true;
                 }
-                // SAFETY: sixteen-lane packets are used only where AVX-512 (and POPCNT) was detected.
-                return Some(unsafe { self.add_cosine_avx512(geometry, stack, spawn, frame, terms, arriving) });
+                let kernel = cosine::CompressedRun { rays: self, geometry, stack, spawn, frame, terms, arriving };
+                // SAFETY: sixteen-lane packets are used only where AVX-512 was detected.
+                return Some(unsafe { <crate::simd::Avx512 as crate::simd::Lanes>::compiled(kernel) });
             }
         }
         let _ = (geometry, stack, spawn, frame, sets, pixel, first, dim, terms, arriving, sum);
