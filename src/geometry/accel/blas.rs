@@ -135,14 +135,16 @@ impl Blas {
         );
     }
 
-    /// A mesh's triangles in its own frame; zero-area triangles are counted and skipped.
+    /// A mesh's triangles in its own frame; zero-area triangles are counted and skipped. Each
+    /// primitive's `object` is its triangle's index in the mesh (the instance names the object),
+    /// which a hit reports for textured surfaces.
     pub fn from_mesh(mesh: &Mesh) -> Self {
         let mut prims = Vec::with_capacity(mesh.indices.len());
         let mut degenerate = 0;
-        for tri in &mesh.indices {
+        for (k, tri) in mesh.indices.iter().enumerate() {
             let [a, b, c] = tri.map(|i| Vec3A::from(mesh.positions[i as usize]));
             match Triangle::new(a, b, c) {
-                Some(t) => prims.push(Prim { shape: Shape::Triangle(t), object: 0 }),
+                Some(t) => prims.push(Prim { shape: Shape::Triangle(t), object: k as u32 }),
                 None => degenerate += 1,
             }
         }
@@ -152,11 +154,12 @@ impl Blas {
     }
 
     /// A BLAS for a deforming mesh: every triangle keeps its slot (zero-area ones included, they
-    /// are never hit) so that [`Blas::refit`] can move the vertices without rebuilding.
+    /// are never hit) so that [`Blas::refit`] can move the vertices without rebuilding; as in
+    /// [`Blas::from_mesh`], a primitive's `object` is its triangle's index.
     pub fn deformable(mesh: &Mesh) -> Self {
-        let prims = mesh.indices.iter().map(|tri| {
+        let prims = mesh.indices.iter().enumerate().map(|(k, tri)| {
             let p = tri.map(|i| Vec3A::from(mesh.positions[i as usize]));
-            Prim { shape: Shape::Triangle(Triangle { p }), object: 0 }
+            Prim { shape: Shape::Triangle(Triangle { p }), object: k as u32 }
         });
         Blas::build_with(prims.collect(), false)
     }
@@ -400,7 +403,7 @@ impl Blas {
     /// each hit in (0, ray.tmax) (the callback may shrink `ray.tmax`); stops and returns true as
     /// soon as `hit` does. Gives exactly the hits of the scalar test in the same order.
     #[inline(always)]
-    fn packet_hits(
+    pub(super) fn packet_hits(
         &self,
         packet: &Tri4,
         r: &RayTri4,

@@ -86,7 +86,7 @@ impl GltfScene {
                     };
                     let posed = Mesh { positions: skin.deform(&graph.world), indices: prim.mesh.indices.clone() };
                     grow(&posed, &Affine3A::IDENTITY, (pi, k)).map_err(fail)?;
-                    world.spawn((
+                    let mut entity = world.spawn((
                         TriangleMesh(Arc::new(posed)),
                         Deforming { rest: prim.mesh.clone() },
                         skin,
@@ -94,6 +94,9 @@ impl GltfScene {
                         prim.material,
                         name,
                     ));
+                    if let Some(surface) = &prim.surface {
+                        entity.insert(surface.clone());
+                    }
                     continue;
                 }
                 for offset in &placement.offsets {
@@ -105,7 +108,11 @@ impl GltfScene {
                         prim.material,
                         name.clone(),
                     ));
+                    // Peer scenes (geometry only) keep the peers' contract: plain matte surfaces.
                     if !options.geometry_only {
+                        if let Some(surface) = &prim.surface {
+                            entity.insert(surface.clone());
+                        }
                         entity.insert(NodeLink { node: placement.node, offset: *offset });
                         if animated[placement.node] {
                             entity.insert(Dynamic);
