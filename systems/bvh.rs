@@ -11,9 +11,9 @@
 //!   for the bake (`max_spp` × pixels at least 64 per triangle they place), and instanced
 //!   otherwise;
 //! - each sphere and cuboid is a small world-space BLAS, rebuilt when one of them changes;
-//! - a mesh with a [`Surface`] is never baked: its hits report the triangle that a texture
-//!   lookup needs; an alpha-tested one goes into the scene's alpha layer instead of the top
-//!   level, traversed apart with a test at each candidate hit;
+//! - a textured mesh ([`Surface`]) is baked like any other, its triangles' indices kept for
+//!   texture lookups; an alpha-tested one is never baked: it goes into the scene's alpha layer
+//!   instead of the top level, traversed apart with a test at each candidate hit;
 //! - a material change only updates the material table; an unchanged scene does nothing.
 
 use std::{
@@ -319,9 +319,21 @@ fn update(
     }
     let planes = cache.planes.clone();
 
+    // The surfaces of textured or alpha-tested meshes, baked or not, by object.
+    let mut surfaces: Vec<Option<Arc<PlacedSurface>>> = Vec::new();
+    for (object, &(entity, name, .., mesh, _, _, surface)) in entries.iter().enumerate() {
+        let (Some(mesh), Some(surface)) = (mesh, surface) else { continue };
+        match surface.validate(&mesh.0) {
+            Ok(()) => {
+                surfaces.resize(entries.len(), None);
+                surfaces[object] = Some(Arc::new(PlacedSurface { surface: surface.clone(), mesh: mesh.0.clone() }));
+            }
+            Err(e) => problems.push(describe(entity, name, e)),
+        }
+    }
+
     let mut used_meshes = Vec::new();
     let mut used_deforming = Vec::new();
-    let mut surfaces: Vec<Option<Arc<PlacedSurface>>> = Vec::new();
     let mut alpha_meshes = Vec::new();
     for (object, &(entity, name, transform, matte, sphere, plane, cuboid, mesh, deforming, _, surface)) in
         entries.iter().enumerate()
@@ -342,16 +354,13 @@ fn update(
         });
         let placed = blas.and_then(|blas| {
             let affine = world_space::affine(transform)?;
-            if let Some(surface) = surface {
-                surface.validate(&mesh.0)?;
-                let placed = Arc::new(PlacedSurface { surface: surface.clone(), mesh: mesh.0.clone() });
-                surfaces.resize(entries.len(), None);
-                surfaces[object] = Some(placed.clone());
-                if surface.alpha_tested() {
+            if surface.is_some_and(Surface::alpha_tested) {
+                // Unless its surface was refused above (and the frame with it).
+                if let Some(placed) = surfaces.get(object).cloned().flatten() {
                     let object = object as u32;
                     alpha_meshes.push(AlphaMesh { blas, surface: placed, to_world: affine, object });
-                    return Ok(());
                 }
+                return Ok(());
             }
             let Some(bounds) = blas.bounds() else { return Ok(()) };
             let i = index_of(&blas, &mut blases);
@@ -385,12 +394,12 @@ fn mesh_users(entries: &[ShapeData]) -> HashMap<usize, usize> {
     users
 }
 
-/// The mesh of an entry that can be baked: static (no [`Dynamic`] marker, not deforming),
-/// without a [`Surface`] and its only shape component; with whether other entities (counted in `users`) share it.
+/// The mesh of an entry that can be baked: static (no [`Dynamic`] marker, not deforming), not
+/// alpha-tested (see [`Surface`]) and its only shape component; with whether other entities (counted in `users`) share it.
 fn static_mesh<'a>(entry: &ShapeData<'a>, users: &HashMap<usize, usize>) -> Option<(&'a TriangleMesh, bool)> {
     let &(_, _, _, _, sphere, plane, cuboid, mesh, deforming, dynamic, surface) = entry;
     let other_shape = sphere.is_some() || plane.is_some() || cuboid.is_some();
-    let kept_apart = dynamic || deforming.is_some() || surface.is_some();
+    let kept_apart = dynamic || deforming.is_some() || surface.is_some_and(Surface::alpha_tested);
     mesh.filter(|_| !(other_shape || kept_apart)).map(|m| (m, users[&key(&m.0)] > 1))
 }
 
@@ -425,6 +434,9 @@ fn bake_static_meshes<'a>(
     // Every baked triangle goes straight into one vector, sized once.
     let mut all = world_space::Converted::default();
     all.prims.reserve(entries.iter().filter_map(bakes).map(|m| m.0.indices.len()).sum());
+    // Textured meshes' hits need their triangles: kept only when some baked mesh has a surface.
+    let textured = entries.iter().any(|e| bakes(e).is_some() && e.10.is_some());
+    all.triangles = textured.then(Vec::new);
     let mut baked = HashSet::new();
     for (object, entry) in entries.iter().enumerate() {
         let Some(mesh) = bakes(entry) else { continue };
@@ -439,8 +451,12 @@ fn bake_static_meshes<'a>(
     if all.prims.is_empty() {
         return (baked, None);
     }
-    let mut blas = Blas::build(all.prims);
-    blas.degenerate_triangles = all.degenerate;
+    let world_space::Converted { prims, degenerate, triangles } = all;
+    let mut blas = Blas::build(prims);
+    if let Some(triangles) = triangles {
+        blas = blas.with_source_triangles(&triangles);
+    }
+    blas.degenerate_triangles = degenerate;
     (baked, Some(Arc::new(blas)))
 }
 

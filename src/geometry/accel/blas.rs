@@ -61,6 +61,9 @@ pub struct Blas {
     pub degenerate_triangles: usize,
     /// Depth of the tree.
     pub depth: usize,
+    /// For a world-space bake of textured meshes, each slot's triangle index in its mesh
+    /// (`None` elsewhere): read once per camera hit, never during traversal.
+    pub(super) source_triangles: Option<Vec<u32>>,
 }
 
 impl Blas {
@@ -103,9 +106,19 @@ impl Blas {
             triangle_count,
             degenerate_triangles: 0,
             depth,
+            source_triangles: None,
         };
         blas.build_tree();
         blas
+    }
+
+    /// This BLAS, built from primitives whose triangle indices in their meshes were
+    /// `triangles` (in the order given to [`Blas::build`]), keeping each slot's index so that
+    /// hits on it report their triangle.
+    pub fn with_source_triangles(mut self, triangles: &[u32]) -> Self {
+        let slots = self.bvh.primitive_indices.iter().map(|&i| triangles.get(i as usize).copied().unwrap_or(u32::MAX));
+        self.source_triangles = Some(slots.collect());
+        self
     }
 
     /// Collapses the BVH2 into the wide tree and, for an all-triangle BLAS, packs each leaf's
@@ -213,6 +226,7 @@ impl Blas {
             + self.tree.memory_bytes()
             + self.packets.len() * size_of::<Tri4>()
             + self.prims.len() * (size_of::<Prim>() + 4)
+            + self.source_triangles.as_ref().map_or(0, |t| t.len() * 4)
     }
 
     /// Children per node of the tree traversal uses (8 with AVX, else 4).

@@ -371,10 +371,10 @@ impl SceneGeometry {
         let blas = &self.blases[inst.blas as usize];
         let prim = blas.prims[slot as usize].object;
         // A mesh instance's primitives hold their triangle's index in the mesh; a world-space
-        // BLAS's hold their object's.
+        // BLAS's hold their object's, and a bake of textured meshes keeps the triangles apart.
         let (object, prim) = match inst.object {
             Some(object) => (object, prim),
-            None => (prim, u32::MAX),
+            None => (prim, blas.source_triangles.as_ref().map_or(u32::MAX, |t| t[slot as usize])),
         };
         if inst.identity {
             return SurfaceHit { prim, ..blas.surface(slot, ray, b1, b2, object) };
@@ -450,23 +450,6 @@ impl SceneGeometry {
                 *b = *b || alpha.occluded(ray, stack);
             }
         }
-    }
-
-    /// The lanes of `open` whose ray (`ray(k)` for lane k) an alpha-tested mesh blocks where it
-    /// is not cut out: what [`SceneGeometry::occluded_many`] adds to the other geometry's answer.
-    #[inline]
-    pub fn alpha_blocks_lanes(&self, open: u32, ray: impl Fn(usize) -> Ray, stack: &mut Vec<(u32, f32)>) -> u32 {
-        let Some(alpha) = &self.alpha else { return 0 };
-        let mut blocked = 0;
-        let mut lanes = open;
-        while lanes != 0 {
-            let k = lanes.trailing_zeros() as usize;
-            lanes &= lanes - 1;
-            if alpha.occluded(&ray(k), stack) {
-                blocked |= 1 << k;
-            }
-        }
-        blocked
     }
 
     /// Whether the scene has alpha-tested meshes, which queries test apart.

@@ -332,12 +332,7 @@ pub(super) unsafe fn occluded_lanes<L: PassLanes>(
     };
     let start = timing.then(cycle_count);
     // SAFETY: the caller's CPU has `L`'s instruction set.
-    let mut hit = unsafe { L::occluded(geometry, lanes, ray, live, stack) };
-    // Alpha-tested meshes lie outside the packet kernels' trees: the lanes still open test
-    // them one by one.
-    if geometry.has_alpha() {
-        hit |= geometry.alpha_blocks_lanes(live & !hit, ray, stack);
-    }
+    let hit = unsafe { L::occluded(geometry, lanes, ray, live, stack) };
     (hit, start.map_or(0, cycles_since))
 }
 
