@@ -231,3 +231,47 @@ fn a_loaded_alpha_mask_lets_camera_rays_through_to_the_floor() {
         assert!(row[8..].iter().all(|&a| a == Vec3::X), "{row:?}");
     }
 }
+
+/// A PNG header (signature, IHDR, IDAT, IEND) claiming `w` × `h` RGBA pixels, with no pixel data.
+fn png_header(w: u32, h: u32) -> Vec<u8> {
+    fn crc32(bytes: &[u8]) -> u32 {
+        let mut c = !0u32;
+        for &b in bytes {
+            c ^= u32::from(b);
+            for _ in 0..8 {
+                c = if c & 1 != 0 { 0xedb8_8320 ^ (c >> 1) } else { c >> 1 };
+            }
+        }
+        !c
+    }
+    let chunk = |kind: &[u8], data: &[u8]| {
+        let mut out = (data.len() as u32).to_be_bytes().to_vec();
+        let body = [kind, data].concat();
+        out.extend(&body);
+        out.extend(crc32(&body).to_be_bytes());
+        out
+    };
+    let ihdr = [&w.to_be_bytes()[..], &h.to_be_bytes(), &[8, 6, 0, 0, 0]].concat();
+    // The first IDAT chunk ends the header (an empty zlib stream; nothing gets that far).
+    let idat = chunk(b"IDAT", &[0x78, 0x9c, 0x03, 0x00, 0x00, 0x00, 0x00, 0x01]);
+    [&b"\x89PNG\r\n\x1a\n"[..], &chunk(b"IHDR", &ihdr), &idat, &chunk(b"IEND", &[])].concat()
+}
+
+/// A small file cannot make the loader allocate an image it claims to be huge: the header's
+/// size is checked against a per-side limit and the file's read budget before decoding.
+#[test]
+fn an_image_claiming_a_huge_size_is_refused_before_any_allocation() {
+    for (w, h, why) in [(20_000, 20_000, "more than the limit"), (16_000, 16_000, "would exceed")] {
+        let images = json!({
+            "images": [{"name": "huge", "uri": data_uri("image/png", &png_header(w, h))}],
+            "textures": [{"source": 0}],
+        });
+        let scene = load("huge.gltf", &quad(textured_material(json!({}), json!({})), None, images));
+        assert_eq!(scene.warnings.len(), 1, "{:?}", scene.warnings);
+        assert!(
+            scene.warnings[0].contains("image 0 ('huge')") && scene.warnings[0].contains(why),
+            "{}",
+            scene.warnings[0]
+        );
+    }
+}
