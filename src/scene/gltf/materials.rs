@@ -5,7 +5,11 @@
 //! the file's read budget and capped per image. An image that is missing or fails to decode is
 //! one warning naming the texture, its image and the material; the factor is used instead.
 
-use std::{collections::HashMap, io::Cursor, path::Path};
+use std::{
+    collections::{HashMap, HashSet},
+    io::Cursor,
+    path::Path,
+};
 
 use ::gltf::{
     Document,
@@ -33,10 +37,10 @@ pub(super) struct Textures<'a> {
     buffers: &'a accessors::Data,
     base: &'a Path,
     options: &'a buffers::LoadOptions,
-    /// Each glTF texture read so far (by index): the texture, or `None` when it failed.
-    read: HashMap<usize, Option<std::sync::Arc<Texture>>>,
+    /// Each glTF texture read so far (by index): the texture, or why it could not be read.
+    read: HashMap<usize, Result<std::sync::Arc<Texture>, String>>,
     /// Materials whose texture failed, warned about once each.
-    warned: HashMap<usize, ()>,
+    warned: HashSet<usize>,
 }
 
 impl<'a> Textures<'a> {
@@ -46,7 +50,7 @@ impl<'a> Textures<'a> {
         base: &'a Path,
         options: &'a buffers::LoadOptions,
     ) -> Self {
-        Textures { doc, buffers, base, options, read: HashMap::new(), warned: HashMap::new() }
+        Textures { doc, buffers, base, options, read: HashMap::new(), warned: HashSet::new() }
     }
 
     /// The surface of primitive `p`, or `None` when it has nothing that varies (no usable
@@ -131,21 +135,21 @@ impl<'a> Textures<'a> {
         let texture = doc.textures().nth(index)?;
         let image = texture.source();
         let result = match self.read.get(&index) {
-            Some(done) => done.clone().ok_or(None),
+            Some(done) => done.clone(),
             None => {
                 let decoded = self.decode(image.index()).and_then(|(w, h, texels)| {
                     let texture = Texture::new(w, h, texels, sampler(&texture.sampler()));
                     texture.map(std::sync::Arc::new).ok_or_else(|| "the image is empty".to_string())
                 });
-                self.read.insert(index, decoded.as_ref().ok().cloned());
-                decoded.map_err(Some)
+                self.read.insert(index, decoded.clone());
+                decoded
             }
         };
         match result {
             Ok(t) => Some(t),
             Err(why) => {
                 let m = material.unwrap_or(usize::MAX);
-                if self.warned.insert(m, ()).is_none() {
+                if self.warned.insert(m) {
                     let image_name = image.name().map(str::to_string).or_else(|| uri_of(doc, image.index()));
                     let what = match material {
                         Some(i) => label("material", i, material_name),
@@ -155,7 +159,7 @@ impl<'a> Textures<'a> {
                         "{} ({}) of {what}: {}; the base colour factor is used",
                         label("texture", index, texture.name()),
                         label("image", image.index(), image_name.as_deref()),
-                        why.unwrap_or_else(|| "could not be read".into())
+                        why
                     ));
                 }
                 None
