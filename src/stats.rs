@@ -5,7 +5,10 @@ use std::{fmt::Write, time::Duration};
 use bevy_ecs::prelude::Resource;
 
 use crate::{
-    geometry::{TraversalCounts, accel::BvhWork},
+    geometry::{
+        TraversalCounts,
+        accel::{AlphaCounts, BvhWork},
+    },
     light::Term,
 };
 
@@ -241,6 +244,8 @@ pub struct FrameStats {
     pub trace_split: TraceSplit,
     /// What the trace system's BVH queries did (all 0 unless built with the feature `counters`).
     pub traversal: TraversalCounts,
+    /// What the alpha-tested meshes' queries did (all 0 in a scene without them).
+    pub alpha: AlphaCounts,
     /// What restarted accumulation this frame (`Transform of entity 4v0 changed`); `None`
     /// when the frame added to the samples before it.
     pub reset: Option<String>,
@@ -337,6 +342,9 @@ impl FrameStats {
         if TraversalCounts::ENABLED {
             json["traversal"] = serde_json::json!(self.traversal);
         }
+        if self.alpha.rays > 0 {
+            json["alpha"] = serde_json::json!(self.alpha);
+        }
         json
     }
 
@@ -387,6 +395,14 @@ impl FrameStats {
         );
         if TraversalCounts::ENABLED {
             let _ = writeln!(s, "  {}", traversal_line(&self.traversal, r.total()));
+        }
+        if self.alpha.rays > 0 {
+            let a = &self.alpha;
+            let _ = writeln!(
+                s,
+                "  alpha-tested meshes: {} rays reached them, {} candidate hits tested, {} cut out",
+                a.rays, a.candidates, a.cut
+            );
         }
         if self.nonfinite_samples > 0 {
             let _ = writeln!(s, "  warning: {} NaN/Inf samples were dropped", self.nonfinite_samples);

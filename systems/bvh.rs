@@ -11,6 +11,9 @@
 //!   for the bake (`max_spp` × pixels at least 64 per triangle they place), and instanced
 //!   otherwise;
 //! - each sphere and cuboid is a small world-space BLAS, rebuilt when one of them changes;
+//! - a textured mesh ([`Surface`]) is baked like any other, its triangles' indices kept for
+//!   texture lookups; an alpha-tested one is never baked: it goes into the scene's alpha layer
+//!   instead of the top level, traversed apart with a test at each candidate hit;
 //! - a material change only updates the material table; an unchanged scene does nothing.
 
 use std::{
@@ -25,10 +28,11 @@ use crate::{
     components::{Cuboid, Deforming, Dynamic, Matte, Mesh, Plane, Sphere, Transform, TriangleMesh},
     geometry::{
         Object, SceneGeometry,
-        accel::{Blas, BvhWork, Instance},
+        accel::{AlphaLayer, AlphaMesh, Blas, BvhWork, Instance},
         shapes::PlanePrim,
         world_space,
     },
+    material::{PlacedSurface, Surface},
     resources::{Accumulation, RenderSettings, SceneProblems},
     stats::FrameStats,
 };
@@ -52,6 +56,7 @@ type GeometryChanged = Or<(
     Changed<Cuboid>,
     Changed<TriangleMesh>,
     Changed<Deforming>,
+    Changed<Surface>,
 )>;
 type WorldChanged = Or<(Changed<Transform>, Changed<Sphere>, Changed<Plane>, Changed<Cuboid>)>;
 type ShapeAdded = Or<(Added<Sphere>, Added<Plane>, Added<Cuboid>, Added<TriangleMesh>)>;
@@ -59,7 +64,8 @@ type ShapeAdded = Or<(Added<Sphere>, Added<Plane>, Added<Cuboid>, Added<Triangle
 type MeshChanged = Or<(Changed<Transform>, Changed<TriangleMesh>)>;
 /// Changes that can decide whether a mesh is baked: markers added, or a mesh swapped (which
 /// changes how many entities share it).
-type BakingChanged = Or<(Added<Dynamic>, Added<Deforming>, (Changed<TriangleMesh>, Without<Deforming>))>;
+type BakingChanged =
+    Or<(Added<Dynamic>, Added<Deforming>, Changed<Surface>, (Changed<TriangleMesh>, Without<Deforming>))>;
 /// What the BVH system reads of a shaped entity.
 type ShapeQuery = (
     Entity,
@@ -72,6 +78,7 @@ type ShapeQuery = (
     Option<&'static TriangleMesh>,
     Option<&'static Deforming>,
     Has<Dynamic>,
+    Option<&'static Surface>,
 );
 /// One shaped entity as read by [`ShapeQuery`].
 type ShapeData<'a> = (
@@ -85,6 +92,7 @@ type ShapeData<'a> = (
     Option<&'a TriangleMesh>,
     Option<&'a Deforming>,
     bool,
+    Option<&'a Surface>,
 );
 
 /// Removals of shape components (despawns included).
@@ -96,6 +104,7 @@ pub struct ShapeRemovals<'w, 's> {
     mesh: RemovedComponents<'w, 's, TriangleMesh>,
     dynamic: RemovedComponents<'w, 's, Dynamic>,
     deforming: RemovedComponents<'w, 's, Deforming>,
+    surface: RemovedComponents<'w, 's, Surface>,
 }
 
 impl ShapeRemovals<'_, '_> {
@@ -107,6 +116,7 @@ impl ShapeRemovals<'_, '_> {
             self.mesh.read().count(),
             self.dynamic.read().count(),
             self.deforming.read().count(),
+            self.surface.read().count(),
         ];
         counts.iter().any(|&c| c > 0)
     }
@@ -193,8 +203,12 @@ pub fn update_bvh(
         *geometry = built;
         stats.bvh_built = work.any();
         stats.bvh_work = work;
+        let alpha = match geometry.alpha_mesh_count() {
+            0 => String::new(),
+            n => format!(" and {n} alpha-tested meshes apart"),
+        };
         format!(
-            "{} BLAS built, {} refit{}, TLAS over {} instances; {} triangles stored, {} placed \
+            "{} BLAS built, {} refit{}, TLAS over {} instances{alpha}; {} triangles stored, {} placed \
              ({} zero-area skipped), {} planes in {:.2} ms",
             work.blas_built,
             work.blas_refit,
@@ -305,9 +319,23 @@ fn update(
     }
     let planes = cache.planes.clone();
 
+    // The surfaces of textured or alpha-tested meshes, baked or not, by object.
+    let mut surfaces: Vec<Option<Arc<PlacedSurface>>> = Vec::new();
+    for (object, &(entity, name, .., mesh, _, _, surface)) in entries.iter().enumerate() {
+        let (Some(mesh), Some(surface)) = (mesh, surface) else { continue };
+        match surface.validate(&mesh.0) {
+            Ok(()) => {
+                surfaces.resize(entries.len(), None);
+                surfaces[object] = Some(Arc::new(PlacedSurface { surface: surface.clone(), mesh: mesh.0.clone() }));
+            }
+            Err(e) => problems.push(describe(entity, name, e)),
+        }
+    }
+
     let mut used_meshes = Vec::new();
     let mut used_deforming = Vec::new();
-    for (object, &(entity, name, transform, matte, sphere, plane, cuboid, mesh, deforming, _)) in
+    let mut alpha_meshes = Vec::new();
+    for (object, &(entity, name, transform, matte, sphere, plane, cuboid, mesh, deforming, _, surface)) in
         entries.iter().enumerate()
     {
         let Some(mesh) = mesh else { continue };
@@ -326,6 +354,14 @@ fn update(
         });
         let placed = blas.and_then(|blas| {
             let affine = world_space::affine(transform)?;
+            if surface.is_some_and(Surface::alpha_tested) {
+                // Unless its surface was refused above (and the frame with it).
+                if let Some(placed) = surfaces.get(object).cloned().flatten() {
+                    let object = object as u32;
+                    alpha_meshes.push(AlphaMesh { blas, surface: placed, to_world: affine, object });
+                }
+                return Ok(());
+            }
             let Some(bounds) = blas.bounds() else { return Ok(()) };
             let i = index_of(&blas, &mut blases);
             let instance = Instance::new(i, bounds, affine, Some(object as u32))
@@ -343,7 +379,8 @@ fn update(
     let rests: Vec<usize> = cache.deforming.values().map(|d| key(&d.rest)).collect();
     cache.templates.retain(|k, _| rests.contains(k));
 
-    (SceneGeometry::from_instances(blases, instances, planes, objects), problems, work)
+    let geometry = SceneGeometry::from_instances(blases, instances, planes, objects);
+    (geometry.with_surfaces(AlphaLayer::new(alpha_meshes), surfaces), problems, work)
 }
 
 /// How many entities use each mesh (by [`key`]).
@@ -357,12 +394,13 @@ fn mesh_users(entries: &[ShapeData]) -> HashMap<usize, usize> {
     users
 }
 
-/// The mesh of an entry that can be baked: static (no [`Dynamic`] marker, not deforming) and
-/// its only shape component; with whether other entities (counted in `users`) share it.
+/// The mesh of an entry that can be baked: static (no [`Dynamic`] marker, not deforming), not
+/// alpha-tested (see [`Surface`]) and its only shape component; with whether other entities (counted in `users`) share it.
 fn static_mesh<'a>(entry: &ShapeData<'a>, users: &HashMap<usize, usize>) -> Option<(&'a TriangleMesh, bool)> {
-    let &(_, _, _, _, sphere, plane, cuboid, mesh, deforming, dynamic) = entry;
+    let &(_, _, _, _, sphere, plane, cuboid, mesh, deforming, dynamic, surface) = entry;
     let other_shape = sphere.is_some() || plane.is_some() || cuboid.is_some();
-    mesh.filter(|_| !(other_shape || dynamic || deforming.is_some())).map(|m| (m, users[&key(&m.0)] > 1))
+    let kept_apart = dynamic || deforming.is_some() || surface.is_some_and(Surface::alpha_tested);
+    mesh.filter(|_| !(other_shape || kept_apart)).map(|m| (m, users[&key(&m.0)] > 1))
 }
 
 /// Whether the static meshes that several entities share are baked as well: when the render
@@ -396,6 +434,9 @@ fn bake_static_meshes<'a>(
     // Every baked triangle goes straight into one vector, sized once.
     let mut all = world_space::Converted::default();
     all.prims.reserve(entries.iter().filter_map(bakes).map(|m| m.0.indices.len()).sum());
+    // Textured meshes' hits need their triangles: kept only when some baked mesh has a surface.
+    let textured = entries.iter().any(|e| bakes(e).is_some() && e.10.is_some());
+    all.triangles = textured.then(Vec::new);
     let mut baked = HashSet::new();
     for (object, entry) in entries.iter().enumerate() {
         let Some(mesh) = bakes(entry) else { continue };
@@ -410,8 +451,12 @@ fn bake_static_meshes<'a>(
     if all.prims.is_empty() {
         return (baked, None);
     }
-    let mut blas = Blas::build(all.prims);
-    blas.degenerate_triangles = all.degenerate;
+    let world_space::Converted { prims, degenerate, triangles } = all;
+    let mut blas = Blas::build(prims);
+    if let Some(triangles) = triangles {
+        blas = blas.with_source_triangles(&triangles);
+    }
+    blas.degenerate_triangles = degenerate;
     (baked, Some(Arc::new(blas)))
 }
 

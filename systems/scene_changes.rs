@@ -10,6 +10,7 @@ use crate::{
     components::{Camera, Cuboid, Matte, OrthographicCamera, Plane, Sphere, ThinLensCamera, Transform, TriangleMesh},
     frame::{describe_change, short_type_name},
     integrator::LightRegistry,
+    material::Surface,
     resources::{Accumulation, RenderSettings, SceneProblems},
     stats::FrameStats,
 };
@@ -30,7 +31,7 @@ macro_rules! same_by_partial_eq {
     )*};
 }
 
-same_by_partial_eq!(Transform, Sphere, Plane, Cuboid, Matte, Camera, OrthographicCamera, ThinLensCamera);
+same_by_partial_eq!(Transform, Sphere, Plane, Cuboid, Matte, Surface, Camera, OrthographicCamera, ThinLensCamera);
 
 /// By pointer: meshes are shared data, and comparing vertices every frame would cost what a
 /// refit does. A mesh swapped for an equal copy counts as a change.
@@ -87,6 +88,7 @@ pub struct SceneWatch<'w, 's> {
     cuboid: Watch<'w, 's, Cuboid>,
     mesh: Watch<'w, 's, TriangleMesh>,
     matte: Watch<'w, 's, Matte>,
+    surface: Watch<'w, 's, Surface>,
     camera: Watch<'w, 's, Camera>,
     orthographic: Watch<'w, 's, OrthographicCamera>,
     lens: Watch<'w, 's, ThinLensCamera>,
@@ -104,6 +106,7 @@ impl SceneWatch<'_, '_> {
             (short_type_name::<Cuboid>(), self.cuboid.first_change()),
             (short_type_name::<TriangleMesh>(), self.mesh.first_change()),
             (short_type_name::<Matte>(), self.matte.first_change()),
+            (short_type_name::<Surface>(), self.surface.first_change()),
             (short_type_name::<Camera>(), self.camera.first_change()),
             (short_type_name::<OrthographicCamera>(), self.orthographic.first_change()),
             (short_type_name::<ThinLensCamera>(), self.lens.first_change()),

@@ -11,7 +11,7 @@ use rayon::prelude::*;
 
 use crate::{
     camera::{ActiveCamera, CameraRays, Cameras},
-    geometry::{SceneGeometry, TraversalCounts, counters},
+    geometry::{SceneGeometry, TraversalCounts, accel::AlphaCounts, counters},
     integrator::{LightGroup, LightRegistry, SampleResult, Scene, Tracer},
     resources::{AOV_FLOATS, Accumulation, AovValues, FrameSamples, RenderSettings, SceneProblems, luminance},
     sampling::{SampleSets, dims},
@@ -36,6 +36,7 @@ struct TileResult {
     rays: RayCounts,
     split: TraceSplit,
     traversal: TraversalCounts,
+    alpha: AlphaCounts,
     nonfinite: u64,
 }
 
@@ -105,6 +106,7 @@ pub fn trace(
     let mut rays = RayCounts::default();
     let mut split = TraceSplit::default();
     let mut traversal = TraversalCounts::default();
+    let mut alpha = AlphaCounts::default();
     for (tile, result) in tiles.iter().zip(&results) {
         let w = (tile.x1 - tile.x0) as usize;
         for (row, y) in (tile.y0..tile.y1).enumerate() {
@@ -120,11 +122,13 @@ pub fn trace(
         rays.add(&result.rays);
         split.add(&result.split);
         traversal.add(&result.traversal);
+        alpha.add(&result.alpha);
         stats.nonfinite_samples += result.nonfinite;
     }
     stats.rays = rays;
     stats.trace_split = split;
     stats.traversal = traversal;
+    stats.alpha = alpha;
     stats.samples_traced = count;
     let note = format!("{} tiles, {count} spp, {}", tiles.len(), lights.summary());
     stats.record("trace", start.elapsed(), note);
@@ -169,6 +173,7 @@ fn trace_tile<C: CameraRays>(
 ) -> TileResult {
     // Counts from this thread's earlier work are not this tile's.
     counters::take();
+    AlphaCounts::take();
     let mut tracer = Tracer::default();
     // One pixel's samples of this frame.
     let mut samples = Vec::with_capacity(job.count as usize);
@@ -329,8 +334,8 @@ fn trace_tile<C: CameraRays>(
             }
         }
     }
-    let traversal = counters::take();
-    TileResult { sums, counts, sq_sums, aovs, rays: tracer.rays, split: tracer.split, traversal, nonfinite }
+    let (traversal, alpha) = (counters::take(), AlphaCounts::take());
+    TileResult { sums, counts, sq_sums, aovs, rays: tracer.rays, split: tracer.split, traversal, alpha, nonfinite }
 }
 
 #[cfg(test)]

@@ -18,6 +18,11 @@ pub struct SurfaceHit {
     pub normal: Vec3A,
     /// Index of the scene object that was hit.
     pub object: u32,
+    /// The triangle hit, by its index in the object's mesh (`u32::MAX` for other shapes and
+    /// baked meshes): with `bary`, where a textured surface is read.
+    pub prim: u32,
+    /// Barycentrics (b1, b2) of a triangle hit, weighing its second and third vertices.
+    pub bary: [f32; 2],
 }
 
 impl SurfaceHit {
@@ -180,6 +185,8 @@ mod tests {
             p_error: Vec3A::new(1e-4, 3e-7, 0.0),
             normal: Vec3A::new(0.6, 0.0, -0.8),
             object: 0,
+            prim: u32::MAX,
+            bary: [0.0; 2],
         };
         let origins = hit.spawn_origins(0.0);
         let ws = [Vec3A::X, -Vec3A::X, Vec3A::Z, Vec3A::new(0.8, 0.3, 0.6), Vec3A::new(0.8, 0.0, 0.6), Vec3A::ZERO];
@@ -199,6 +206,8 @@ mod tests {
             p_error: Vec3A::splat(1e-7),
             normal: Vec3A::new(0.0, 0.6, 0.8),
             object: 0,
+            prim: u32::MAX,
+            bary: [0.0; 2],
         };
         let (front, back) = hit.spawn_origins(1e-3).sides();
         for (origin, side) in [(front, 1.0), (back, -1.0)] {

@@ -89,7 +89,7 @@ impl Triangle {
         let p = a + b + c;
         let p_error = (a.abs() + b.abs() + c.abs()) * gamma(7);
         let n = (self.p[1] - self.p[0]).cross(self.p[2] - self.p[0]).normalize();
-        SurfaceHit { t, p, p_error, normal: facing(n, ray.dir), object }
+        SurfaceHit { t, p, p_error, normal: facing(n, ray.dir), object, prim: u32::MAX, bary: [b1, b2] }
     }
 
     /// Bounding box corners.
@@ -151,7 +151,7 @@ impl SpherePrim {
         let v = n * self.radius;
         let p = self.center + v;
         let p_error = (v.abs() + p.abs()) * gamma(6);
-        SurfaceHit { t, p, p_error, normal: facing(n, ray.dir), object }
+        SurfaceHit { t, p, p_error, normal: facing(n, ray.dir), object, prim: u32::MAX, bary: [0.0; 2] }
     }
 }
 
@@ -185,7 +185,15 @@ impl PlanePrim {
         let q = ray.at(t);
         let p = q - self.normal * (q - self.point).dot(self.normal);
         let p_error = (p.abs() + self.point.abs()) * gamma(6);
-        SurfaceHit { t, p, p_error, normal: facing(self.normal, ray.dir), object: self.object }
+        SurfaceHit {
+            t,
+            p,
+            p_error,
+            normal: facing(self.normal, ray.dir),
+            object: self.object,
+            prim: u32::MAX,
+            bary: [0.0; 2],
+        }
     }
 }
 

@@ -16,6 +16,9 @@ pub struct Converted {
     pub prims: Vec<Prim>,
     /// Zero-area triangles skipped (they can never be hit).
     pub degenerate: usize,
+    /// When kept (`Some`), each mesh triangle primitive's index in its mesh, in `prims` order:
+    /// what a bake of textured meshes needs to find the texture coordinates of a hit.
+    pub triangles: Option<Vec<u32>>,
 }
 
 /// The entity's affine transform, or why it is unusable.
@@ -98,10 +101,15 @@ pub fn append_mesh(mesh: &Mesh, t: &Transform, object: u32, out: &mut Converted)
         return Err(format!("vertex {i} overflows to {} after the transform", world[i]));
     }
     out.prims.reserve(mesh.indices.len());
-    for tri in &mesh.indices {
+    for (k, tri) in mesh.indices.iter().enumerate() {
         let [a, b, c] = tri.map(|i| world[i as usize]);
         match Triangle::new(a, b, c) {
-            Some(tri) => out.prims.push(Prim { shape: Shape::Triangle(tri), object }),
+            Some(tri) => {
+                out.prims.push(Prim { shape: Shape::Triangle(tri), object });
+                if let Some(triangles) = &mut out.triangles {
+                    triangles.push(k as u32);
+                }
+            }
             None => out.degenerate += 1,
         }
     }

@@ -9,6 +9,7 @@ use super::{
     sample::{PrimaryHit, SampleOut, SampleResult},
 };
 use crate::{
+    components::Matte,
     geometry::{Ray, RayOrder, SceneGeometry, SpawnOrigins, SurfaceHit},
     light::{DirectionRun, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term},
     sampling::{SampleSets, dims},
@@ -36,12 +37,23 @@ impl Scene<'_> {
     /// rays start, [`Scene::ray_offset`] or more off the surface.
     #[inline]
     fn lit_point(&self, hit: &SurfaceHit, pixel: u32) -> (ShadingPoint, SpawnOrigins) {
-        let material = self.geometry.objects[hit.object as usize].material;
-        let mut at = ShadingPoint::new(hit.p, hit.normal, material);
+        let mut at = ShadingPoint::new(hit.p, hit.normal, self.material(hit));
         if let Some(turn) = self.sets.frame_turn(pixel) {
             at.frame = at.frame.turned(turn);
         }
         (at, hit.spawn_origins(self.ray_offset))
+    }
+
+    /// The material at camera hit `hit`: its object's, with the colour of a textured surface
+    /// (texture and vertex colours at the hit) multiplied in.
+    #[inline]
+    fn material(&self, hit: &SurfaceHit) -> Matte {
+        let mut material = self.geometry.objects[hit.object as usize].material;
+        if let Some(surface) = self.geometry.surface_of(hit) {
+            let [b1, b2] = hit.bary;
+            material.cd *= surface.at(hit.prim, b1, b2).truncate();
+        }
+        material
     }
 
     /// The light groups that draw no samples ([`LightGroup::dims`] 0: point lights), with their
@@ -275,7 +287,7 @@ impl Tracer {
         arriving: impl Fn(usize) -> Vec3A,
         out: &mut O,
     ) {
-        let material = scene.geometry.objects[primary.hit.object as usize].material;
+        let material = scene.material(&primary.hit);
         out.start(primary, &material);
         for (g, &(_, group)) in scene.fixed_groups().enumerate() {
             let term = group.term();

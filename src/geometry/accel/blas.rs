@@ -66,6 +66,9 @@ pub struct Blas {
     pub degenerate_triangles: usize,
     /// Depth of the tree.
     pub depth: usize,
+    /// For a world-space bake of textured meshes, each slot's triangle index in its mesh
+    /// (`None` elsewhere): read once per camera hit, never during traversal.
+    pub(super) source_triangles: Option<Vec<u32>>,
 }
 
 impl Blas {
@@ -108,9 +111,19 @@ impl Blas {
             triangle_count,
             degenerate_triangles: 0,
             depth,
+            source_triangles: None,
         };
         blas.build_tree();
         blas
+    }
+
+    /// This BLAS, built from primitives whose triangle indices in their meshes were
+    /// `triangles` (in the order given to [`Blas::build`]), keeping each slot's index so that
+    /// hits on it report their triangle.
+    pub fn with_source_triangles(mut self, triangles: &[u32]) -> Self {
+        let slots = self.bvh.primitive_indices.iter().map(|&i| triangles.get(i as usize).copied().unwrap_or(u32::MAX));
+        self.source_triangles = Some(slots.collect());
+        self
     }
 
     /// Collapses the BVH2 into the wide tree and, for an all-triangle BLAS, packs each leaf's
@@ -140,14 +153,16 @@ impl Blas {
         );
     }
 
-    /// A mesh's triangles in its own frame; zero-area triangles are counted and skipped.
+    /// A mesh's triangles in its own frame; zero-area triangles are counted and skipped. Each
+    /// primitive's `object` is its triangle's index in the mesh (the instance names the object),
+    /// which a hit reports for textured surfaces.
     pub fn from_mesh(mesh: &Mesh) -> Self {
         let mut prims = Vec::with_capacity(mesh.indices.len());
         let mut degenerate = 0;
-        for tri in &mesh.indices {
+        for (k, tri) in mesh.indices.iter().enumerate() {
             let [a, b, c] = tri.map(|i| Vec3A::from(mesh.positions[i as usize]));
             match Triangle::new(a, b, c) {
-                Some(t) => prims.push(Prim { shape: Shape::Triangle(t), object: 0 }),
+                Some(t) => prims.push(Prim { shape: Shape::Triangle(t), object: k as u32 }),
                 None => degenerate += 1,
             }
         }
@@ -157,11 +172,12 @@ impl Blas {
     }
 
     /// A BLAS for a deforming mesh: every triangle keeps its slot (zero-area ones included, they
-    /// are never hit) so that [`Blas::refit`] can move the vertices without rebuilding.
+    /// are never hit) so that [`Blas::refit`] can move the vertices without rebuilding; as in
+    /// [`Blas::from_mesh`], a primitive's `object` is its triangle's index.
     pub fn deformable(mesh: &Mesh) -> Self {
-        let prims = mesh.indices.iter().map(|tri| {
+        let prims = mesh.indices.iter().enumerate().map(|(k, tri)| {
             let p = tri.map(|i| Vec3A::from(mesh.positions[i as usize]));
-            Prim { shape: Shape::Triangle(Triangle { p }), object: 0 }
+            Prim { shape: Shape::Triangle(Triangle { p }), object: k as u32 }
         });
         Blas::build_with(prims.collect(), false)
     }
@@ -215,6 +231,7 @@ impl Blas {
             + self.tree.memory_bytes()
             + self.packets.len() * size_of::<Tri4>()
             + self.prims.len() * (size_of::<Prim>() + 4)
+            + self.source_triangles.as_ref().map_or(0, |t| t.len() * 4)
     }
 
     /// Children per node of the tree traversal uses (8 with AVX, else 4).
@@ -377,7 +394,7 @@ impl Blas {
     /// each hit in (0, ray.tmax) (the callback may shrink `ray.tmax`); stops and returns true as
     /// soon as `hit` does. Gives exactly the hits of the scalar test in the same order.
     #[inline(always)]
-    fn packet_hits(
+    pub(super) fn packet_hits(
         &self,
         packet: &Tri4,
         r: &RayTri4,

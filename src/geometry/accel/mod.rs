@@ -10,6 +10,7 @@
 //! is advanced past its own rounding error and hit points carry the transform's error back to
 //! world space, so spawned rays stay free of self-intersection under any instance transform.
 
+mod alpha;
 mod blas;
 mod kernels;
 mod ray_order;
@@ -18,6 +19,7 @@ mod scene;
 mod tlas;
 mod tree;
 
+pub use alpha::{AlphaCounts, AlphaLayer, AlphaMesh};
 pub use blas::Blas;
 #[cfg(test)]
 pub(crate) use blas::subtree_depth;

@@ -17,6 +17,7 @@ use obvhs::{
 use super::kernels::{BlasClosestLanes, TopClosestLanes, TopPackets};
 use super::{
     Object, Prim, Shape,
+    alpha::AlphaLayer,
     blas::{Blas, PACKET_RUN, SMALL_SET, subtree_depth},
     ray_order::RayOrder,
     tlas::Instance,
@@ -30,6 +31,7 @@ use crate::geometry::{
     shapes::{PlanePrim, SpherePrim, Triangle},
     wide_bvh::{Node, NodeTest, WideBvh},
 };
+use crate::material::PlacedSurface;
 #[cfg(target_arch = "x86_64")]
 use crate::simd::run_in;
 
@@ -67,8 +69,14 @@ pub struct SceneGeometry {
     /// load rather than through the instance list.
     pub(super) world_blas: Option<Arc<Blas>>,
     pub(super) planes: Vec<PlanePrim>,
+    /// Alpha-tested meshes, kept out of the trees above and traversed apart with a test at
+    /// every candidate hit; `None` (no query looks for them) when the scene has none.
+    pub(super) alpha: Option<Arc<AlphaLayer>>,
     /// Objects, indexed by `SurfaceHit::object`.
     pub objects: Vec<Object>,
+    /// The surfaces of textured or alpha-tested objects, indexed like `objects` (empty when no
+    /// object has one): read once per camera hit, never during traversal.
+    pub surfaces: Vec<Option<Arc<PlacedSurface>>>,
     /// Triangles stored (each shared mesh once).
     pub triangle_count: usize,
     /// Triangles placed in the scene (each instance counted).
@@ -135,7 +143,9 @@ impl SceneGeometry {
             top: Tree::from_bvh2(&tlas),
             tlas,
             planes,
+            alpha: None,
             objects,
+            surfaces: Vec::new(),
             triangle_count,
             instanced_triangle_count,
             degenerate_triangles,
@@ -143,6 +153,29 @@ impl SceneGeometry {
             depth,
             build_time: start.elapsed(),
         }
+    }
+
+    /// This scene with alpha-tested meshes (`alpha`) and the surfaces of textured objects
+    /// (indexed like `objects`; empty when there are none).
+    pub fn with_surfaces(mut self, alpha: Option<AlphaLayer>, surfaces: Vec<Option<Arc<PlacedSurface>>>) -> Self {
+        if let Some(layer) = &alpha {
+            self.triangle_count += layer.triangle_count();
+            self.instanced_triangle_count += layer.triangle_count();
+        }
+        self.alpha = alpha.map(Arc::new);
+        self.surfaces = surfaces;
+        self
+    }
+
+    /// Number of alpha-tested meshes, traversed apart from the rest.
+    pub fn alpha_mesh_count(&self) -> usize {
+        self.alpha.as_ref().map_or(0, |a| a.len())
+    }
+
+    /// The surface of the object `hit` lies on, if it has one (a textured or alpha-tested mesh).
+    #[inline]
+    pub fn surface_of(&self, hit: &SurfaceHit) -> Option<&PlacedSurface> {
+        self.surfaces.get(hit.object as usize).and_then(|s| s.as_deref())
     }
 
     /// Children per node of the trees traversal uses (8 with AVX, else 4).
@@ -218,6 +251,7 @@ impl SceneGeometry {
             + self.instances.len() * size_of::<Instance>()
             + self.blases.iter().map(|b| b.memory_bytes()).sum::<usize>()
             + self.planes.len() * size_of::<PlanePrim>()
+            + self.alpha.as_ref().map_or(0, |a| a.memory_bytes())
     }
 
     /// Diagonal length of the bounded geometry's box (0 when there is none).
@@ -230,6 +264,12 @@ impl SceneGeometry {
     pub fn intersect(&self, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> Option<SurfaceHit> {
         let mut ray = *ray;
         let best = self.closest_instance(&mut ray, stack);
+        if let Some(alpha) = &self.alpha
+            && let Some(hit) = alpha.closest(&mut ray, stack)
+        {
+            // Nearer than any opaque hit: the plane test below decides between the two.
+            return self.planes_before(ray, |ray| Some(alpha.surface(hit, ray)));
+        }
         self.hit_with_planes(ray, best)
     }
 
@@ -238,8 +278,10 @@ impl SceneGeometry {
     /// triangle packets (straight into the one BLAS of a static scene, else through the top
     /// level), which suits runs of rays that travel together, such as one pixel's camera rays.
     pub fn intersect_many(&self, rays: &[Ray], stack: &mut Vec<(u32, f32)>, hits: &mut [Option<SurfaceHit>]) {
+        // Alpha-tested meshes take the single-ray path.
         #[cfg(target_arch = "x86_64")]
         if rays.len() >= PACKET_RUN
+            && self.alpha.is_none()
             && let Some(into) = self.camera_packets()
         {
             let width = crate::simd::packet_lanes();
@@ -309,7 +351,14 @@ impl SceneGeometry {
     /// The closest hit along `ray` given the closest primitive hit `best` (instance, slot,
     /// barycentrics) at `ray.tmax`: a plane hit before it wins.
     #[inline]
-    fn hit_with_planes(&self, mut ray: Ray, best: Option<ClosestHit>) -> Option<SurfaceHit> {
+    fn hit_with_planes(&self, ray: Ray, best: Option<ClosestHit>) -> Option<SurfaceHit> {
+        self.planes_before(ray, |ray| best.map(|(i, slot, b1, b2)| self.surface(i, slot, ray, b1, b2)))
+    }
+
+    /// The hit of a plane before `ray.tmax` if there is one, else `surface(ray)`: the hit
+    /// found at `ray.tmax`.
+    #[inline(always)]
+    fn planes_before(&self, mut ray: Ray, surface: impl FnOnce(&Ray) -> Option<SurfaceHit>) -> Option<SurfaceHit> {
         let mut plane_hit = None;
         for plane in &self.planes {
             if let Some(t) = plane.intersect(&ray) {
@@ -320,24 +369,30 @@ impl SceneGeometry {
         if let Some(plane) = plane_hit {
             return Some(plane.surface(&ray, ray.tmax));
         }
-        best.map(|(i, slot, b1, b2)| self.surface(i, slot, &ray, b1, b2))
+        surface(&ray)
     }
 
     /// The surface at a hit of instance `i`'s primitive `slot`; `ray.tmax` is the world t.
     pub(super) fn surface(&self, i: u32, slot: u32, ray: &Ray, b1: f32, b2: f32) -> SurfaceHit {
         let inst = &self.instances[i as usize];
         let blas = &self.blases[inst.blas as usize];
-        let object = inst.object.unwrap_or(blas.prims[slot as usize].object);
+        let prim = blas.prims[slot as usize].object;
+        // A mesh instance's primitives hold their triangle's index in the mesh; a world-space
+        // BLAS's hold their object's, and a bake of textured meshes keeps the triangles apart.
+        let (object, prim) = match inst.object {
+            Some(object) => (object, prim),
+            None => (prim, blas.source_triangles.as_ref().map_or(u32::MAX, |t| t[slot as usize])),
+        };
         if inst.identity {
-            return blas.surface(slot, ray, b1, b2, object);
+            return SurfaceHit { prim, ..blas.surface(slot, ray, b1, b2, object) };
         }
         // The same local ray as during traversal (a pure function of the world ray's origin and
         // direction), so the local hit is the one that was found.
         let Some((local, dt)) = inst.local_ray(&ray.with_tmax(f32::INFINITY)) else {
-            return blas.surface(slot, ray, b1, b2, object);
+            return SurfaceHit { prim, ..blas.surface(slot, ray, b1, b2, object) };
         };
         let local = local.with_tmax(ray.tmax - dt);
-        inst.to_world_hit(blas.surface(slot, &local, b1, b2, object), dt)
+        SurfaceHit { prim, ..inst.to_world_hit(blas.surface(slot, &local, b1, b2, object), dt) }
     }
 
     /// Front-to-back top-level traversal; shrinks `ray.tmax` (world t) to the closest hit and
@@ -396,6 +451,23 @@ impl SceneGeometry {
     /// the dispatch to the tree's width and the traversal's set-up outside the loop over rays;
     /// `order` says how the rays are cut into packets.
     pub fn occluded_many(&self, rays: &[Ray], order: RayOrder, stack: &mut Vec<(u32, f32)>, blocked: &mut [bool]) {
+        self.opaque_occluded_many(rays, order, stack, blocked);
+        if let Some(alpha) = &self.alpha {
+            for (ray, b) in rays.iter().zip(blocked.iter_mut()) {
+                *b = *b || alpha.occluded(ray, stack);
+            }
+        }
+    }
+
+    /// Whether the scene has alpha-tested meshes, which queries test apart.
+    #[inline(always)]
+    pub fn has_alpha(&self) -> bool {
+        self.alpha.is_some()
+    }
+
+    /// [`SceneGeometry::occluded_many`] for everything but the alpha-tested meshes.
+    #[inline(always)]
+    fn opaque_occluded_many(&self, rays: &[Ray], order: RayOrder, stack: &mut Vec<(u32, f32)>, blocked: &mut [bool]) {
         for (ray, b) in rays.iter().zip(blocked.iter_mut()) {
             *b = self.planes.iter().any(|p| p.intersect(ray).is_some());
         }

@@ -97,7 +97,7 @@ impl Instance {
         let p_error = (abs * hit.p_error) * (1.0 + gamma(3)) + (abs * hit.p.abs() + m.translation.abs()) * gamma(3);
         // Normals go by the inverse transpose; it keeps the side the ray came from.
         let normal = (self.to_local.matrix3.transpose() * hit.normal).normalize();
-        SurfaceHit { t: hit.t + dt, p, p_error, normal, object: hit.object }
+        SurfaceHit { t: hit.t + dt, p, p_error, normal, ..hit }
     }
 }
 

@@ -153,8 +153,9 @@ impl DirectionRays {
     /// from the patterns in quadrant order where the run is whole passes that split into
     /// quadrants ([`SampleSets::quadrant_passes`]), else, with sixteen-lane packets, sorted
     /// into quadrants from columns ([`SampleSets::fill_columns`]). `None`, having done
-    /// nothing, elsewhere. With `sum`, whole quadrant passes add the run's light there,
-    /// summed, instead of to `arriving`.
+    /// nothing, elsewhere, and in scenes with alpha-tested meshes, which those packet queries
+    /// do not see (the general path's queries do). With `sum`, whole quadrant passes add the
+    /// run's light there, summed, instead of to `arriving`.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn add_cosine(
         &mut self,
@@ -170,6 +171,7 @@ impl DirectionRays {
     ) -> Option<(u64, u64)> {
         #[cfg(target_arch = "x86_64")]
         if let lanes @ (8 | 16) = geometry.packet_lanes()
+            && !geometry.has_alpha()
             && let Some((cmj, table, passes)) = sets.quadrant_passes(pixel, first, dim, arriving.len())
             && table.lanes() == lanes
         {
@@ -184,7 +186,7 @@ impl DirectionRays {
             return unsafe { crate::simd::run_in(lanes, kernel) };
         }
         #[cfg(target_arch = "x86_64")]
-        if geometry.packet_lanes() == 16 {
+        if geometry.packet_lanes() == 16 && !geometry.has_alpha() {
             let n = arriving.len().next_multiple_of(16);
             let [xs, ys, ..] = &mut self.samples;
             xs.resize(n, 0.5);

@@ -1,7 +1,8 @@
 //! glTF 2.0 scenes (`.gltf` with external or `data:` buffers, `.glb`): meshes (triangle lists,
 //! strips, fans; indexed or not; strided and sparse accessors), the default scene's node
 //! hierarchy, `EXT_mesh_gpu_instancing`, perspective and orthographic cameras,
-//! `KHR_lights_punctual` point lights, base colours, node animations, skins and morph targets.
+//! `KHR_lights_punctual` point lights, base colours and textures, alpha modes, node animations,
+//! skins and morph targets.
 //!
 //! [`load`] reads a file into a [`GltfScene`]; [`GltfScene::spawn`] puts it into a renderer's
 //! world as ordinary hemi entities (one `TriangleMesh` per primitive, shared by every node that
@@ -22,6 +23,7 @@ pub mod accessors;
 pub mod buffers;
 mod clips;
 mod framing;
+mod materials;
 mod spawn;
 pub mod validate;
 
@@ -56,6 +58,7 @@ use crate::{
     },
     error::HemiError,
     light::Light,
+    material::Surface,
     resources::Time,
 };
 
@@ -66,6 +69,9 @@ pub struct Primitive {
     pub mesh: Arc<Mesh>,
     /// Base colour as a matte material.
     pub material: Matte,
+    /// What varies over the surface (texture, vertex colours) or lets rays through (alpha),
+    /// if anything does.
+    pub surface: Option<Surface>,
     /// Skinning influences per vertex, when the primitive has JOINTS_0 and WEIGHTS_0.
     pub influences: Option<Influences>,
     /// Position offsets of each morph target, one per vertex (empty for a target without
@@ -275,7 +281,8 @@ fn parse(bytes: &[u8], base: &Path, options: &LoadOptions) -> Result<GltfScene, 
     };
     let mut mesh_read = vec![false; doc.meshes().len()];
     let mut skin_slot: HashMap<usize, usize> = HashMap::new();
-    let (mut skipped_prims, mut textured) = (0, 0);
+    let mut skipped_prims = 0;
+    let mut textures = materials::Textures::new(&doc, &buffers, base, options);
 
     // Walk the scene's nodes in hierarchy order.
     let mut order: Vec<(usize, ::gltf::Node)> =
@@ -291,10 +298,9 @@ fn parse(bytes: &[u8], base: &Path, options: &LoadOptions) -> Result<GltfScene, 
                 let mesh_label = label("mesh", m, mesh.name());
                 for p in mesh.primitives() {
                     let prim_label = format!("{mesh_label} primitive {}", p.index());
-                    match read_primitive(&p, &buffers).map_err(|e| format!("{prim_label}: {e}"))? {
+                    let read = read_primitive(&p, &buffers, &mut textures, &mut warnings);
+                    match read.map_err(|e| format!("{prim_label}: {e}"))? {
                         Some(prim) => {
-                            textured +=
-                                usize::from(p.material().pbr_metallic_roughness().base_color_texture().is_some());
                             let position = p.get(&Semantic::Positions).map_or(0, |a| a.index());
                             scene.labels[m].push(format!("{prim_label} (POSITION accessor {position})"));
                             scene.meshes[m].push(prim);
@@ -387,11 +393,6 @@ fn parse(bytes: &[u8], base: &Path, options: &LoadOptions) -> Result<GltfScene, 
     if skipped_prims > 0 {
         warnings.push(format!("skipped {skipped_prims} point/line primitives (hemi renders triangles only)"));
     }
-    if textured > 0 {
-        warnings.push(format!(
-            "{textured} primitives use a base-color texture; hemi does not sample textures yet and uses baseColorFactor"
-        ));
-    }
     scene.warnings = warnings;
     Ok(scene)
 }
@@ -483,8 +484,13 @@ fn rest_weights(node: &::gltf::Node, node_label: &str, warnings: &mut Vec<String
     weights
 }
 
-/// Triangles of one primitive, or `None` for points and lines.
-fn read_primitive(p: &::gltf::Primitive, buffers: &Data) -> Result<Option<Primitive>, String> {
+/// Triangles of one primitive and their surface, or `None` for points and lines.
+fn read_primitive(
+    p: &::gltf::Primitive,
+    buffers: &Data,
+    textures: &mut materials::Textures,
+    warnings: &mut Vec<String>,
+) -> Result<Option<Primitive>, String> {
     if !matches!(p.mode(), Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
         return Ok(None);
     }
@@ -551,7 +557,8 @@ fn read_primitive(p: &::gltf::Primitive, buffers: &Data) -> Result<Option<Primit
         }
         targets.push(offsets.into_iter().map(Vec3::from).collect());
     }
-    Ok(Some(Primitive { mesh: Arc::new(mesh), material, influences, targets: Arc::new(targets) }))
+    let surface = textures.surface(p, mesh.positions.len(), warnings)?;
+    Ok(Some(Primitive { mesh: Arc::new(mesh), material, surface, influences, targets: Arc::new(targets) }))
 }
 
 fn read_skin(skin: &::gltf::Skin, buffers: &Data, graph_index: &[Option<usize>]) -> Result<SkinData, String> {

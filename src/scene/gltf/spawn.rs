@@ -95,6 +95,9 @@ impl GltfScene {
                     if let Some(morph) = morph {
                         entity.insert(morph);
                     }
+                    if let Some(surface) = &prim.surface {
+                        entity.insert(surface.clone());
+                    }
                     continue;
                 }
                 // A morph whose weights never change is a mesh like any other.
@@ -112,7 +115,11 @@ impl GltfScene {
                         prim.material,
                         name.clone(),
                     ));
+                    // Peer scenes (geometry only) keep the peers' contract: plain matte surfaces.
                     if !options.geometry_only {
+                        if let Some(surface) = &prim.surface {
+                            entity.insert(surface.clone());
+                        }
                         entity.insert(NodeLink { node: placement.node, offset: *offset });
                         if animated[placement.node] {
                             entity.insert(Dynamic);
