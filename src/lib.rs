@@ -30,6 +30,7 @@ pub mod geometry;
 mod huge_pages;
 pub mod integrator;
 pub mod light;
+pub mod look;
 pub mod math;
 pub mod partial;
 pub mod random;

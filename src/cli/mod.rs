@@ -13,6 +13,7 @@ pub mod peer_compare;
 pub mod peer_scene;
 pub mod plot;
 mod render;
+pub mod shot;
 pub mod tev;
 
 use std::path::{Path, PathBuf};

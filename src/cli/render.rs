@@ -7,11 +7,12 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use super::{
     check_distinct, console, parse_aov, parse_fps, parse_frames, parse_sampler, parse_shard, parse_size, parse_time,
     peer_scene::PeerScene,
+    shot::{LookArgs, SceneArgs},
 };
 use crate::{
     Renderer,
     error::HemiError,
-    film::{OutputFile, OutputFormat, is_complete_image},
+    film::{OutputFile, OutputFormat, Picture, is_complete_image},
     partial::{self, Partial},
     resources::{Aov, RenderSettings},
     sampling::SamplerKind,
@@ -23,19 +24,14 @@ use crate::{
 /// Options of `hemi render`.
 #[derive(clap::Args, Debug)]
 pub(super) struct RenderArgs {
-    /// A .gltf/.glb scene, or a peer scene .json (default: the built-in scene).
-    scene: Option<PathBuf>,
+    #[command(flatten)]
+    shot: SceneArgs,
+    #[command(flatten)]
+    look: LookArgs,
     /// Output image: .png (8-bit sRGB) or .exr (linear f32, unclamped). With --frames it must
     /// hold a frame-number placeholder, `{:04}` (zero-padded) or `{}`.
     #[arg(long, default_value = "hemi.png")]
     out: PathBuf,
-    /// The glTF camera to render, by name or index (default: the scene's first camera, or one
-    /// that frames the whole scene when it has none).
-    #[arg(long)]
-    camera: Option<String>,
-    /// The glTF animation to play, by name or index (default: the first).
-    #[arg(long)]
-    animation: Option<String>,
     /// Render the frames A..B (B excluded) of the animation as a numbered sequence.
     #[arg(long, value_parser = parse_frames)]
     frames: Option<(u32, u32)>,
@@ -181,16 +177,17 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
     let mut outputs: Vec<(&str, &std::path::Path)> = vec![("--out", &first_out)];
     outputs.extend(aov_paths.iter().map(|(option, path)| (option.as_str(), path.as_path())));
     outputs.extend(args.stats_json.as_deref().map(|p| ("--stats-json", p)));
-    check_distinct(&outputs, &args.scene.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
+    check_distinct(&outputs, &args.shot.scene.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
     OutputFormat::from_path(&first_out).map_err(|e| HemiError::Usage(e.to_string()))?;
     OutputFile::create(&first_out)?;
     for (_, path) in &aov_paths {
         OutputFile::create(path)?;
     }
+    args.shot.check()?;
     let load_options = LoadOptions { allow_external_uris: args.allow_external_uris };
-    let peer = match &args.scene {
+    let peer = match &args.shot.scene {
         Some(path) if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("json")) => {
-            if args.camera.is_some() || args.animation.is_some() || args.frames.is_some() {
+            if args.shot.camera.is_some() || args.shot.animation.is_some() || args.frames.is_some() {
                 return Err(HemiError::Usage("--camera, --animation and --frames need a glTF scene".into()));
             }
             Some(PeerScene::load_with(path, &load_options)?)
@@ -215,14 +212,15 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
         sampler: args.sampler,
         // The peers' contract: one primary ray through each pixel centre.
         jitter: peer.is_none(),
-        aovs: !args.aov.is_empty(),
+        // Coverage (alpha) is accumulated with the AOVs.
+        aovs: !args.aov.is_empty() || args.shot.transparent(),
         target_error: args.target_error,
         ..Default::default()
     };
     settings.validate().map_err(HemiError::Usage)?;
-    let mut renderer = match (&args.scene, peer) {
+    let mut renderer = match (&args.shot.scene, peer) {
         (None, _) => {
-            if args.camera.is_some() || args.animation.is_some() {
+            if args.shot.camera.is_some() || args.shot.animation.is_some() {
                 return Err(HemiError::Usage("--camera and --animation need a glTF scene".into()));
             }
             Renderer::with_default_scene(settings)
@@ -244,8 +242,8 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
             // range, so that every shard of a sequence sees the same camera.
             let time = args.frames.map_or(args.time, |(start, _)| (start as f64 / args.fps) as f32);
             let options = SpawnOptions {
-                camera: args.camera.clone(),
-                animation: args.animation.clone(),
+                camera: args.shot.camera.clone(),
+                animation: args.shot.animation.clone(),
                 time,
                 geometry_only: false,
             };
@@ -253,9 +251,14 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
             r
         }
     };
+    args.shot.stage(renderer.world_mut())?;
+    if let Some(background) = args.shot.background_radiance() {
+        renderer.settings_mut().background = background;
+    }
     if let Some(threads) = args.threads {
         renderer = renderer.with_threads(threads as usize)?;
     }
+    let picture = Picture { look: args.look.look(), alpha: args.shot.transparent() };
     let stats_file = args.stats_json.as_deref().map(OutputFile::create_any).transpose()?;
     let start = Instant::now();
     let display =
@@ -269,7 +272,7 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
         None => {
             renderer.set_time(args.time)?;
             render_image(&mut renderer, spp, args.stats, &mut totals)?;
-            OutputFile::create(&args.out)?.write(renderer.image())?;
+            OutputFile::create(&args.out)?.write_picture(renderer.image(), &picture)?;
             write_aovs(renderer.image(), &args.out, &args.aov)?;
             report(size, &renderer, &totals, start, &args.out.display().to_string());
             if args.target_error.is_some() {
@@ -291,7 +294,7 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
                 let file = OutputFile::create(&out)?;
                 renderer.set_time((frame as f64 / args.fps) as f32)?;
                 render_image(&mut renderer, spp, args.stats, &mut totals)?;
-                file.write(renderer.image())?;
+                file.write_picture(renderer.image(), &picture)?;
                 write_aovs(renderer.image(), &out, &args.aov)?;
                 if !args.stats {
                     console::note(&format!("hemi: frame {frame} -> {}", out.display()));
@@ -318,7 +321,7 @@ fn render_partial(args: &RenderArgs, renderer: &mut Renderer, spp: u32) -> Resul
             spp.div_ceil(spf)
         ))
     })?;
-    let (scene, scene_hash) = match &args.scene {
+    let (scene, scene_hash) = match &args.shot.scene {
         Some(path) => (path.display().to_string(), partial::file_hash(path)?),
         None => ("default".to_string(), String::new()),
     };
@@ -340,8 +343,8 @@ fn render_partial(args: &RenderArgs, renderer: &mut Renderer, spp: u32) -> Resul
         ("seed", settings.seed.into()),
         ("sampler", settings.sampler.name().into()),
         ("time", args.time.into()),
-        ("camera", args.camera.clone().into()),
-        ("animation", args.animation.clone().into()),
+        ("camera", args.shot.camera.clone().into()),
+        ("animation", args.shot.animation.clone().into()),
         (partial::ALL_SETTINGS, format!("{all:?}").into()),
     ];
     for (key, value) in keyed {
