@@ -7,6 +7,7 @@ mod compare;
 pub mod console;
 pub mod convergence;
 mod error_study;
+mod frames;
 mod merge;
 pub mod npy;
 pub mod peer_compare;
@@ -79,15 +80,6 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
     let settings = RenderSettings { width: w, height: h, ..Default::default() };
     settings.validate()?;
     Ok((w, h))
-}
-
-fn parse_frames(s: &str) -> Result<(u32, u32), String> {
-    let (a, b) = s.split_once("..").ok_or("expected a range START..END, e.g. 0..48")?;
-    let (a, b) = (parse_count(a, "frame")?, parse_count(b, "frame")?);
-    if b <= a {
-        return Err(format!("frame range {a}..{b} is empty"));
-    }
-    Ok((a, b))
 }
 
 fn parse_fps(s: &str) -> Result<f64, String> {

@@ -5,7 +5,9 @@ use std::{path::PathBuf, time::Instant};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use super::{
-    check_distinct, console, parse_aov, parse_fps, parse_frames, parse_sampler, parse_shard, parse_size, parse_time,
+    check_distinct, console,
+    frames::{Frames, animation_end, parse_frames},
+    parse_aov, parse_fps, parse_sampler, parse_shard, parse_size, parse_time,
     peer_scene::PeerScene,
     shot::{LookArgs, SceneArgs},
 };
@@ -29,12 +31,13 @@ pub(super) struct RenderArgs {
     #[command(flatten)]
     look: LookArgs,
     /// Output image: .png (8-bit sRGB) or .exr (linear f32, unclamped). With --frames it must
-    /// hold a frame-number placeholder, `{:04}` (zero-padded) or `{}`.
+    /// hold a frame-number placeholder: `{}`, `{:0N}` (zero-padded to N digits) or N `#`.
     #[arg(long, default_value = "hemi.png")]
     out: PathBuf,
-    /// Render the frames A..B (B excluded) of the animation as a numbered sequence.
+    /// Render a numbered sequence: `all` (the whole animation, floor(duration·fps)+1 frames),
+    /// `N` (one frame), `A..B` (B excluded) or `A..` (to the end of the animation).
     #[arg(long, value_parser = parse_frames)]
-    frames: Option<(u32, u32)>,
+    frames: Option<Frames>,
     /// Frames per second of the sequence: frame f shows time f / fps.
     #[arg(long, default_value_t = 24.0, value_parser = parse_fps)]
     fps: f64,
@@ -101,6 +104,33 @@ pub(super) struct RenderArgs {
     display_server: Option<String>,
 }
 
+/// The frames this run renders: `spec` ended by the animation (`animation_end` frames, or an
+/// error when it is too long to count), shared out by `--shard`; each frame's time checked.
+fn frame_list(
+    args: &RenderArgs,
+    spec: Frames,
+    animation_end: Result<Option<u32>, String>,
+) -> Result<Vec<u32>, HemiError> {
+    let range = spec.resolve(animation_end.map_err(HemiError::Usage)?).map_err(HemiError::Usage)?;
+    let shard = args.shard.unwrap_or((0, 1));
+    let list = shard_frames(range, shard);
+    if list.is_empty() {
+        return Err(HemiError::Usage(format!(
+            "--shard {}/{} gets no frame of {}..{}",
+            shard.0, shard.1, range.0, range.1
+        )));
+    }
+    // Every frame's time must be a number the animation can be sampled at.
+    let last_time = (range.1 - 1) as f64 / args.fps;
+    if !(last_time as f32).is_finite() {
+        return Err(HemiError::Usage(format!(
+            "--frames {}..{} at --fps {} reaches time {last_time:e} s, beyond what a frame time can hold",
+            range.0, range.1, args.fps
+        )));
+    }
+    Ok(list)
+}
+
 /// The frames of `start..end` that shard `i/n` renders: every n-th, starting at the i-th.
 fn shard_frames((start, end): (u32, u32), (i, n): (u32, u32)) -> Vec<u32> {
     (start..end).skip(i as usize).step_by(n as usize).collect()
@@ -112,44 +142,26 @@ fn frame_complete(out: &std::path::Path, aovs: &[Aov], size: (u32, u32)) -> bool
 }
 
 pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
-    let frames = match args.frames {
-        Some(range) => {
-            if frame_path(&args.out, range.0).is_none() {
-                return Err(HemiError::Usage(format!(
-                    "--out {} needs a frame-number placeholder such as {{:04}} with --frames",
-                    args.out.display()
-                )));
-            }
-            let shard = args.shard.unwrap_or((0, 1));
-            let list = shard_frames(range, shard);
-            if list.is_empty() {
-                return Err(HemiError::Usage(format!(
-                    "--shard {}/{} gets no frame of {}..{}",
-                    shard.0, shard.1, range.0, range.1
-                )));
-            }
-            // Every frame's time must be a number the animation can be sampled at.
-            let last_time = (range.1 - 1) as f64 / args.fps;
-            if !(last_time as f32).is_finite() {
-                return Err(HemiError::Usage(format!(
-                    "--frames {}..{} at --fps {} reaches time {last_time:e} s, beyond what a frame time can hold",
-                    range.0, range.1, args.fps
-                )));
-            }
-            Some(list)
+    match args.frames {
+        Some(spec) if frame_path(&args.out, spec.start()).is_none() => {
+            return Err(HemiError::Usage(format!(
+                "--out {} needs a frame-number placeholder such as {{:04}} or #### with --frames",
+                args.out.display()
+            )));
         }
+        Some(_) => {}
         None if args.shard.is_some() => return Err(HemiError::Usage("--shard needs --frames".into())),
         None if frame_path(&args.out, 0).is_some() => {
             return Err(HemiError::Usage(format!(
-                "--out {} has a frame-number placeholder: add --frames START..END, or name one file",
+                "--out {} has a frame-number placeholder: add --frames, or name one file",
                 args.out.display()
             )));
         }
         None if args.skip_existing && args.sample_range.is_none() => {
             return Err(HemiError::Usage("--skip-existing needs --frames or --sample-range".into()));
         }
-        None => None,
-    };
+        None => {}
+    }
     if args.sample_range.is_some() {
         let conflict = [
             (args.frames.is_some(), "--frames"),
@@ -168,8 +180,8 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
     }
     // Check the outputs first: a bad or colliding path fails before any work is done, and
     // nothing is written under an output's name until that output is complete.
-    let first_out = match &frames {
-        Some(list) => frame_path(&args.out, list[0]).expect("checked above"),
+    let first_out = match args.frames {
+        Some(spec) => frame_path(&args.out, spec.start()).expect("checked above"),
         None => args.out.clone(),
     };
     let aov_paths: Vec<(String, PathBuf)> =
@@ -240,7 +252,7 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
             let mut r = Renderer::new(settings);
             // Posed (and, without a camera in the file, framed) at the start of the whole
             // range, so that every shard of a sequence sees the same camera.
-            let time = args.frames.map_or(args.time, |(start, _)| (start as f64 / args.fps) as f32);
+            let time = args.frames.map_or(args.time, |spec| (spec.start() as f64 / args.fps) as f32);
             let options = SpawnOptions {
                 camera: args.shot.camera.clone(),
                 animation: args.shot.animation.clone(),
@@ -259,6 +271,10 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
         renderer = renderer.with_threads(threads as usize)?;
     }
     let picture = Picture { look: args.look.look(), alpha: args.shot.transparent() };
+    let frames = match args.frames {
+        Some(spec) => Some(frame_list(&args, spec, animation_end(renderer.world(), args.fps))?),
+        None => None,
+    };
     let stats_file = args.stats_json.as_deref().map(OutputFile::create_any).transpose()?;
     let start = Instant::now();
     let display =
