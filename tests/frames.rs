@@ -57,8 +57,9 @@ fn all_frames_of_the_animation_under_each_placeholder() {
     // An open range ends with the animation; a shard takes every other frame of it.
     let out = dir.path().join("open/h_###.png");
     let from = (count - 3).to_string();
-    let (code, err) =
-        hemi(&[&base[..], &["--frames", &format!("{from}.."), "--shard", "1/2", "--out", out.to_str().unwrap()]].concat());
+    let (code, err) = hemi(
+        &[&base[..], &["--frames", &format!("{from}.."), "--shard", "1/2", "--out", out.to_str().unwrap()]].concat(),
+    );
     assert_eq!(code, 0, "{err}");
     assert_eq!(names(&dir.path().join("open")), [format!("h_{:03}.png", count - 2)]);
 }

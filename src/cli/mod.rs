@@ -8,6 +8,7 @@ pub mod console;
 pub mod convergence;
 mod error_study;
 mod frames;
+mod info;
 mod merge;
 pub mod npy;
 pub mod peer_compare;
@@ -51,6 +52,10 @@ enum Command {
     /// Which frames of a sequence are done, partial (being written, or a writer was killed) or
     /// missing; exits 0 when all are done, 1 otherwise.
     Status(merge::StatusArgs),
+    /// What a glTF file holds: scenes, nodes, meshes, materials, cameras, lights, animations,
+    /// skins, and every warning the loader gives.
+    #[command(arg_required_else_help = true)]
+    Info(info::InfoArgs),
     /// Open a window on the scene and watch it converge; move the camera, play the animation.
     #[cfg(feature = "view")]
     View(crate::viewer::command::ViewArgs),
@@ -170,6 +175,7 @@ where
         Command::Compare(args) => compare::compare(args),
         Command::Merge(args) => merge::merge(args),
         Command::Status(args) => merge::status(args),
+        Command::Info(args) => info::info(args),
         #[cfg(feature = "view")]
         Command::View(args) => crate::viewer::command::run(args),
     }
