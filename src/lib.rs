@@ -29,6 +29,7 @@ pub mod frame;
 pub mod geometry;
 mod huge_pages;
 pub mod integrator;
+pub mod layers;
 pub mod light;
 pub mod look;
 pub mod math;

@@ -147,3 +147,62 @@ fn look_from_the_scene_camera_gives_the_same_image_and_bad_cameras_are_usage_err
         assert!(err.contains(says), "{bad:?}: {err}");
     }
 }
+
+/// Every channel of `path` (one layer) by name.
+fn exr_channels(path: &std::path::Path) -> std::collections::HashMap<String, Vec<f32>> {
+    use exr::prelude::{ReadChannels, ReadLayers};
+    let image = exr::prelude::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .unwrap();
+    let channels = image.layer_data.channel_data.list;
+    channels.into_iter().map(|c| (c.name.to_string(), c.sample_data.values_as_f32().collect())).collect()
+}
+
+#[test]
+fn layered_aovs_equal_the_files_of_each_aov() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = "../shared/peers/scenes/cornell.json";
+    let base = ["render", scene, "--size", "24x24", "--spp", "2", "--aov", "ao,direct,albedo,normal,depth,alpha"];
+    let (layered, files) = (dir.path().join("layered.exr"), dir.path().join("files.exr"));
+    let (code, err) = hemi(&[&base[..], &["--out", layered.to_str().unwrap()]].concat());
+    assert_eq!(code, 0, "{err}");
+    let (code, err) = hemi(&[&base[..], &["--aov-files", "--out", files.to_str().unwrap()]].concat());
+    assert_eq!(code, 0, "{err}");
+    let got = exr_channels(&layered);
+    let mut names: Vec<&str> = got.keys().map(String::as_str).collect();
+    names.sort_unstable();
+    let expected = [
+        "A", "B", "G", "N.X", "N.Y", "N.Z", "R", "Z", "albedo.B", "albedo.G", "albedo.R", "ao", "direct.B", "direct.G",
+        "direct.R",
+    ];
+    assert_eq!(names, expected);
+    let beauty = exr_channels(&files);
+    for c in ["R", "G", "B"] {
+        assert_eq!(got[c], beauty[c], "{c}");
+    }
+    for (file, channels) in [
+        ("ao", ["ao", "ao", "ao"]),
+        ("direct", ["direct.R", "direct.G", "direct.B"]),
+        ("albedo", ["albedo.R", "albedo.G", "albedo.B"]),
+        ("normal", ["N.X", "N.Y", "N.Z"]),
+        ("depth", ["Z", "Z", "Z"]),
+        ("alpha", ["A", "A", "A"]),
+    ] {
+        let single = exr_channels(&dir.path().join(format!("files.{file}.exr")));
+        for (c, name) in ["R", "G", "B"].into_iter().zip(channels) {
+            assert_eq!(got[name], single[c], "{file}.{c} against {name}");
+        }
+    }
+    // The cornell box fills the view: coverage 1 everywhere.
+    assert!(got["A"].iter().all(|&a| a == 1.0));
+    // Beside a PNG the layers go to <stem>.exr.
+    let png = dir.path().join("beside.png");
+    let (code, err) = hemi(&[&base[..], &["--out", png.to_str().unwrap()]].concat());
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(exr_channels(&dir.path().join("beside.exr"))["ao"], got["ao"]);
+}

@@ -92,10 +92,15 @@ pub(super) struct RenderArgs {
     /// `ao_mrays_per_s`).
     #[arg(long)]
     stats_json: Option<PathBuf>,
-    /// Also write these AOVs (comma-separated: ao, direct, albedo, normal, depth) as linear EXR
-    /// files `<stem>.<name>.exr` beside the image.
+    /// Also write these AOVs (comma-separated: ao, direct, albedo, normal, depth, alpha) as
+    /// layers of one linear EXR beside the beauty (`ao`, `direct.R/G/B`, `albedo.R/G/B`,
+    /// `N.X/Y/Z`, `Z`, and coverage `A`): the --out EXR itself, or `<stem>.exr` beside a PNG.
     #[arg(long, value_delimiter = ',', value_parser = parse_aov)]
     aov: Vec<Aov>,
+    /// Write each --aov as a file of its own, `<stem>.<name>.exr` (RGB; one-channel AOVs
+    /// repeated), instead of layers of one EXR.
+    #[arg(long, requires = "aov")]
+    aov_files: bool,
     /// Let a glTF file's buffer URIs name files outside its folder (absolute paths, `..`).
     #[arg(long)]
     allow_external_uris: bool,
@@ -137,8 +142,8 @@ fn shard_frames((start, end): (u32, u32), (i, n): (u32, u32)) -> Vec<u32> {
 }
 
 /// Whether frame `out` and its AOV files are all complete images of `size`.
-fn frame_complete(out: &std::path::Path, aovs: &[Aov], size: (u32, u32)) -> bool {
-    is_complete_image(out, Some(size)) && aovs.iter().all(|&a| is_complete_image(&aov_path(out, a), Some(size)))
+fn frame_complete(out: &std::path::Path, args: &RenderArgs, size: (u32, u32)) -> bool {
+    is_complete_image(out, Some(size)) && aov_outputs(out, args).iter().all(|(_, p)| is_complete_image(p, Some(size)))
 }
 
 pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
@@ -184,8 +189,7 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
         Some(spec) => frame_path(&args.out, spec.start()).expect("checked above"),
         None => args.out.clone(),
     };
-    let aov_paths: Vec<(String, PathBuf)> =
-        args.aov.iter().map(|&aov| (format!("--aov {}", aov.name()), aov_path(&first_out, aov))).collect();
+    let aov_paths = aov_outputs(&first_out, &args);
     let mut outputs: Vec<(&str, &std::path::Path)> = vec![("--out", &first_out)];
     outputs.extend(aov_paths.iter().map(|(option, path)| (option.as_str(), path.as_path())));
     outputs.extend(args.stats_json.as_deref().map(|p| ("--stats-json", p)));
@@ -288,8 +292,7 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
         None => {
             renderer.set_time(args.time)?;
             render_image(&mut renderer, spp, args.stats, &mut totals)?;
-            OutputFile::create(&args.out)?.write_picture(renderer.image(), &picture)?;
-            write_aovs(renderer.image(), &args.out, &args.aov)?;
+            write_outputs(OutputFile::create(&args.out)?, renderer.image(), &args.out, &picture, &args)?;
             report(size, &renderer, &totals, start, &args.out.display().to_string());
             if args.target_error.is_some() {
                 let (taken, uniform) =
@@ -303,15 +306,14 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
         Some(list) => {
             for &frame in &list {
                 let out = frame_path(&args.out, frame).unwrap_or_else(|| args.out.clone());
-                if args.skip_existing && frame_complete(&out, &args.aov, size) {
+                if args.skip_existing && frame_complete(&out, &args, size) {
                     super::console::note(&format!("hemi: frame {frame} exists, skipped: {}", out.display()));
                     continue;
                 }
                 let file = OutputFile::create(&out)?;
                 renderer.set_time((frame as f64 / args.fps) as f32)?;
                 render_image(&mut renderer, spp, args.stats, &mut totals)?;
-                file.write_picture(renderer.image(), &picture)?;
-                write_aovs(renderer.image(), &out, &args.aov)?;
+                write_outputs(file, renderer.image(), &out, &picture, &args)?;
                 if !args.stats {
                     console::note(&format!("hemi: frame {frame} -> {}", out.display()));
                 }
@@ -478,7 +480,51 @@ fn aov_path(out: &std::path::Path, aov: Aov) -> PathBuf {
     out.with_file_name(format!("{stem}.{}.exr", aov.name()))
 }
 
-/// Writes the requested AOVs of `image` beside `out`.
+/// Whether `path` names an EXR file.
+fn is_exr(path: &std::path::Path) -> bool {
+    OutputFormat::from_path(path).is_ok_and(|f| f == OutputFormat::Exr)
+}
+
+/// The files the AOVs of image `out` go to, each with the option that names it: one per AOV
+/// with --aov-files, else the layered `<stem>.exr` beside a PNG (an EXR holds its own layers).
+fn aov_outputs(out: &std::path::Path, args: &RenderArgs) -> Vec<(String, PathBuf)> {
+    if args.aov_files {
+        args.aov.iter().map(|&aov| (format!("--aov {}", aov.name()), aov_path(out, aov))).collect()
+    } else if args.aov.is_empty() || is_exr(out) {
+        Vec::new()
+    } else {
+        vec![("--aov".to_string(), out.with_extension("exr"))]
+    }
+}
+
+/// Writes image `out` through `file`, and its AOVs: as layers of the EXR itself, of an EXR
+/// beside a PNG, or (--aov-files) as files of their own.
+fn write_outputs(
+    file: OutputFile,
+    image: &crate::resources::Image,
+    out: &std::path::Path,
+    picture: &Picture,
+    args: &RenderArgs,
+) -> Result<(), HemiError> {
+    let layered = !args.aov.is_empty() && !args.aov_files;
+    let encode = |path: &std::path::Path| {
+        crate::layers::layered_exr(image, &args.aov)
+            .map_err(|e| HemiError::Io { path: path.to_path_buf(), message: format!("cannot encode: {e}") })
+    };
+    if layered && is_exr(out) {
+        return file.write_bytes(&encode(out)?);
+    }
+    file.write_picture(image, picture)?;
+    if args.aov_files {
+        return write_aovs(image, out, &args.aov);
+    }
+    for (_, path) in aov_outputs(out, args) {
+        OutputFile::create(&path)?.write_bytes(&encode(&path)?)?;
+    }
+    Ok(())
+}
+
+/// Writes the requested AOVs of `image` beside `out`, a file each.
 fn write_aovs(image: &crate::resources::Image, out: &std::path::Path, aovs: &[Aov]) -> Result<(), HemiError> {
     for &aov in aovs {
         let pixels = image.aov(aov).unwrap_or_default();
