@@ -154,6 +154,14 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
                 args.out.display()
             )));
         }
+        // The scene is posed at the first frame's time: it must be a number.
+        Some(spec) if !((spec.start() as f64 / args.fps) as f32).is_finite() => {
+            return Err(HemiError::Usage(format!(
+                "--frames {spec} at --fps {} starts at time {:e} s, beyond what a frame time can hold",
+                args.fps,
+                spec.start() as f64 / args.fps
+            )));
+        }
         Some(_) => {}
         None if args.shard.is_some() => return Err(HemiError::Usage("--shard needs --frames".into())),
         None if frame_path(&args.out, 0).is_some() => {

@@ -100,11 +100,11 @@ impl SceneArgs {
 /// The look of 8-bit output.
 #[derive(clap::Args, Debug, Clone)]
 pub struct LookArgs {
-    /// Exposure in stops for PNG output: radiance × 2^EV before the tone curve (EXR stays
-    /// linear and unscaled).
+    /// Exposure in stops of 8-bit output (PNG, the window): radiance × 2^EV before the tone
+    /// curve (EXR stays linear and unscaled).
     #[arg(long, value_name = "EV", default_value_t = 0.0, value_parser = parse_exposure, allow_hyphen_values = true)]
     pub exposure: f32,
-    /// Tone curve for PNG output: none (clamp), khronos-neutral, aces (Narkowicz's fit).
+    /// Tone curve of 8-bit output: none (clamp), khronos-neutral, aces (Narkowicz's fit).
     #[arg(long, default_value = "none", value_parser = parse_tonemap)]
     pub tonemap: Tonemap,
 }
