@@ -6,9 +6,13 @@ use std::{
     path::{Path, PathBuf},
 };
 
-use image::{ImageEncoder, ImageFormat, Rgb32FImage, RgbImage, codecs::png::PngEncoder};
+use image::{ImageEncoder, ImageFormat, Rgb32FImage, RgbImage, Rgba32FImage, codecs::png::PngEncoder};
 
-use crate::{error::HemiError, resources::Image};
+use crate::{
+    error::HemiError,
+    look::Look,
+    resources::{Aov, Image},
+};
 
 /// sRGB transfer function of a linear value, clamped to [0, 1]; NaN maps to 0.
 #[inline]
@@ -150,9 +154,14 @@ impl OutputFile {
 
     /// Writes `image` in the format the file's extension names, then puts the file in place.
     pub fn write(self, image: &Image) -> Result<(), HemiError> {
+        self.write_picture(image, &Picture::default())
+    }
+
+    /// Writes `image` as `picture` says (a look for PNG, alpha), then puts the file in place.
+    pub fn write_picture(self, image: &Image, picture: &Picture) -> Result<(), HemiError> {
         let path = self.path.clone();
         let format = self.format.ok_or_else(|| io_error(&path, "cannot write image", "no .png or .exr extension"))?;
-        self.finish("cannot write image", |out| write_image(image, format, out).map_err(|e| e.to_string()))
+        self.finish("cannot write image", |out| write_picture(image, format, picture, out).map_err(|e| e.to_string()))
     }
 
     /// Writes text (e.g. JSON statistics), then puts the file in place.
@@ -206,17 +215,56 @@ pub fn save(image: &Image, path: &Path) -> Result<(), HemiError> {
     OutputFile::create(path)?.write(image)
 }
 
+/// How an image becomes a file beyond its format: the look of 8-bit output and whether it
+/// carries alpha. The default writes the image as hemi always did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Picture {
+    /// Exposure and tone curve of PNG output (EXR stays linear and unscaled).
+    pub look: Look,
+    /// Write coverage as alpha (the image's [`Aov::Alpha`], 1 where it has none): straight
+    /// RGBA in PNG, premultiplied RGBA in EXR (the radiance of a transparent background, 0,
+    /// already is premultiplied).
+    pub alpha: bool,
+}
+
 /// Encodes `image` into `out` as PNG or EXR.
 pub fn write_image<W: Write + Seek>(image: &Image, format: OutputFormat, out: &mut W) -> Result<(), image::ImageError> {
-    match format {
-        OutputFormat::Png => {
-            let rgb = RgbImage::from_raw(image.width, image.height, image.srgb.clone()).expect("buffer size matches");
-            PngEncoder::new(out).write_image(&rgb, image.width, image.height, image::ExtendedColorType::Rgb8)
+    write_picture(image, format, &Picture::default(), out)
+}
+
+/// Encodes `image` into `out` as PNG or EXR, as `picture` says.
+pub fn write_picture<W: Write + Seek>(
+    image: &Image,
+    format: OutputFormat,
+    picture: &Picture,
+    out: &mut W,
+) -> Result<(), image::ImageError> {
+    let (w, h) = (image.width, image.height);
+    let alpha =
+        || image.aov(Aov::Alpha).map_or_else(|| vec![1.0; image.linear.len()], |a| a.iter().map(|p| p.x).collect());
+    match (format, picture.alpha) {
+        (OutputFormat::Png, false) if picture.look.is_identity() => {
+            let rgb = RgbImage::from_raw(w, h, image.srgb.clone()).expect("buffer size matches");
+            PngEncoder::new(out).write_image(&rgb, w, h, image::ExtendedColorType::Rgb8)
         }
-        OutputFormat::Exr => {
+        (OutputFormat::Png, false) => {
+            let bytes: Vec<u8> = image.linear.iter().flat_map(|&c| picture.look.srgb8(c)).collect();
+            PngEncoder::new(out).write_image(&bytes, w, h, image::ExtendedColorType::Rgb8)
+        }
+        (OutputFormat::Png, true) => {
+            let bytes: Vec<u8> =
+                image.linear.iter().zip(alpha()).flat_map(|(&c, a)| picture.look.srgba8(c, a)).collect();
+            PngEncoder::new(out).write_image(&bytes, w, h, image::ExtendedColorType::Rgba8)
+        }
+        (OutputFormat::Exr, false) => {
             let data: Vec<f32> = image.linear.iter().flat_map(|p| p.to_array()).collect();
-            let rgb = Rgb32FImage::from_raw(image.width, image.height, data).expect("buffer size matches");
+            let rgb = Rgb32FImage::from_raw(w, h, data).expect("buffer size matches");
             rgb.write_to(out, ImageFormat::OpenExr)
+        }
+        (OutputFormat::Exr, true) => {
+            let data: Vec<f32> = image.linear.iter().zip(alpha()).flat_map(|(p, a)| [p.x, p.y, p.z, a]).collect();
+            let rgba = Rgba32FImage::from_raw(w, h, data).expect("buffer size matches");
+            rgba.write_to(out, ImageFormat::OpenExr)
         }
     }
 }

@@ -162,17 +162,20 @@ pub enum Aov {
     Normal,
     /// Distance from the camera to the hit.
     Depth,
+    /// Coverage: the fraction of the pixel's camera rays that hit geometry (anti-aliased
+    /// alpha, for a transparent background).
+    Alpha,
 }
 
-/// Floats per pixel holding every AOV: ao 1, direct 3, albedo 3, normal 3, depth 1.
-pub const AOV_FLOATS: usize = 11;
+/// Floats per pixel holding every AOV: ao 1, direct 3, albedo 3, normal 3, depth 1, alpha 1.
+pub const AOV_FLOATS: usize = 12;
 
 /// All AOVs of one pixel (sums or means), laid out as [`Aov::range`] says.
 pub type AovValues = [f32; AOV_FLOATS];
 
 impl Aov {
     /// Every AOV.
-    pub const ALL: [Aov; 5] = [Aov::Ao, Aov::Direct, Aov::Albedo, Aov::Normal, Aov::Depth];
+    pub const ALL: [Aov; 6] = [Aov::Ao, Aov::Direct, Aov::Albedo, Aov::Normal, Aov::Depth, Aov::Alpha];
 
     /// Command-line and file-name name.
     pub fn name(self) -> &'static str {
@@ -182,6 +185,7 @@ impl Aov {
             Aov::Albedo => "albedo",
             Aov::Normal => "normal",
             Aov::Depth => "depth",
+            Aov::Alpha => "alpha",
         }
     }
 
@@ -198,6 +202,7 @@ impl Aov {
             Aov::Albedo => 4..7,
             Aov::Normal => 7..10,
             Aov::Depth => 10..11,
+            Aov::Alpha => 11..12,
         }
     }
 }

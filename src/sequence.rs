@@ -9,17 +9,44 @@ use std::{
 
 use crate::film::is_complete_image;
 
-/// The output path of `frame`: `{:04}` becomes the zero-padded number, `{}` the plain one;
-/// `None` when the pattern holds neither.
+/// Widest zero-padded frame number a placeholder may ask for.
+const MAX_WIDTH: usize = 32;
+
+/// The frame-number placeholder at the start of `s`, as (its length, the width to pad to):
+/// `{}` (no padding), `{:0N}` (N digits, N ≤ 32), or a run of N `#` (Blender's N digits).
+fn placeholder_at(s: &str) -> Option<(usize, usize)> {
+    if s.starts_with("{}") {
+        return Some((2, 0));
+    }
+    if let Some(rest) = s.strip_prefix("{:0") {
+        let digits = rest.bytes().take_while(u8::is_ascii_digit).count();
+        let width = rest[..digits].parse::<usize>().ok().filter(|&w| w <= MAX_WIDTH)?;
+        return rest[digits..].starts_with('}').then_some((3 + digits + 1, width));
+    }
+    let hashes = s.bytes().take_while(|&b| b == b'#').count();
+    (hashes > 0 && hashes <= MAX_WIDTH).then_some((hashes, hashes))
+}
+
+/// The output path of `frame`: every placeholder (`{}`, `{:0N}`, a run of N `#`) becomes
+/// the frame number, zero-padded to its width; `None` when the pattern holds none.
 pub fn frame_path(pattern: &Path, frame: u32) -> Option<PathBuf> {
     let s = pattern.to_str()?;
-    if s.contains("{:04}") {
-        Some(PathBuf::from(s.replace("{:04}", &format!("{frame:04}"))))
-    } else if s.contains("{}") {
-        Some(PathBuf::from(s.replace("{}", &frame.to_string())))
-    } else {
-        None
+    let mut out = String::with_capacity(s.len() + 8);
+    let (mut rest, mut found) = (s, false);
+    while let Some(c) = rest.chars().next() {
+        match placeholder_at(rest) {
+            Some((len, width)) => {
+                out.push_str(&format!("{frame:0width$}"));
+                rest = &rest[len..];
+                found = true;
+            }
+            None => {
+                out.push(c);
+                rest = &rest[c.len_utf8()..];
+            }
+        }
     }
+    found.then(|| PathBuf::from(out))
 }
 
 /// Where one frame of a sequence stands.
@@ -117,6 +144,22 @@ mod tests {
 
     fn write_png(path: &Path, w: u32, h: u32) {
         image::RgbImage::new(w, h).save(path).unwrap();
+    }
+
+    #[test]
+    fn placeholders_take_the_frame_number_at_their_width() {
+        let at = |p: &str, f: u32| frame_path(Path::new(p), f).map(|p| p.to_string_lossy().into_owned());
+        assert_eq!(at("f_{:04}.png", 7).as_deref(), Some("f_0007.png"));
+        assert_eq!(at("f_{}.png", 7).as_deref(), Some("f_7.png"));
+        assert_eq!(at("f_{:06}.exr", 123).as_deref(), Some("f_000123.exr"));
+        assert_eq!(at("f_{:02}.png", 12345).as_deref(), Some("f_12345.png"));
+        assert_eq!(at("out/####.png", 42).as_deref(), Some("out/0042.png"));
+        assert_eq!(at("a#b.png", 3).as_deref(), Some("a3b.png"));
+        assert_eq!(at("{:03}/f_{:03}.png", 5).as_deref(), Some("005/f_005.png"));
+        assert_eq!(at("é_{:02}.png", 1).as_deref(), Some("é_01.png"));
+        for none in ["f.png", "f_{:4}.png", "f_{:0x}.png", "f_{:099}.png", "{x}.png"] {
+            assert_eq!(at(none, 1), None, "{none}");
+        }
     }
 
     #[test]

@@ -139,7 +139,8 @@ fn error_study_writes_csv_and_plot() {
 fn peer_scene_with_aovs_writes_one_exr_per_aov() {
     let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/peers/scenes/cornell.json");
     let out = temp("cornell.exr");
-    let args = ["render", scene, "--spp", "2", "--size", "32x32", "--aov", "ao,direct,albedo,normal,depth", "--out"];
+    let aovs = ["--aov", "ao,direct,albedo,normal,depth", "--aov-files"];
+    let args = [&["render", scene, "--spp", "2", "--size", "32x32"][..], &aovs, &["--out"]].concat();
     let (code, _, err) = hemi(&[&args[..], &[out.to_str().unwrap()]].concat());
     assert_eq!(code, 0, "{err}");
     for name in ["ao", "direct", "albedo", "normal", "depth"] {
@@ -173,7 +174,11 @@ fn bad_arguments_name_the_problem_and_exit_with_the_documented_status() {
             "--stats-json same.exr is also the file of --out",
             2,
         ),
-        (&["render", "--out", "x.png", "--aov", "ao", "--stats-json", "x.ao.exr"], "is also the file of --aov ao", 2),
+        (
+            &["render", "--out", "x.png", "--aov", "ao", "--aov-files", "--stats-json", "x.ao.exr"],
+            "is also the file of --aov ao",
+            2,
+        ),
         (&["render", "scene.gltf", "--out", "scene.gltf"], "would overwrite the input", 2),
         (&["render", "--shard", "0/2"], "--shard needs --frames", 2),
         (&["render", "--out", unwritable], "/dev/null/x.png", 1),

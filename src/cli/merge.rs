@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use super::{parse_frames, parse_size};
+use super::{frames::parse_closed_frames, parse_size};
 use crate::{
     error::HemiError,
     film::OutputFile,
@@ -50,8 +50,8 @@ pub(super) fn merge(args: MergeArgs) -> Result<(), HemiError> {
 pub(super) struct StatusArgs {
     /// The output pattern the sequence was rendered with, e.g. `out/f_{:04}.png`.
     pattern: PathBuf,
-    /// The frames A..B (B excluded) to check.
-    #[arg(long, value_parser = parse_frames)]
+    /// The frames to check: A..B (B excluded) or one frame N.
+    #[arg(long, value_parser = parse_closed_frames)]
     frames: (u32, u32),
     /// Count a frame as done only at this size, WIDTHxHEIGHT (default: any size).
     #[arg(long, value_parser = parse_size)]
@@ -60,7 +60,7 @@ pub(super) struct StatusArgs {
 
 pub(super) fn status(args: StatusArgs) -> Result<(), HemiError> {
     let states = sequence::frame_states(&args.pattern, args.frames, args.size).ok_or_else(|| {
-        HemiError::Usage(format!("{} needs a frame-number placeholder such as {{:04}}", args.pattern.display()))
+        HemiError::Usage(format!("{} needs a frame-number placeholder such as {{:04}} or ####", args.pattern.display()))
     })?;
     let (report, all_done) = sequence::status_report(&states);
     super::console::out(&report)?;

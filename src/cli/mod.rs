@@ -7,12 +7,15 @@ mod compare;
 pub mod console;
 pub mod convergence;
 mod error_study;
+mod frames;
+mod info;
 mod merge;
 pub mod npy;
 pub mod peer_compare;
 pub mod peer_scene;
 pub mod plot;
 mod render;
+pub mod shot;
 pub mod tev;
 
 use std::path::{Path, PathBuf};
@@ -49,6 +52,10 @@ enum Command {
     /// Which frames of a sequence are done, partial (being written, or a writer was killed) or
     /// missing; exits 0 when all are done, 1 otherwise.
     Status(merge::StatusArgs),
+    /// What a glTF file holds: scenes, nodes, meshes, materials, cameras, lights, animations,
+    /// skins, and every warning the loader gives.
+    #[command(arg_required_else_help = true)]
+    Info(info::InfoArgs),
     /// Open a window on the scene and watch it converge; move the camera, play the animation.
     #[cfg(feature = "view")]
     View(crate::viewer::command::ViewArgs),
@@ -78,15 +85,6 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
     let settings = RenderSettings { width: w, height: h, ..Default::default() };
     settings.validate()?;
     Ok((w, h))
-}
-
-fn parse_frames(s: &str) -> Result<(u32, u32), String> {
-    let (a, b) = s.split_once("..").ok_or("expected a range START..END, e.g. 0..48")?;
-    let (a, b) = (parse_count(a, "frame")?, parse_count(b, "frame")?);
-    if b <= a {
-        return Err(format!("frame range {a}..{b} is empty"));
-    }
-    Ok((a, b))
 }
 
 fn parse_fps(s: &str) -> Result<f64, String> {
@@ -177,6 +175,7 @@ where
         Command::Compare(args) => compare::compare(args),
         Command::Merge(args) => merge::merge(args),
         Command::Status(args) => merge::status(args),
+        Command::Info(args) => info::info(args),
         #[cfg(feature = "view")]
         Command::View(args) => crate::viewer::command::run(args),
     }

@@ -5,13 +5,16 @@ use std::{path::PathBuf, time::Instant};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use super::{
-    check_distinct, console, parse_aov, parse_fps, parse_frames, parse_sampler, parse_shard, parse_size, parse_time,
+    check_distinct, console,
+    frames::{Frames, animation_end, frame_count, parse_frames},
+    parse_aov, parse_fps, parse_sampler, parse_shard, parse_size, parse_time,
     peer_scene::PeerScene,
+    shot::{LookArgs, SceneArgs},
 };
 use crate::{
     Renderer,
     error::HemiError,
-    film::{OutputFile, OutputFormat, is_complete_image},
+    film::{OutputFile, OutputFormat, Picture, is_complete_image},
     partial::{self, Partial},
     resources::{Aov, RenderSettings},
     sampling::SamplerKind,
@@ -23,23 +26,18 @@ use crate::{
 /// Options of `hemi render`.
 #[derive(clap::Args, Debug)]
 pub(super) struct RenderArgs {
-    /// A .gltf/.glb scene, or a peer scene .json (default: the built-in scene).
-    scene: Option<PathBuf>,
+    #[command(flatten)]
+    shot: SceneArgs,
+    #[command(flatten)]
+    look: LookArgs,
     /// Output image: .png (8-bit sRGB) or .exr (linear f32, unclamped). With --frames it must
-    /// hold a frame-number placeholder, `{:04}` (zero-padded) or `{}`.
+    /// hold a frame-number placeholder: `{}`, `{:0N}` (zero-padded to N digits) or N `#`.
     #[arg(long, default_value = "hemi.png")]
     out: PathBuf,
-    /// The glTF camera to render, by name or index (default: the scene's first camera, or one
-    /// that frames the whole scene when it has none).
-    #[arg(long)]
-    camera: Option<String>,
-    /// The glTF animations to play together: `all`, or names and indices separated by commas
-    /// (default: all when no two animate the same node, else the first).
-    #[arg(long)]
-    animation: Option<String>,
-    /// Render the frames A..B (B excluded) of the animation as a numbered sequence.
+    /// Render a numbered sequence: `all` (the whole animation, floor(duration·fps)+1 frames),
+    /// `N` (one frame), `A..B` (B excluded) or `A..` (to the end of the animation).
     #[arg(long, value_parser = parse_frames)]
-    frames: Option<(u32, u32)>,
+    frames: Option<Frames>,
     /// Frames per second of the sequence: frame f shows time f / fps.
     #[arg(long, default_value_t = 24.0, value_parser = parse_fps)]
     fps: f64,
@@ -94,10 +92,15 @@ pub(super) struct RenderArgs {
     /// `ao_mrays_per_s`).
     #[arg(long)]
     stats_json: Option<PathBuf>,
-    /// Also write these AOVs (comma-separated: ao, direct, albedo, normal, depth) as linear EXR
-    /// files `<stem>.<name>.exr` beside the image.
+    /// Also write these AOVs (comma-separated: ao, direct, albedo, normal, depth, alpha) as
+    /// layers of one linear EXR beside the beauty (`ao`, `direct.R/G/B`, `albedo.R/G/B`,
+    /// `N.X/Y/Z`, `Z`, and coverage `A`): the --out EXR itself, or `<stem>.exr` beside a PNG.
     #[arg(long, value_delimiter = ',', value_parser = parse_aov)]
     aov: Vec<Aov>,
+    /// Write each --aov as a file of its own, `<stem>.<name>.exr` (RGB; one-channel AOVs
+    /// repeated), instead of layers of one EXR.
+    #[arg(long, requires = "aov")]
+    aov_files: bool,
     /// Let a glTF file's buffer URIs name files outside its folder (absolute paths, `..`).
     #[arg(long)]
     allow_external_uris: bool,
@@ -115,55 +118,72 @@ fn frame_times(start: u32, end: u32, fps: f64, count: usize) -> Vec<f32> {
     (0..count).map(|i| (frame(i) as f64 / fps) as f32).collect()
 }
 
+/// The frames this run renders: `spec` ended by the animation (`animation_end` frames, or an
+/// error when it is too long to count), shared out by `--shard`; each frame's time checked.
+fn frame_list(
+    args: &RenderArgs,
+    spec: Frames,
+    animation_end: Result<Option<u32>, String>,
+) -> Result<Vec<u32>, HemiError> {
+    let range = spec.resolve(animation_end.map_err(HemiError::Usage)?).map_err(HemiError::Usage)?;
+    let shard = args.shard.unwrap_or((0, 1));
+    let list = shard_frames(range, shard);
+    if list.is_empty() {
+        return Err(HemiError::Usage(format!(
+            "--shard {}/{} gets no frame of {}..{}",
+            shard.0, shard.1, range.0, range.1
+        )));
+    }
+    // Every frame's time must be a number the animation can be sampled at.
+    let last_time = (range.1 - 1) as f64 / args.fps;
+    if !(last_time as f32).is_finite() {
+        return Err(HemiError::Usage(format!(
+            "--frames {}..{} at --fps {} reaches time {last_time:e} s, beyond what a frame time can hold",
+            range.0, range.1, args.fps
+        )));
+    }
+    Ok(list)
+}
+
 /// The frames of `start..end` that shard `i/n` renders: every n-th, starting at the i-th.
 fn shard_frames((start, end): (u32, u32), (i, n): (u32, u32)) -> Vec<u32> {
     (start..end).skip(i as usize).step_by(n as usize).collect()
 }
 
 /// Whether frame `out` and its AOV files are all complete images of `size`.
-fn frame_complete(out: &std::path::Path, aovs: &[Aov], size: (u32, u32)) -> bool {
-    is_complete_image(out, Some(size)) && aovs.iter().all(|&a| is_complete_image(&aov_path(out, a), Some(size)))
+fn frame_complete(out: &std::path::Path, args: &RenderArgs, size: (u32, u32)) -> bool {
+    is_complete_image(out, Some(size)) && aov_outputs(out, args).iter().all(|(_, p)| is_complete_image(p, Some(size)))
 }
 
 pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
-    let frames = match args.frames {
-        Some(range) => {
-            if frame_path(&args.out, range.0).is_none() {
-                return Err(HemiError::Usage(format!(
-                    "--out {} needs a frame-number placeholder such as {{:04}} with --frames",
-                    args.out.display()
-                )));
-            }
-            let shard = args.shard.unwrap_or((0, 1));
-            let list = shard_frames(range, shard);
-            if list.is_empty() {
-                return Err(HemiError::Usage(format!(
-                    "--shard {}/{} gets no frame of {}..{}",
-                    shard.0, shard.1, range.0, range.1
-                )));
-            }
-            // Every frame's time must be a number the animation can be sampled at.
-            let last_time = (range.1 - 1) as f64 / args.fps;
-            if !(last_time as f32).is_finite() {
-                return Err(HemiError::Usage(format!(
-                    "--frames {}..{} at --fps {} reaches time {last_time:e} s, beyond what a frame time can hold",
-                    range.0, range.1, args.fps
-                )));
-            }
-            Some(list)
+    match args.frames {
+        Some(spec) if frame_path(&args.out, spec.start()).is_none() => {
+            return Err(HemiError::Usage(format!(
+                "--out {} needs a frame-number placeholder such as {{:04}} or #### with --frames",
+                args.out.display()
+            )));
         }
+        // The scene is posed at the first frame's time: it must be a number.
+        Some(spec) if !((spec.start() as f64 / args.fps) as f32).is_finite() => {
+            return Err(HemiError::Usage(format!(
+                "--frames {spec} at --fps {} starts at time {:e} s, beyond what a frame time can hold",
+                args.fps,
+                spec.start() as f64 / args.fps
+            )));
+        }
+        Some(_) => {}
         None if args.shard.is_some() => return Err(HemiError::Usage("--shard needs --frames".into())),
         None if frame_path(&args.out, 0).is_some() => {
             return Err(HemiError::Usage(format!(
-                "--out {} has a frame-number placeholder: add --frames START..END, or name one file",
+                "--out {} has a frame-number placeholder: add --frames, or name one file",
                 args.out.display()
             )));
         }
         None if args.skip_existing && args.sample_range.is_none() => {
             return Err(HemiError::Usage("--skip-existing needs --frames or --sample-range".into()));
         }
-        None => None,
-    };
+        None => {}
+    }
     if args.sample_range.is_some() {
         let conflict = [
             (args.frames.is_some(), "--frames"),
@@ -182,25 +202,25 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
     }
     // Check the outputs first: a bad or colliding path fails before any work is done, and
     // nothing is written under an output's name until that output is complete.
-    let first_out = match &frames {
-        Some(list) => frame_path(&args.out, list[0]).expect("checked above"),
+    let first_out = match args.frames {
+        Some(spec) => frame_path(&args.out, spec.start()).expect("checked above"),
         None => args.out.clone(),
     };
-    let aov_paths: Vec<(String, PathBuf)> =
-        args.aov.iter().map(|&aov| (format!("--aov {}", aov.name()), aov_path(&first_out, aov))).collect();
+    let aov_paths = aov_outputs(&first_out, &args);
     let mut outputs: Vec<(&str, &std::path::Path)> = vec![("--out", &first_out)];
     outputs.extend(aov_paths.iter().map(|(option, path)| (option.as_str(), path.as_path())));
     outputs.extend(args.stats_json.as_deref().map(|p| ("--stats-json", p)));
-    check_distinct(&outputs, &args.scene.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
+    check_distinct(&outputs, &args.shot.scene.iter().map(PathBuf::as_path).collect::<Vec<_>>())?;
     OutputFormat::from_path(&first_out).map_err(|e| HemiError::Usage(e.to_string()))?;
     OutputFile::create(&first_out)?;
     for (_, path) in &aov_paths {
         OutputFile::create(path)?;
     }
+    args.shot.check()?;
     let load_options = LoadOptions { allow_external_uris: args.allow_external_uris };
-    let peer = match &args.scene {
+    let peer = match &args.shot.scene {
         Some(path) if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("json")) => {
-            if args.camera.is_some() || args.animation.is_some() || args.frames.is_some() {
+            if args.shot.camera.is_some() || args.shot.animation.is_some() || args.frames.is_some() {
                 return Err(HemiError::Usage("--camera, --animation and --frames need a glTF scene".into()));
             }
             Some(PeerScene::load_with(path, &load_options)?)
@@ -225,14 +245,15 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
         sampler: args.sampler,
         // The peers' contract: one primary ray through each pixel centre.
         jitter: peer.is_none(),
-        aovs: !args.aov.is_empty(),
+        // Coverage (alpha) is accumulated with the AOVs.
+        aovs: !args.aov.is_empty() || args.shot.transparent(),
         target_error: args.target_error,
         ..Default::default()
     };
     settings.validate().map_err(HemiError::Usage)?;
-    let mut renderer = match (&args.scene, peer) {
+    let mut renderer = match (&args.shot.scene, peer) {
         (None, _) => {
-            if args.camera.is_some() || args.animation.is_some() {
+            if args.shot.camera.is_some() || args.shot.animation.is_some() {
                 return Err(HemiError::Usage("--camera and --animation need a glTF scene".into()));
             }
             Renderer::with_default_scene(settings)
@@ -252,12 +273,20 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
             let mut r = Renderer::new(settings);
             // Posed at the start of the whole range and, without a camera in the file, framed
             // over all of its frames, so that every shard of a sequence sees the same camera.
-            let time = args.frames.map_or(args.time, |(start, _)| (start as f64 / args.fps) as f32);
-            let framing_times =
-                args.frames.map_or(Vec::new(), |(start, end)| frame_times(start, end, args.fps, MAX_FRAMING_POSES));
+            let time = args.frames.map_or(args.time, |spec| (spec.start() as f64 / args.fps) as f32);
+            let framing_times = match args.frames {
+                Some(spec) => {
+                    // A range that does not resolve is refused below, once the scene is spawned.
+                    let duration = scene.animation_duration(args.shot.animation.as_deref());
+                    let end = duration.and_then(|d| frame_count(d, args.fps));
+                    spec.resolve(end)
+                        .map_or(Vec::new(), |(start, end)| frame_times(start, end, args.fps, MAX_FRAMING_POSES))
+                }
+                None => Vec::new(),
+            };
             let options = SpawnOptions {
-                camera: args.camera.clone(),
-                animation: args.animation.clone(),
+                camera: args.shot.camera.clone(),
+                animation: args.shot.animation.clone(),
                 time,
                 framing_times,
                 geometry_only: false,
@@ -266,9 +295,18 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
             r
         }
     };
+    args.shot.stage(renderer.world_mut())?;
+    if let Some(background) = args.shot.background_radiance() {
+        renderer.settings_mut().background = background;
+    }
     if let Some(threads) = args.threads {
         renderer = renderer.with_threads(threads as usize)?;
     }
+    let picture = Picture { look: args.look.look(), alpha: args.shot.transparent() };
+    let frames = match args.frames {
+        Some(spec) => Some(frame_list(&args, spec, animation_end(renderer.world(), args.fps))?),
+        None => None,
+    };
     let stats_file = args.stats_json.as_deref().map(OutputFile::create_any).transpose()?;
     let start = Instant::now();
     let display =
@@ -282,8 +320,7 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
         None => {
             renderer.set_time(args.time)?;
             render_image(&mut renderer, spp, args.stats, &mut totals)?;
-            OutputFile::create(&args.out)?.write(renderer.image())?;
-            write_aovs(renderer.image(), &args.out, &args.aov)?;
+            write_outputs(OutputFile::create(&args.out)?, renderer.image(), &args.out, &picture, &args)?;
             report(size, &renderer, &totals, start, &args.out.display().to_string());
             if args.target_error.is_some() {
                 let (taken, uniform) =
@@ -297,15 +334,14 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
         Some(list) => {
             for &frame in &list {
                 let out = frame_path(&args.out, frame).unwrap_or_else(|| args.out.clone());
-                if args.skip_existing && frame_complete(&out, &args.aov, size) {
+                if args.skip_existing && frame_complete(&out, &args, size) {
                     super::console::note(&format!("hemi: frame {frame} exists, skipped: {}", out.display()));
                     continue;
                 }
                 let file = OutputFile::create(&out)?;
                 renderer.set_time((frame as f64 / args.fps) as f32)?;
                 render_image(&mut renderer, spp, args.stats, &mut totals)?;
-                file.write(renderer.image())?;
-                write_aovs(renderer.image(), &out, &args.aov)?;
+                write_outputs(file, renderer.image(), &out, &picture, &args)?;
                 if !args.stats {
                     console::note(&format!("hemi: frame {frame} -> {}", out.display()));
                 }
@@ -331,7 +367,7 @@ fn render_partial(args: &RenderArgs, renderer: &mut Renderer, spp: u32) -> Resul
             spp.div_ceil(spf)
         ))
     })?;
-    let (scene, scene_hash) = match &args.scene {
+    let (scene, scene_hash) = match &args.shot.scene {
         Some(path) => (path.display().to_string(), partial::file_hash(path)?),
         None => ("default".to_string(), String::new()),
     };
@@ -353,8 +389,8 @@ fn render_partial(args: &RenderArgs, renderer: &mut Renderer, spp: u32) -> Resul
         ("seed", settings.seed.into()),
         ("sampler", settings.sampler.name().into()),
         ("time", args.time.into()),
-        ("camera", args.camera.clone().into()),
-        ("animation", args.animation.clone().into()),
+        ("camera", args.shot.camera.clone().into()),
+        ("animation", args.shot.animation.clone().into()),
         (partial::ALL_SETTINGS, format!("{all:?}").into()),
     ];
     for (key, value) in keyed {
@@ -472,7 +508,51 @@ fn aov_path(out: &std::path::Path, aov: Aov) -> PathBuf {
     out.with_file_name(format!("{stem}.{}.exr", aov.name()))
 }
 
-/// Writes the requested AOVs of `image` beside `out`.
+/// Whether `path` names an EXR file.
+fn is_exr(path: &std::path::Path) -> bool {
+    OutputFormat::from_path(path).is_ok_and(|f| f == OutputFormat::Exr)
+}
+
+/// The files the AOVs of image `out` go to, each with the option that names it: one per AOV
+/// with --aov-files, else the layered `<stem>.exr` beside a PNG (an EXR holds its own layers).
+fn aov_outputs(out: &std::path::Path, args: &RenderArgs) -> Vec<(String, PathBuf)> {
+    if args.aov_files {
+        args.aov.iter().map(|&aov| (format!("--aov {}", aov.name()), aov_path(out, aov))).collect()
+    } else if args.aov.is_empty() || is_exr(out) {
+        Vec::new()
+    } else {
+        vec![("--aov".to_string(), out.with_extension("exr"))]
+    }
+}
+
+/// Writes image `out` through `file`, and its AOVs: as layers of the EXR itself, of an EXR
+/// beside a PNG, or (--aov-files) as files of their own.
+fn write_outputs(
+    file: OutputFile,
+    image: &crate::resources::Image,
+    out: &std::path::Path,
+    picture: &Picture,
+    args: &RenderArgs,
+) -> Result<(), HemiError> {
+    let layered = !args.aov.is_empty() && !args.aov_files;
+    let encode = |path: &std::path::Path| {
+        crate::layers::layered_exr(image, &args.aov)
+            .map_err(|e| HemiError::Io { path: path.to_path_buf(), message: format!("cannot encode: {e}") })
+    };
+    if layered && is_exr(out) {
+        return file.write_bytes(&encode(out)?);
+    }
+    file.write_picture(image, picture)?;
+    if args.aov_files {
+        return write_aovs(image, out, &args.aov);
+    }
+    for (_, path) in aov_outputs(out, args) {
+        OutputFile::create(&path)?.write_bytes(&encode(&path)?)?;
+    }
+    Ok(())
+}
+
+/// Writes the requested AOVs of `image` beside `out`, a file each.
 fn write_aovs(image: &crate::resources::Image, out: &std::path::Path, aovs: &[Aov]) -> Result<(), HemiError> {
     for &aov in aovs {
         let pixels = image.aov(aov).unwrap_or_default();

@@ -53,7 +53,7 @@ impl SampleResult {
     #[inline]
     pub fn aov_values(&self) -> AovValues {
         let (d, a, n) = (self.direct, self.albedo, self.normal);
-        [self.ao, d.x, d.y, d.z, a.x, a.y, a.z, n.x, n.y, n.z, self.depth]
+        [self.ao, d.x, d.y, d.z, a.x, a.y, a.z, n.x, n.y, n.z, self.depth, f32::from(u8::from(self.hit))]
     }
 }
 

@@ -3,5 +3,6 @@
 pub mod default_scene;
 pub mod gltf;
 pub mod mesh_gen;
+pub mod staging;
 
 pub use default_scene::{DEFAULT_BACKGROUND, spawn_default_scene};

@@ -3,24 +3,23 @@
 use std::{path::PathBuf, time::Instant};
 
 use super::{SceneSource, Viewer, ViewerOptions, window};
-use crate::{error::HemiError, resources::RenderSettings, sampling::SamplerKind};
+use crate::{
+    cli::shot::{LookArgs, SceneArgs},
+    error::HemiError,
+    resources::RenderSettings,
+    sampling::SamplerKind,
+};
 
 /// Options of `hemi view`.
 #[derive(clap::Args, Debug)]
 pub struct ViewArgs {
-    /// A .gltf/.glb scene, or a peer scene .json (default: the built-in scene).
-    scene: Option<PathBuf>,
+    #[command(flatten)]
+    shot: SceneArgs,
+    #[command(flatten)]
+    look: LookArgs,
     /// Window (full render) size, WIDTHxHEIGHT [default: 640x360, or a peer scene's own].
     #[arg(long, value_parser = parse_size)]
     size: Option<(u32, u32)>,
-    /// The glTF camera to start from, by name or index (default: the scene's first camera, or
-    /// one that frames the whole scene when it has none).
-    #[arg(long)]
-    camera: Option<String>,
-    /// The glTF animations Space plays together: `all`, or names and indices separated by
-    /// commas (default: all when no two animate the same node, else the first).
-    #[arg(long)]
-    animation: Option<String>,
     /// Samples per pixel a still view converges to [default: 1024, or a peer scene's
     /// ao.samples]: the image `hemi render --spp N` writes (byte for byte with --spf).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
@@ -91,10 +90,19 @@ fn parse_sampler(s: &str) -> Result<SamplerKind, String> {
 pub fn run(args: ViewArgs) -> Result<(), HemiError> {
     let launched = Instant::now();
     let warn = |w: String| crate::cli::console::note(&format!("hemi: warning: {w}"));
-    let source = SceneSource::open(args.scene.as_deref(), args.camera.clone(), args.animation.clone(), warn)?;
+    if args.shot.transparent() {
+        return Err(HemiError::Usage("--background transparent: a window has no alpha; give a colour".into()));
+    }
+    args.shot.check()?;
+    let shot = &args.shot;
+    let source = SceneSource::open(shot.scene.as_deref(), shot.camera.clone(), shot.animation.clone(), warn)?;
     let (size, spp, seed) = source.defaults();
     let settings = RenderSettings { seed: args.seed.unwrap_or(seed), sampler: args.sampler, ..Default::default() };
     let mut renderer = source.renderer(settings, warn)?;
+    shot.stage(renderer.world_mut())?;
+    if let Some(background) = shot.background_radiance() {
+        renderer.settings_mut().background = background;
+    }
     if let Some(threads) = args.threads {
         renderer = renderer.with_threads(threads as usize)?;
     }
@@ -109,7 +117,9 @@ pub fn run(args: ViewArgs) -> Result<(), HemiError> {
         play: args.play,
         ..Default::default()
     };
-    let viewer = Viewer::new(renderer, source.name(), options)?;
+    let mut viewer = Viewer::new(renderer, source.name(), options)?;
+    viewer.set_tonemap(args.look.tonemap);
+    viewer.set_exposure(args.look.exposure);
     let window_options = window::WindowOptions {
         quit_after_frames: args.quit_after_frames,
         screenshot: args.screenshot,

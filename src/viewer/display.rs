@@ -6,6 +6,7 @@ use glam::Vec3;
 
 use crate::{
     film::linear_to_srgb8,
+    look::{Look, Tonemap},
     resources::{Aov, Image},
 };
 
@@ -46,11 +47,13 @@ pub struct Display {
     pub exposure: f32,
     /// Whether the text overlay is drawn.
     pub overlay: bool,
+    /// Tone curve of the beauty image (`hemi view --tonemap`).
+    pub tonemap: Tonemap,
 }
 
 impl Default for Display {
     fn default() -> Self {
-        Display { buffer: Buffer::Beauty, exposure: 0.0, overlay: false }
+        Display { buffer: Buffer::Beauty, exposure: 0.0, overlay: false, tonemap: Tonemap::None }
     }
 }
 
@@ -77,10 +80,13 @@ pub fn encode(image: &Image, display: &Display) -> Vec<u32> {
         Buffer::Beauty => None,
     };
     match aov {
-        None if display.exposure == 0.0 && image.srgb.len() == 3 * n => {
+        None if display.exposure == 0.0 && display.tonemap == Tonemap::None && image.srgb.len() == 3 * n => {
             image.srgb.chunks_exact(3).map(|c| pack(c[0], c[1], c[2])).collect()
         }
-        None => image.linear.iter().map(|&c| encode_linear(c * scale)).collect(),
+        None => {
+            let look = Look { exposure: display.exposure, tonemap: display.tonemap };
+            image.linear.iter().map(|&c| look.srgb8(c)).map(|[r, g, b]| pack(r, g, b)).collect()
+        }
         Some((Aov::Normal, px)) => px
             .iter()
             .map(|n| {

@@ -313,6 +313,12 @@ impl Viewer {
         self.redisplay = true;
     }
 
+    /// Sets the tone curve of the beauty image.
+    pub fn set_tonemap(&mut self, tonemap: crate::look::Tonemap) {
+        self.display.tonemap = tonemap;
+        self.redisplay = true;
+    }
+
     /// Changes the full resolution (the window was resized).
     pub fn resize(&mut self, width: u32, height: u32) {
         self.options.size = (width.max(1), height.max(1));

@@ -14,6 +14,13 @@ impl GltfScene {
         self.graph.clips.iter().map(|c| c.name.as_str()).collect()
     }
 
+    /// How long the clips that `key` chooses ([`SpawnOptions::animation`]) play: the longest
+    /// one's duration. `None` when none would play, or `key` is refused (spawning says why).
+    pub fn animation_duration(&self, key: Option<&str>) -> Option<f32> {
+        let chosen = self.select_clips(key).ok()?;
+        chosen.iter().map(|&i| self.graph.clips[i].duration).reduce(f32::max)
+    }
+
     /// The clips (indices into `graph.clips`) that `key` chooses: `all`, or a comma-separated
     /// list of names and file indices (a whole name wins over splitting it at its commas).
     /// Without a key: every clip when no two animate the same node, else the first. Clips that
