@@ -60,10 +60,18 @@ impl Onb {
         Onb { u, v, w: n }
     }
 
-    /// The frame turned about its normal by the angle whose cosine and sine are `(c, s)`.
+    /// The frame under symmetry `k` (0..8) of the square its tangents span: turned about the
+    /// normal by k quarter turns, then mirrored (v negated) for k ≥ 4. Exact (only swaps and
+    /// negations), and a quadrant of the tangent plane stays a quadrant.
     #[inline]
-    pub fn turned(&self, (c, s): (f32, f32)) -> Self {
-        Onb { u: self.u * c + self.v * s, v: self.v * c - self.u * s, w: self.w }
+    pub fn symmetry(&self, k: u32) -> Self {
+        let (u, v) = match k % 4 {
+            0 => (self.u, self.v),
+            1 => (self.v, -self.u),
+            2 => (-self.u, -self.v),
+            _ => (-self.v, self.u),
+        };
+        Onb { u, v: if k >= 4 { -v } else { v }, w: self.w }
     }
 
     /// Maps a direction from the local frame (z along the normal) to world space.

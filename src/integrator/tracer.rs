@@ -33,13 +33,13 @@ pub struct Scene<'a> {
 
 impl Scene<'_> {
     /// Camera hit `hit` in `pixel` ready to be lit: its shading point (material from the
-    /// scene, frame turned for the pixel by [`SampleSets::frame_turn`]) and where its shadow
+    /// scene, frame turned or mirrored for the pixel by [`SampleSets::frame_symmetry`]) and where its shadow
     /// rays start, [`Scene::ray_offset`] or more off the surface.
     #[inline]
     fn lit_point(&self, hit: &SurfaceHit, pixel: u32) -> (ShadingPoint, SpawnOrigins) {
         let mut at = ShadingPoint::new(hit.p, hit.normal, self.material(hit));
-        if let Some(turn) = self.sets.frame_turn(pixel) {
-            at.frame = at.frame.turned(turn);
+        if let Some(k) = self.sets.frame_symmetry(pixel) {
+            at.frame = at.frame.symmetry(k);
         }
         (at, hit.spawn_origins(self.ray_offset))
     }

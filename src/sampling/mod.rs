@@ -68,9 +68,8 @@ pub struct SampleSets {
     /// The local cosine directions of those patterns, for the packet width of this CPU.
     #[cfg(target_arch = "x86_64")]
     cosine: Option<CosineTable>,
-    /// Cosine and sine of the turns [`SampleSets::frame_turn`] picks from; empty where pixels
-    /// do not share sets.
-    turns: Vec<(f32, f32)>,
+    /// Whether pixels share sets, so that [`SampleSets::frame_symmetry`] picks one per pixel.
+    symmetries: bool,
 }
 
 impl SampleSets {
@@ -81,9 +80,6 @@ impl SampleSets {
     /// sets make that visible); with 4096 such pixels are few and scattered, so the shared
     /// error looks like noise, not structure.
     pub const PREFERRED_SETS: u32 = 4096;
-    /// Turns of the shading frame about the normal that pixels choose from
-    /// ([`SampleSets::frame_turn`]); a power of two.
-    const FRAME_TURNS: u32 = 256;
 
     /// Generates the sets for `kind` with `n` points each, fixed by `seed`, for an image
     /// `width × height` (ZSobol orders pixels along a Morton curve of that size).
@@ -114,12 +110,7 @@ impl SampleSets {
             .flatten();
         // Pixels share sets wherever the sets are not the pixel's own (ZSobol) or one set for
         // all by definition (regular).
-        let turns = if !matches!(kind, SamplerKind::ZSobol | SamplerKind::Regular) {
-            let step = std::f32::consts::TAU / Self::FRAME_TURNS as f32;
-            (0..Self::FRAME_TURNS).map(|k| (k as f32 * step).sin_cos()).map(|(s, c)| (c, s)).collect()
-        } else {
-            Vec::new()
-        };
+        let symmetries = !matches!(kind, SamplerKind::ZSobol | SamplerKind::Regular);
         SampleSets {
             kind,
             n,
@@ -134,19 +125,20 @@ impl SampleSets {
             points,
             #[cfg(target_arch = "x86_64")]
             cosine,
-            turns,
+            symmetries,
         }
     }
 
-    /// The turn about the normal (cosine, sine) of `pixel`'s shading frame, for samplers whose
-    /// pixels share sets: pixels that draw the same set with the same normal would otherwise
-    /// trace the same directions and share their errors. A turn keeps the points' distribution
-    /// (cosine-weighted about the normal) and their stratification. `None` where pixels have
-    /// sets of their own (ZSobol) or one set by definition (regular).
+    /// The symmetry ([`crate::math::Onb::symmetry`], 0..8) of `pixel`'s shading frame, for
+    /// samplers whose pixels share sets: pixels that draw the same set with the same normal
+    /// would otherwise trace the same directions and share their errors. A symmetry of the
+    /// tangent square keeps the points' distribution, their stratification and the quadrants
+    /// that ray packets are grouped by. `None` where pixels have sets of their own (ZSobol) or
+    /// one set by definition (regular).
     #[inline]
-    pub fn frame_turn(&self, pixel: u32) -> Option<(f32, f32)> {
+    pub fn frame_symmetry(&self, pixel: u32) -> Option<u32> {
         let h = mix64(self.key ^ 0x7a21_0f3e_c4d9_86b5 ^ u64::from(pixel));
-        self.turns.get((h >> (64 - Self::FRAME_TURNS.trailing_zeros())) as usize).copied()
+        self.symmetries.then_some((h >> 61) as u32)
     }
 
     /// The correlated multi-jittered pattern of (pixel, pass, dimension): one of the seed's
