@@ -1,7 +1,7 @@
 //! Pixels' errors are independent: over many seeds, the variance of a block of pixels' mean
 //! matches what the pixels' own variances predict for independent errors. Pixels that draw the
 //! same pattern trace the same directions unless their frames differ; without the per-pixel
-//! turn of the frame the default sampler's 128×128 blocks vary about twice as much.
+//! symmetry of the frame the default sampler's 128×128 blocks vary about twice as much.
 
 mod common;
 
