@@ -11,10 +11,9 @@ fn hemi(args: &[&str]) -> Command {
     c
 }
 
-fn temp(name: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("hemi-view-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+/// A folder for one test's files, removed when dropped.
+fn temp_dir() -> tempfile::TempDir {
+    tempfile::Builder::new().prefix("hemi-view-").tempdir().unwrap()
 }
 
 fn xvfb(args: &[&str]) -> Option<Output> {
@@ -33,7 +32,9 @@ fn asset(rel: &str) -> String {
 
 /// Runs the view and the render with the same options; their PNGs must be identical.
 fn same_as_render(scene: Option<&str>, name: &str, view_extra: &[&str]) {
-    let (shot, reference) = (temp(&format!("{name}-view.png")), temp(&format!("{name}-render.png")));
+    let dir = temp_dir();
+    let (shot, reference) =
+        (dir.path().join(format!("{name}-view.png")), dir.path().join(format!("{name}-render.png")));
     let common = ["--size", "320x180", "--spp", "16", "--spf", "4", "--seed", "7"];
     let mut view: Vec<&str> = scene.into_iter().chain(common).collect();
     let shot_arg = shot.display().to_string();
@@ -62,7 +63,8 @@ fn a_gltf_scene_with_its_camera_matches_too() {
 
 #[test]
 fn turntable_and_overlay_run_and_write_per_frame_stats() {
-    let stats = temp("turntable.json");
+    let dir = temp_dir();
+    let stats = dir.path().join("turntable.json");
     let stats_arg = stats.display().to_string();
     let args =
         ["--size", "160x90", "--turntable", "2", "--overlay", "--quit-after-frames", "6", "--stats-json", &stats_arg];
@@ -86,9 +88,11 @@ fn no_display_is_one_line_suggesting_hemi_render() {
 
 #[test]
 fn scene_errors_are_the_same_as_hemi_render() {
-    let missing = temp("missing.gltf").display().to_string();
+    let dir = temp_dir();
+    let missing = dir.path().join("missing.gltf").display().to_string();
     let view = hemi(&["view", &missing]).env_remove("DISPLAY").output().unwrap();
-    let render = hemi(&["render", &missing, "--out", &temp("x.png").display().to_string()]).output().unwrap();
+    let render =
+        hemi(&["render", &missing, "--out", &dir.path().join("x.png").display().to_string()]).output().unwrap();
     assert_eq!(view.status.code(), render.status.code());
     assert_eq!(String::from_utf8_lossy(&view.stderr), String::from_utf8_lossy(&render.stderr));
 }

@@ -316,8 +316,8 @@ fn playing_advances_scene_time_by_the_wall_clock_and_arrows_step() {
 
 #[test]
 fn p_saves_the_display_and_the_linear_image() {
-    let dir = std::env::temp_dir().join(format!("hemi-viewer-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let folder = tempfile::Builder::new().prefix("hemi-viewer-").tempdir().unwrap();
+    let dir = folder.path();
     let r = Renderer::with_default_scene(RenderSettings::default());
     let opts = ViewerOptions { save_stem: dir.join("shot"), ..options(1, Some(1)) };
     let mut v = Viewer::new(r, "built-in", opts).unwrap();

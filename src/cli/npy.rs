@@ -57,7 +57,7 @@ pub fn read_bool(path: &Path) -> Result<Array2<bool>, HemiError> {
 mod tests {
     use super::*;
 
-    fn write_npy(name: &str, descr: &str, shape: &str, data: &[u8]) -> std::path::PathBuf {
+    fn write_npy(dir: &tempfile::TempDir, name: &str, descr: &str, shape: &str, data: &[u8]) -> std::path::PathBuf {
         let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
         while (10 + header.len() + 1) % 64 != 0 {
             header.push(' ');
@@ -67,30 +67,32 @@ mod tests {
         bytes.extend((header.len() as u16).to_le_bytes());
         bytes.extend(header.as_bytes());
         bytes.extend(data);
-        let path = std::env::temp_dir().join(format!("hemi-npy-{}-{name}", std::process::id()));
+        let path = dir.path().join(name);
         std::fs::write(&path, bytes).unwrap();
         path
     }
 
     #[test]
     fn reads_float_and_bool_arrays() {
+        let dir = tempfile::tempdir().unwrap();
         let floats: Vec<u8> = [0.5f32, 1.0, -2.0, 3.25, 0.0, 7.0].iter().flat_map(|f| f.to_le_bytes()).collect();
-        let a = read_f32(&write_npy("f.npy", "<f4", "(2, 3)", &floats)).unwrap();
+        let a = read_f32(&write_npy(&dir, "f.npy", "<f4", "(2, 3)", &floats)).unwrap();
         assert_eq!((a.rows, a.cols, a.data), (2, 3, vec![0.5, 1.0, -2.0, 3.25, 0.0, 7.0]));
-        let b = read_bool(&write_npy("b.npy", "|b1", "(1, 3)", &[1, 0, 1])).unwrap();
+        let b = read_bool(&write_npy(&dir, "b.npy", "|b1", "(1, 3)", &[1, 0, 1])).unwrap();
         assert_eq!(b.data, vec![true, false, true]);
     }
 
     #[test]
     fn malformed_files_give_clear_errors() {
+        let dir = tempfile::tempdir().unwrap();
         let floats: Vec<u8> = [1.0f32; 5].iter().flat_map(|f| f.to_le_bytes()).collect();
-        let short = read_f32(&write_npy("s.npy", "<f4", "(2, 3)", &floats)).unwrap_err().to_string();
+        let short = read_f32(&write_npy(&dir, "s.npy", "<f4", "(2, 3)", &floats)).unwrap_err().to_string();
         assert!(short.contains("s.npy") && short.contains("shape 2x3"), "{short}");
-        let dtype = read_f32(&write_npy("d.npy", "<f8", "(1, 1)", &[0; 8])).unwrap_err().to_string();
+        let dtype = read_f32(&write_npy(&dir, "d.npy", "<f8", "(1, 1)", &[0; 8])).unwrap_err().to_string();
         assert!(dtype.contains("dtype '<f8'"), "{dtype}");
-        let flat = read_f32(&write_npy("v.npy", "<f4", "(3,)", &floats[..12])).unwrap_err().to_string();
+        let flat = read_f32(&write_npy(&dir, "v.npy", "<f4", "(3,)", &floats[..12])).unwrap_err().to_string();
         assert!(flat.contains("expected a 2-D array"), "{flat}");
-        let path = std::env::temp_dir().join("hemi-npy-not.npy");
+        let path = dir.path().join("not.npy");
         std::fs::write(&path, b"hello world").unwrap();
         assert!(read_bool(&path).unwrap_err().to_string().contains("not a .npy file"));
     }
