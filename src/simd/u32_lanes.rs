@@ -203,3 +203,103 @@ u32_lanes!(
         }
     }
 );
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec2;
+
+    use super::*;
+    use crate::{
+        random::SplitMix64,
+        simd::{Avx, Avx512, CompressLanes, Lanes, SampleLanes},
+    };
+
+    /// The u32 lanes' tables, lookups, tests and runs, the conversions to f32 lanes (rounded as
+    /// `as f32` rounds, halfway cases and the top of the range included) and the stores of
+    /// points give the scalar values lane by lane and write nothing past their lanes: for
+    /// eight lanes (AVX2) and sixteen (AVX-512), where the CPU has them.
+    #[test]
+    fn u32_lanes_give_the_scalar_values() {
+        crate::simd::both_widths(
+            // SAFETY (both): `both_widths` runs each where the CPU has its instruction set.
+            || unsafe { same_as_scalar::<Avx>() },
+            || unsafe {
+                same_as_scalar::<Avx512>();
+                partial_stores_keep_to_their_lanes();
+            },
+        );
+    }
+
+    /// [`u32_lanes_give_the_scalar_values`] for `L`.
+    ///
+    /// # Safety
+    /// The CPU must have `L`'s instruction set.
+    unsafe fn same_as_scalar<L: SampleLanes>() {
+        let w = L::WIDTH;
+        assert_eq!(<L::U32 as U32Lanes>::WIDTH, w);
+        let lanes = |v: L::U32| {
+            let mut out = vec![0u32; w];
+            // SAFETY: the caller's CPU has `L`'s instruction set.
+            unsafe { v.store(&mut out) };
+            out
+        };
+        let floats = |v: L| (0..w).map(|k| v.lane(k).to_bits()).collect::<Vec<_>>();
+        let special: [u32; 9] = [0, 1, 0xffff, 0x1_0000, 0xff_ffff, 0x100_0001, 0x100_0003, 0x7fff_ffff, 0x8000_0000];
+        let mut rng = SplitMix64::new(11);
+        for round in 0..1_000 {
+            let a: Vec<u32> = (0..w)
+                .map(|k| match (round + k) % 4 {
+                    0 => {
+                        special[(round / 4 + k) % special.len()].wrapping_add([0, 0x8000_0000, 0x7f00_0000][round % 3])
+                    }
+                    _ => rng.next_u64() as u32,
+                })
+                .collect();
+            let b: Vec<u32> = (0..w).map(|_| rng.next_u64() as u32 >> (rng.next_u64() % 32)).collect();
+            let entries: [u32; 16] = std::array::from_fn(|_| rng.next_u64() as u32);
+            let first = rng.next_u64() as u32;
+            // SAFETY: the caller's CPU has `L`'s instruction set.
+            unsafe {
+                let (va, vb) = (L::U32::load(&a), L::U32::load(&b));
+                assert_eq!(lanes(va), a);
+                let run: Vec<u32> = (0..w as u32).map(|k| first.wrapping_add(k)).collect();
+                assert_eq!(lanes(L::U32::consecutive(first)), run, "{w} lanes from {first}");
+                let index = va.and(L::U32::splat(15));
+                let want: Vec<u32> = a.iter().map(|&i| entries[(i & 15) as usize]).collect();
+                assert_eq!(lanes(index.lookup16(L::U32::table16(&entries))), want, "lookup of {a:?}");
+                let set = (0..w).fold(0, |m, k| m | u32::from(a[k] & b[k] != 0) << k);
+                assert_eq!(va.test(vb), set, "test of {a:?}, {b:?}");
+                let want: Vec<u32> = a.iter().map(|&i| (i as f32).to_bits()).collect();
+                assert_eq!(floats(L::from_u32(va)), want, "conversion of {a:?}");
+                let small = va.shr(L::U32::splat(1));
+                let want: Vec<u32> = a.iter().map(|&i| ((i >> 1) as f32).to_bits()).collect();
+                assert_eq!(floats(L::from_small_u32(small)), want, "conversion of {a:?} / 2");
+            }
+        }
+        let (x, y): (Vec<f32>, Vec<f32>) = (0..w).map(|k| (k as f32 + 0.25, -(k as f32))).unzip();
+        for len in 0..=w {
+            let mut out = vec![Vec2::NAN; w + 1];
+            // SAFETY: the caller's CPU has `L`'s instruction set.
+            unsafe { L::store_points(L::load(&x), L::load(&y), &mut out[..len]) };
+            for (k, v) in out.iter().enumerate() {
+                let want = if k < len { [x[k], y[k]] } else { [f32::NAN; 2] };
+                assert_eq!(v.to_array().map(f32::to_bits), want.map(f32::to_bits), "{w} lanes, {len} points: {k}");
+            }
+        }
+    }
+
+    /// A partial store writes the first lanes and nothing past `out`.
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512.
+    unsafe fn partial_stores_keep_to_their_lanes() {
+        let x: [f32; 16] = std::array::from_fn(|k| k as f32 + 0.5);
+        for len in 0..=17 {
+            let mut out = [-1.0f32; 18];
+            // SAFETY: the caller's CPU has AVX-512.
+            unsafe { Avx512::load(&x).store_partial(&mut out[..len]) };
+            let want: [f32; 18] = std::array::from_fn(|k| if k < len.min(16) { x[k] } else { -1.0 });
+            assert_eq!(out, want, "{len} floats");
+        }
+    }
+}
