@@ -9,11 +9,11 @@ use rayon::prelude::*;
 
 #[cfg(target_arch = "x86_64")]
 use super::{
-    cmj::{Cmj, GridLanes, QuadrantPattern, SmallGrid8, SmallGrid16},
+    cmj::{Cmj, QuadrantPattern},
     warp::cosine_hemisphere_lanes,
 };
 #[cfg(target_arch = "x86_64")]
-use crate::simd::{Avx, Avx512, Kernel, Lanes};
+use crate::simd::{Kernel, SampleLanes};
 
 /// The local cosine directions (around +z) of patterns `first, first + 1, …` (`count` of
 /// them, wrapping) of a [`Cmj`] with quadrants ([`Cmj::has_quadrants`]), each pattern packet
@@ -79,33 +79,6 @@ impl CosineTable {
     }
 }
 
-/// Lanes whose pattern grid gives their sample points.
-#[cfg(target_arch = "x86_64")]
-pub(crate) trait WarpLanes: Lanes {
-    /// The pattern grid of this width.
-    type Grid: GridLanes;
-    /// The grid's points in these lanes.
-    fn from_points(points: <Self::Grid as GridLanes>::Point) -> Self;
-}
-
-#[cfg(target_arch = "x86_64")]
-impl WarpLanes for Avx {
-    type Grid = SmallGrid8;
-    #[inline(always)]
-    fn from_points(points: std::arch::x86_64::__m256) -> Self {
-        Avx(points)
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-impl WarpLanes for Avx512 {
-    type Grid = SmallGrid16;
-    #[inline(always)]
-    fn from_points(points: std::arch::x86_64::__m512) -> Self {
-        Avx512(points)
-    }
-}
-
 /// Writes pattern `p`'s directions to `out`, packet by packet in the kernel's lanes.
 #[cfg(target_arch = "x86_64")]
 struct FillPattern<'a> {
@@ -115,7 +88,7 @@ struct FillPattern<'a> {
 }
 
 #[cfg(target_arch = "x86_64")]
-impl<L: WarpLanes> Kernel<L> for FillPattern<'_> {
+impl<L: SampleLanes> Kernel<L> for FillPattern<'_> {
     type Output = ();
     #[inline(always)]
     unsafe fn run(self) {
@@ -123,10 +96,10 @@ impl<L: WarpLanes> Kernel<L> for FillPattern<'_> {
         let width = L::WIDTH;
         // SAFETY: the caller's CPU has `L`'s instruction set.
         unsafe {
-            let pattern = QuadrantPattern::<L::Grid>::new(cmj, p);
+            let pattern = QuadrantPattern::<L>::new(cmj, p);
             for (packet, out) in out.chunks_exact_mut(3 * width).enumerate() {
                 let (x, y) = pattern.points(packet);
-                let dirs = cosine_hemisphere_lanes(L::from_points(x), L::from_points(y));
+                let dirs = cosine_hemisphere_lanes(x, y);
                 for (axis, v) in dirs.into_iter().enumerate() {
                     v.store(&mut out[axis * width..]);
                 }

@@ -2,9 +2,9 @@
 
 use std::arch::x86_64::*;
 
-use glam::Vec3A;
+use glam::{Vec2, Vec3A};
 
-use super::{FusedLanes, Kernel, Lanes};
+use super::{FusedLanes, Kernel, Lanes, SampleLanes};
 
 /// Eight lanes in an AVX register.
 #[derive(Clone, Copy)]
@@ -15,6 +15,42 @@ impl FusedLanes for Avx {
     #[inline]
     unsafe fn mul_add(self, b: Self, c: Self) -> Self {
         Avx(_mm256_fmadd_ps(self.0, b.0, c.0))
+    }
+}
+
+impl SampleLanes for Avx {
+    type U32 = __m256i;
+
+    /// AVX2 has no unsigned conversion: the high and low halves convert exactly and their sum
+    /// rounds once, which is the conversion's rounding.
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    #[inline]
+    unsafe fn from_u32(i: __m256i) -> Self {
+        let high = _mm256_mul_ps(_mm256_cvtepi32_ps(_mm256_srli_epi32::<16>(i)), _mm256_set1_ps(65_536.0));
+        let low = _mm256_cvtepi32_ps(_mm256_and_si256(i, _mm256_set1_epi32(0xffff)));
+        Avx(_mm256_add_ps(high, low))
+    }
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    #[inline]
+    unsafe fn from_small_u32(i: __m256i) -> Self {
+        Avx(_mm256_cvtepi32_ps(i))
+    }
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    #[inline]
+    unsafe fn store_points(x: Self, y: Self, out: &mut [Vec2]) {
+        let iota = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+        // (x, y) pairs as `Vec2`s lie in memory: points 0–3, then 4–7.
+        let (low, high) = (_mm256_unpacklo_ps(x.0, y.0), _mm256_unpackhi_ps(x.0, y.0));
+        let pairs = [_mm256_permute2f128_ps::<0x20>(low, high), _mm256_permute2f128_ps::<0x31>(low, high)];
+        let floats = out.as_mut_ptr().cast::<f32>();
+        for (h, pair) in pairs.into_iter().enumerate() {
+            // The floats of this half that `out` holds (it may be short).
+            let n = (2 * out.len()).saturating_sub(8 * h).min(8) as i32;
+            let keep = _mm256_cmpgt_epi32(_mm256_set1_epi32(n), iota);
+            // SAFETY: a `Vec2` is two f32 (`repr(C)`); the masked store writes only the first
+            // 2·len floats of `out`.
+            unsafe { _mm256_maskstore_ps(floats.wrapping_add(8 * h), keep, pair) };
+        }
     }
 }
 

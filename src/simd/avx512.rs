@@ -2,9 +2,9 @@
 
 use std::arch::x86_64::*;
 
-use glam::Vec3A;
+use glam::{Vec2, Vec3A};
 
-use super::{CompressLanes, FusedLanes, Kernel, Lanes};
+use super::{CompressLanes, FusedLanes, Kernel, Lanes, SampleLanes};
 
 /// Sixteen lanes in an AVX-512 register.
 #[derive(Clone, Copy)]
@@ -81,6 +81,44 @@ impl CompressLanes for Avx512 {
         let index = _mm512_maskz_compress_epi32(m as __mmask16, _mm512_add_epi32(iota, _mm512_set1_epi32(base as i32)));
         // SAFETY: the masked store writes the first `n` integers of `out`, checked above.
         unsafe { _mm512_mask_storeu_epi32(out.as_mut_ptr().cast(), ((1u32 << n) - 1) as __mmask16, index) }
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn store_partial(self, out: &mut [f32]) {
+        let keep = ((1u32 << out.len().min(16)) - 1) as __mmask16;
+        // SAFETY: the masked store writes only the first `out.len()` floats (at most sixteen).
+        unsafe { _mm512_mask_storeu_ps(out.as_mut_ptr(), keep, self.0) }
+    }
+}
+
+impl SampleLanes for Avx512 {
+    type U32 = __m512i;
+
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn from_u32(i: __m512i) -> Self {
+        Avx512(_mm512_cvtepu32_ps(i))
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn from_small_u32(i: __m512i) -> Self {
+        Avx512(_mm512_cvtepi32_ps(i))
+    }
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn store_points(x: Self, y: Self, out: &mut [Vec2]) {
+        // x and y of lanes 0–7, then of lanes 8–15, interleaved as `Vec2`s lie in memory.
+        let low = _mm512_setr_epi32(0, 16, 1, 17, 2, 18, 3, 19, 4, 20, 5, 21, 6, 22, 7, 23);
+        let high = _mm512_add_epi32(low, _mm512_set1_epi32(8));
+        let pairs = [_mm512_permutex2var_ps(x.0, low, y.0), _mm512_permutex2var_ps(x.0, high, y.0)];
+        let floats = out.as_mut_ptr().cast::<f32>();
+        for (h, pair) in pairs.into_iter().enumerate() {
+            // The floats of this half that `out` holds (it may be short).
+            let n = (2 * out.len()).saturating_sub(16 * h).min(16);
+            // SAFETY: a `Vec2` is two f32 (`repr(C)`); the masked store writes only the first
+            // 2·len floats of `out`.
+            unsafe { _mm512_mask_storeu_ps(floats.wrapping_add(16 * h), ((1u32 << n) - 1) as __mmask16, pair) };
+        }
     }
 }
 

@@ -7,9 +7,13 @@
 //! have; callers are generic code inlined into functions compiled for it, where the methods
 //! inline in turn.
 
+#[cfg(target_arch = "x86_64")]
+use glam::Vec2;
 use glam::Vec3A;
 
 use super::Kernel;
+#[cfg(target_arch = "x86_64")]
+use super::U32Lanes;
 
 /// A vector of f32 lanes, one per ray or sample of a packet, with a mask of one bit per lane.
 pub(crate) trait Lanes: Copy {
@@ -98,6 +102,24 @@ pub(crate) trait CompressLanes: Lanes {
     /// Writes `base + k` for each lane k of `m`, in lane order, to `out[..m.count_ones()]`, and
     /// nothing else.
     unsafe fn compress_indices(base: u32, m: u32, out: &mut [u32]);
+    /// Writes the first `n` lanes to `out[..n]`, for `n` the lesser of `out.len()` and `WIDTH`,
+    /// and nothing else.
+    unsafe fn store_partial(self, out: &mut [f32]);
+}
+
+/// Lanes with u32 lanes of the same width ([`U32Lanes`]), for the samplers: their integer
+/// hashes and shuffle tables run in the u32 lanes, and their points come out in these.
+#[cfg(target_arch = "x86_64")]
+pub(crate) trait SampleLanes: Lanes {
+    /// u32 lanes of this width.
+    type U32: U32Lanes;
+    /// Each lane of `i` rounded to the nearest f32, as `i as f32` rounds it.
+    unsafe fn from_u32(i: Self::U32) -> Self;
+    /// [`SampleLanes::from_u32`] of lanes below 2³¹, which a signed conversion gives exactly.
+    unsafe fn from_small_u32(i: Self::U32) -> Self;
+    /// Writes lane k of `x` and of `y` as `out[k]`, for each k below `out.len()` and `WIDTH`,
+    /// and nothing else.
+    unsafe fn store_points(x: Self, y: Self, out: &mut [Vec2]);
 }
 
 /// Lanes with a fused multiply-add (one rounding), for [`FusedPacket`]'s node test.

@@ -9,7 +9,8 @@
 //!
 //! Lane types of f32 ([`Lanes`]) are eight lanes in an AVX register ([`Avx`]), sixteen in an AVX-512
 //! one ([`Avx512`]), or eight in plain arrays (`Portable`, no intrinsics, any target; the
-//! reference the other two are tested against); of u32, `U32Lanes` for the samplers' hashes.
+//! reference the other two are tested against); of u32, `U32Lanes` for the samplers' hashes,
+//! paired with the f32 lanes of the same width by `SampleLanes`.
 //! Kernels are written once, generic over the lane type, and compiled per instruction set in
 //! functions marked `#[target_feature]`: a closure or generic function only inlines into code
 //! compiled for the same instruction set. [`multiversion!`] generates such copies and their
@@ -32,6 +33,8 @@ mod u32_lanes;
 pub(crate) use avx::Avx;
 #[cfg(target_arch = "x86_64")]
 pub(crate) use avx512::Avx512;
+#[cfg(target_arch = "x86_64")]
+pub(crate) use lanes::SampleLanes;
 pub(crate) use lanes::{CompressLanes, FusedLanes, Lanes};
 #[allow(unused_imports)]
 pub(crate) use portable::Portable;

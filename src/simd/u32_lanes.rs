@@ -1,13 +1,22 @@
 //! Vectors of u32 lanes: sixteen in an AVX-512 register (`__m512i`), eight in an AVX2 one
-//! (`__m256i`), for the integer hashes of the samplers.
+//! (`__m256i`), for the integer hashes and shuffle tables of the samplers.
 
-/// Vectors of u32 lanes with the operations Kensler's hashes need (wrapping like the scalar
-/// code): sixteen lanes with AVX-512F (`__m512i`), eight with AVX2 (`__m256i`). Every method is
-/// compiled for its type's instruction set, which the CPU must have; callers are generic code
-/// inlined into functions compiled for it.
+use std::arch::x86_64::*;
+
+/// Vectors of u32 lanes with the operations Kensler's hashes and the CMJ shuffle tables need
+/// (wrapping like the scalar code): sixteen lanes with AVX-512F (`__m512i`), eight with AVX2
+/// (`__m256i`). Every method is compiled for its type's instruction set, which the CPU must
+/// have; callers are generic code inlined into functions compiled for it.
 pub(crate) trait U32Lanes: Copy {
+    /// Lanes per vector.
+    const WIDTH: usize;
+    /// Sixteen u32 entries held in registers, looked up by [`U32Lanes::lookup16`].
+    type Table16: Copy;
+
     /// `x` in every lane.
     unsafe fn splat(x: u32) -> Self;
+    /// `first, first + 1, …` (wrapping), lane by lane.
+    unsafe fn consecutive(first: u32) -> Self;
     /// `self ^ b`.
     unsafe fn xor(self, b: Self) -> Self;
     /// `self & b`.
@@ -24,8 +33,18 @@ pub(crate) trait U32Lanes: Copy {
     unsafe fn or(self, b: Self) -> Self;
     /// The first lanes' worth of `x` (which must hold that many).
     unsafe fn load(x: &[u32]) -> Self;
+    /// Writes the lanes to the first lanes' worth of `out` (which must hold that many).
+    unsafe fn store(self, out: &mut [u32]);
+    /// `entries` as a table for [`U32Lanes::lookup16`].
+    unsafe fn table16(entries: &[u32; 16]) -> Self::Table16;
+    /// Entry `self` of `table` in each lane (every lane below 16): lane permutes, no memory.
+    unsafe fn lookup16(self, table: Self::Table16) -> Self;
+    /// Bit k set where lane k of `self & b` is not zero.
+    unsafe fn test(self, b: Self) -> u32;
 }
 
+/// The methods both vector types implement with one intrinsic each; the rest follow in the
+/// invocation.
 macro_rules! u32_lanes {
     (
         $ty:ty,
@@ -37,62 +56,72 @@ macro_rules! u32_lanes {
         $mul:ident,
         $shr:ident,
         $shl:ident,
-        $or:ident
+        $or:ident,
+        { $($rest:tt)* }
     ) => {
         impl U32Lanes for $ty {
+            const WIDTH: usize = size_of::<Self>() / 4;
+            $($rest)*
             #[target_feature(enable = $feature)]
             #[inline]
             unsafe fn splat(x: u32) -> Self {
-                std::arch::x86_64::$set1(x as i32)
+                $set1(x as i32)
             }
             #[target_feature(enable = $feature)]
             #[inline]
             unsafe fn xor(self, b: Self) -> Self {
-                std::arch::x86_64::$xor(self, b)
+                $xor(self, b)
             }
             #[target_feature(enable = $feature)]
             #[inline]
             unsafe fn and(self, b: Self) -> Self {
-                std::arch::x86_64::$and(self, b)
+                $and(self, b)
             }
             #[target_feature(enable = $feature)]
             #[inline]
             unsafe fn add(self, b: Self) -> Self {
-                std::arch::x86_64::$add(self, b)
+                $add(self, b)
             }
             #[target_feature(enable = $feature)]
             #[inline]
             unsafe fn mul(self, b: Self) -> Self {
-                std::arch::x86_64::$mul(self, b)
+                $mul(self, b)
             }
             #[target_feature(enable = $feature)]
             #[inline]
             unsafe fn shr(self, n: Self) -> Self {
-                std::arch::x86_64::$shr(self, n)
+                $shr(self, n)
             }
             #[target_feature(enable = $feature)]
             #[inline]
             unsafe fn shl(self, n: Self) -> Self {
-                std::arch::x86_64::$shl(self, n)
+                $shl(self, n)
             }
             #[target_feature(enable = $feature)]
             #[inline]
             unsafe fn or(self, b: Self) -> Self {
-                std::arch::x86_64::$or(self, b)
+                $or(self, b)
             }
             #[target_feature(enable = $feature)]
             #[inline]
             unsafe fn load(x: &[u32]) -> Self {
-                let x = &x[..size_of::<Self>() / 4];
+                let x = &x[..Self::WIDTH];
                 // SAFETY: `x` holds a whole vector of u32, checked above.
                 unsafe { std::ptr::read_unaligned(x.as_ptr().cast::<Self>()) }
+            }
+            #[target_feature(enable = $feature)]
+            #[inline]
+            unsafe fn store(self, out: &mut [u32]) {
+                let out = &mut out[..Self::WIDTH];
+                // SAFETY: `out` holds a whole vector of u32, checked above.
+                unsafe { std::ptr::write_unaligned(out.as_mut_ptr().cast::<Self>(), self) }
             }
         }
     };
 }
 
 u32_lanes!(
-    std::arch::x86_64::__m512i,
+    __m512i,
     "avx512f",
     _mm512_set1_epi32,
     _mm512_xor_si512,
@@ -101,10 +130,38 @@ u32_lanes!(
     _mm512_mullo_epi32,
     _mm512_srlv_epi32,
     _mm512_sllv_epi32,
-    _mm512_or_si512
+    _mm512_or_si512,
+    {
+        /// One register.
+        type Table16 = __m512i;
+
+        #[target_feature(enable = "avx512f")]
+        #[inline]
+        unsafe fn consecutive(first: u32) -> Self {
+            let iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+            _mm512_add_epi32(_mm512_set1_epi32(first as i32), iota)
+        }
+        #[target_feature(enable = "avx512f")]
+        #[inline]
+        unsafe fn table16(entries: &[u32; 16]) -> __m512i {
+            // SAFETY: the load reads the sixteen entries.
+            unsafe { _mm512_loadu_si512(entries.as_ptr().cast()) }
+        }
+        /// One permute (it reads the low four bits of each index).
+        #[target_feature(enable = "avx512f")]
+        #[inline]
+        unsafe fn lookup16(self, table: __m512i) -> Self {
+            _mm512_permutexvar_epi32(self, table)
+        }
+        #[target_feature(enable = "avx512f")]
+        #[inline]
+        unsafe fn test(self, b: Self) -> u32 {
+            _mm512_test_epi32_mask(self, b).into()
+        }
+    }
 );
 u32_lanes!(
-    std::arch::x86_64::__m256i,
+    __m256i,
     "avx2",
     _mm256_set1_epi32,
     _mm256_xor_si256,
@@ -113,5 +170,136 @@ u32_lanes!(
     _mm256_mullo_epi32,
     _mm256_srlv_epi32,
     _mm256_sllv_epi32,
-    _mm256_or_si256
+    _mm256_or_si256,
+    {
+        /// Entries 0–7 and 8–15 in two registers.
+        type Table16 = [__m256i; 2];
+
+        #[target_feature(enable = "avx2")]
+        #[inline]
+        unsafe fn consecutive(first: u32) -> Self {
+            _mm256_add_epi32(_mm256_set1_epi32(first as i32), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7))
+        }
+        #[target_feature(enable = "avx2")]
+        #[inline]
+        unsafe fn table16(entries: &[u32; 16]) -> [__m256i; 2] {
+            let words = entries.as_ptr().cast::<__m256i>();
+            // SAFETY: the loads read the sixteen entries.
+            unsafe { [_mm256_loadu_si256(words), _mm256_loadu_si256(words.add(1))] }
+        }
+        /// Two lane permutes (each reads the low three bits of each index) and a blend.
+        #[target_feature(enable = "avx2")]
+        #[inline]
+        unsafe fn lookup16(self, table: [__m256i; 2]) -> Self {
+            let (low, high) =
+                (_mm256_permutevar8x32_epi32(table[0], self), _mm256_permutevar8x32_epi32(table[1], self));
+            _mm256_blendv_epi8(low, high, _mm256_cmpgt_epi32(self, _mm256_set1_epi32(7)))
+        }
+        #[target_feature(enable = "avx2")]
+        #[inline]
+        unsafe fn test(self, b: Self) -> u32 {
+            let zero = _mm256_cmpeq_epi32(_mm256_and_si256(self, b), _mm256_setzero_si256());
+            !(_mm256_movemask_ps(_mm256_castsi256_ps(zero)) as u32) & 0xff
+        }
+    }
 );
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec2;
+
+    use super::*;
+    use crate::{
+        random::SplitMix64,
+        simd::{Avx, Avx512, CompressLanes, Lanes, SampleLanes},
+    };
+
+    /// The u32 lanes' tables, lookups, tests and runs, the conversions to f32 lanes (rounded as
+    /// `as f32` rounds, halfway cases and the top of the range included) and the stores of
+    /// points give the scalar values lane by lane and write nothing past their lanes: for
+    /// eight lanes (AVX2) and sixteen (AVX-512), where the CPU has them.
+    #[test]
+    fn u32_lanes_give_the_scalar_values() {
+        crate::simd::both_widths(
+            // SAFETY (both): `both_widths` runs each where the CPU has its instruction set.
+            || unsafe { same_as_scalar::<Avx>() },
+            || unsafe {
+                same_as_scalar::<Avx512>();
+                partial_stores_keep_to_their_lanes();
+            },
+        );
+    }
+
+    /// [`u32_lanes_give_the_scalar_values`] for `L`.
+    ///
+    /// # Safety
+    /// The CPU must have `L`'s instruction set.
+    unsafe fn same_as_scalar<L: SampleLanes>() {
+        let w = L::WIDTH;
+        assert_eq!(<L::U32 as U32Lanes>::WIDTH, w);
+        let lanes = |v: L::U32| {
+            let mut out = vec![0u32; w];
+            // SAFETY: the caller's CPU has `L`'s instruction set.
+            unsafe { v.store(&mut out) };
+            out
+        };
+        let floats = |v: L| (0..w).map(|k| v.lane(k).to_bits()).collect::<Vec<_>>();
+        let special: [u32; 9] = [0, 1, 0xffff, 0x1_0000, 0xff_ffff, 0x100_0001, 0x100_0003, 0x7fff_ffff, 0x8000_0000];
+        let mut rng = SplitMix64::new(11);
+        for round in 0..1_000 {
+            let a: Vec<u32> = (0..w)
+                .map(|k| match (round + k) % 4 {
+                    0 => {
+                        special[(round / 4 + k) % special.len()].wrapping_add([0, 0x8000_0000, 0x7f00_0000][round % 3])
+                    }
+                    _ => rng.next_u64() as u32,
+                })
+                .collect();
+            let b: Vec<u32> = (0..w).map(|_| rng.next_u64() as u32 >> (rng.next_u64() % 32)).collect();
+            let entries: [u32; 16] = std::array::from_fn(|_| rng.next_u64() as u32);
+            let first = rng.next_u64() as u32;
+            // SAFETY: the caller's CPU has `L`'s instruction set.
+            unsafe {
+                let (va, vb) = (L::U32::load(&a), L::U32::load(&b));
+                assert_eq!(lanes(va), a);
+                let run: Vec<u32> = (0..w as u32).map(|k| first.wrapping_add(k)).collect();
+                assert_eq!(lanes(L::U32::consecutive(first)), run, "{w} lanes from {first}");
+                let index = va.and(L::U32::splat(15));
+                let want: Vec<u32> = a.iter().map(|&i| entries[(i & 15) as usize]).collect();
+                assert_eq!(lanes(index.lookup16(L::U32::table16(&entries))), want, "lookup of {a:?}");
+                let set = (0..w).fold(0, |m, k| m | u32::from(a[k] & b[k] != 0) << k);
+                assert_eq!(va.test(vb), set, "test of {a:?}, {b:?}");
+                let want: Vec<u32> = a.iter().map(|&i| (i as f32).to_bits()).collect();
+                assert_eq!(floats(L::from_u32(va)), want, "conversion of {a:?}");
+                let small = va.shr(L::U32::splat(1));
+                let want: Vec<u32> = a.iter().map(|&i| ((i >> 1) as f32).to_bits()).collect();
+                assert_eq!(floats(L::from_small_u32(small)), want, "conversion of {a:?} / 2");
+            }
+        }
+        let (x, y): (Vec<f32>, Vec<f32>) = (0..w).map(|k| (k as f32 + 0.25, -(k as f32))).unzip();
+        for len in 0..=w {
+            let mut out = vec![Vec2::NAN; w + 1];
+            // SAFETY: the caller's CPU has `L`'s instruction set.
+            unsafe { L::store_points(L::load(&x), L::load(&y), &mut out[..len]) };
+            for (k, v) in out.iter().enumerate() {
+                let want = if k < len { [x[k], y[k]] } else { [f32::NAN; 2] };
+                assert_eq!(v.to_array().map(f32::to_bits), want.map(f32::to_bits), "{w} lanes, {len} points: {k}");
+            }
+        }
+    }
+
+    /// A partial store writes the first lanes and nothing past `out`.
+    ///
+    /// # Safety
+    /// The CPU must have AVX-512.
+    unsafe fn partial_stores_keep_to_their_lanes() {
+        let x: [f32; 16] = std::array::from_fn(|k| k as f32 + 0.5);
+        for len in 0..=17 {
+            let mut out = [-1.0f32; 18];
+            // SAFETY: the caller's CPU has AVX-512.
+            unsafe { Avx512::load(&x).store_partial(&mut out[..len]) };
+            let want: [f32; 18] = std::array::from_fn(|k| if k < len.min(16) { x[k] } else { -1.0 });
+            assert_eq!(out, want, "{len} floats");
+        }
+    }
+}

@@ -207,7 +207,7 @@ impl DirectionRays {
                 dark += blocked.iter().map(|b| b.count_ones()).sum::<u32>();
                 continue;
             };
-            let pattern = unsafe { QuadrantPattern::<L::Grid>::new(cmj, p) };
+            let pattern = unsafe { QuadrantPattern::<L>::new(cmj, p) };
             for (group, sums) in arriving[pass * n..][..n].chunks_mut(L::WIDTH).enumerate() {
                 unsafe { add_clear_or_floor::<L>(clear, floor, pattern.marked(group, &blocked), sums) };
             }

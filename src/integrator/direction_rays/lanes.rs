@@ -10,8 +10,7 @@ use crate::{
         accel::{KernelLanes, SceneLanes},
         lanes::{PacketLanes, RayLanes},
     },
-    sampling::cosine_table::WarpLanes,
-    simd::{Kernel, Lanes},
+    simd::{Kernel, Lanes, SampleLanes},
 };
 use crate::{
     geometry::{
@@ -196,12 +195,12 @@ pub(super) unsafe fn add_clear_or_floor<L: Lanes>(clear: Vec3A, floor: Vec3A, da
 
 /// Lanes that trace whole passes of quadrant patterns
 /// ([`DirectionRays::add_cosine_quadrants`]): their pattern grid and cosine map
-/// ([`WarpLanes`]) and the packet kernels' lanes ([`KernelLanes`]) for their scene query.
+/// ([`SampleLanes`]) and the packet kernels' lanes ([`KernelLanes`]) for their scene query.
 #[cfg(target_arch = "x86_64")]
-pub(super) trait PassLanes: WarpLanes + KernelLanes {}
+pub(super) trait PassLanes: SampleLanes + KernelLanes {}
 
 #[cfg(target_arch = "x86_64")]
-impl<L: WarpLanes + KernelLanes> PassLanes for L {}
+impl<L: SampleLanes + KernelLanes> PassLanes for L {}
 
 /// [`DirectionRays::add_cosine_quadrants`] as a kernel over the lane type.
 #[cfg(target_arch = "x86_64")]

@@ -1,14 +1,15 @@
 //! Correlated multi-jittered sampling (Kensler 2013, "Correlated Multi-Jittered Sampling"):
 //! stateless multi-jittered patterns of any size, each a pure function of (index, pattern).
 
+#[cfg(target_arch = "x86_64")]
 mod lanes;
 #[cfg(test)]
 mod tests;
 
 #[cfg(target_arch = "x86_64")]
-pub(crate) use lanes::{GridLanes, QuadrantPattern, SmallGrid8, SmallGrid16};
+pub(crate) use lanes::QuadrantPattern;
 #[cfg(target_arch = "x86_64")]
-use lanes::{consecutive8, quadrant_bits, quadrant_sample};
+use lanes::{FillColumns, FillSmallGrid, quadrant_bits, quadrant_sample};
 
 use glam::Vec2;
 
@@ -68,10 +69,8 @@ impl Cmj {
         };
         #[cfg(target_arch = "x86_64")]
         if cmj.has_quadrant_grid() {
-            for (w, (width, column_bits)) in
-                [(8, SmallGrid8::PACKET_COLUMN_BITS), (16, SmallGrid16::PACKET_COLUMN_BITS)].into_iter().enumerate()
-            {
-                let (bits, packet_bits) = quadrant_bits(&cmj, width, column_bits);
+            for (w, width) in [8, 16].into_iter().enumerate() {
+                let (bits, packet_bits) = quadrant_bits(&cmj, width);
                 for t in 0..n {
                     cmj.quadrant_samples[w][t as usize] = quadrant_sample(t, bits, packet_bits);
                 }
@@ -98,69 +97,16 @@ impl Cmj {
     pub fn fill(&self, first: u32, p: u32, out: &mut [Vec2]) {
         debug_assert!(first as u64 + out.len() as u64 <= self.n.get() as u64);
         // Where n is a power of two and the grid at most 16 × 16, the column and row shuffles
-        // are worked out once per call and looked up by lane permutes.
+        // are worked out once per call and looked up by lane permutes, in the packets' lanes.
         #[cfg(target_arch = "x86_64")]
-        if self.has_small_grid16() {
-            if crate::simd::avx512() {
-                // SAFETY: the CPU has AVX-512F, checked just above.
-                return unsafe { self.fill_small_grid_avx512(first, p, out) };
-            }
-            if crate::simd::avx2() {
-                // SAFETY: the CPU has AVX2, checked just above.
-                return unsafe { self.fill_small_grid_avx2(first, p, out) };
-            }
+        if self.has_small_grid16() && crate::simd::avx2() {
+            let kernel = FillSmallGrid { cmj: self, first, p, out };
+            // SAFETY: `packet_lanes` is sixteen only where AVX-512 is allowed, else eight, and
+            // AVX2 is allowed (checked just above).
+            return unsafe { crate::simd::run_in(crate::simd::packet_lanes(), kernel) }
+                .expect("eight or sixteen lanes");
         }
         fill_in_lanes(self, first, p, out);
-    }
-
-    /// [`Cmj::fill_small_grid_avx512`] eight samples at a time in AVX2 lanes
-    /// ([`SmallGrid8`]), stored as the `Vec2`s they are.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn fill_small_grid_avx2(&self, first: u32, p: u32, out: &mut [Vec2]) {
-        use std::arch::x86_64::*;
-
-        // SAFETY (both blocks): this function is compiled for AVX2.
-        let grid = unsafe { SmallGrid8::new(self, p) };
-        let iota = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-        for (i, chunk) in out.chunks_mut(8).enumerate() {
-            let (x, y) = unsafe { grid.points_of(grid.shuffled(consecutive8(first + 8 * i as u32))) };
-            // (x, y) pairs as `Vec2`s lie in memory: samples 0–3, then 4–7.
-            let (low, high) = (_mm256_unpacklo_ps(x, y), _mm256_unpackhi_ps(x, y));
-            let pairs = [_mm256_permute2f128_ps::<0x20>(low, high), _mm256_permute2f128_ps::<0x31>(low, high)];
-            let floats = chunk.as_mut_ptr().cast::<f32>();
-            for (h, pair) in pairs.into_iter().enumerate() {
-                // The floats of this half that the chunk holds (a chunk may be short).
-                let n = (2 * chunk.len()).saturating_sub(8 * h).min(8) as i32;
-                let keep = _mm256_cmpgt_epi32(_mm256_set1_epi32(n), iota);
-                // SAFETY: the masked store writes only the chunk's first 2·len floats.
-                unsafe { _mm256_maskstore_ps(floats.add(8 * h), keep, pair) };
-            }
-        }
-    }
-
-    /// [`Cmj::fill`] for a power-of-two n on a grid of at most 16 × 16, sixteen samples at a
-    /// time ([`SmallGrid16::points`]), stored as the `Vec2`s they are.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f")]
-    fn fill_small_grid_avx512(&self, first: u32, p: u32, out: &mut [Vec2]) {
-        use std::arch::x86_64::*;
-
-        let grid = SmallGrid16::new(self, p);
-        // x and y of lanes 0–7, then of lanes 8–15, interleaved as `Vec2`s lie in memory.
-        let low = _mm512_setr_epi32(0, 16, 1, 17, 2, 18, 3, 19, 4, 20, 5, 21, 6, 22, 7, 23);
-        let high = _mm512_add_epi32(low, _mm512_set1_epi32(8));
-        for (i, chunk) in out.chunks_mut(16).enumerate() {
-            let (x, y) = grid.points(first + 16 * i as u32);
-            let pairs = [_mm512_permutex2var_ps(x, low, y), _mm512_permutex2var_ps(x, high, y)];
-            let floats = chunk.as_mut_ptr().cast::<f32>();
-            for (h, pair) in pairs.into_iter().enumerate() {
-                // The floats of this half that the chunk holds (a chunk may be short).
-                let n = (2 * chunk.len()).saturating_sub(16 * h).min(16);
-                // SAFETY: the masked store writes only the chunk's first 2·len floats.
-                unsafe { _mm512_mask_storeu_ps(floats.add(16 * h), ((1u32 << n) - 1) as __mmask16, pair) };
-            }
-        }
     }
 
     /// Samples `first..first + xs.len()` (all < n) of pattern `p` as two columns, x into `xs`
@@ -171,7 +117,9 @@ impl Cmj {
         #[cfg(target_arch = "x86_64")]
         if self.has_small_grid16() && crate::simd::avx512() {
             // SAFETY: the CPU has AVX-512F, checked just above.
-            unsafe { self.fill_columns_avx512(first, p, xs, ys) };
+            unsafe {
+                <crate::simd::Avx512 as crate::simd::Lanes>::compiled(FillColumns { cmj: self, first, p, xs, ys })
+            };
             return true;
         }
         let _ = (first, p, xs, ys);
@@ -192,29 +140,10 @@ impl Cmj {
         self.has_small_grid16() && self.m.get().is_multiple_of(4)
     }
 
-    /// Whether n is a power of two on a grid of at most 16 × 16 ([`SmallGrid16`]'s patterns).
+    /// Whether n is a power of two on a grid of at most 16 × 16 ([`lanes::SmallGrid`]'s patterns).
     #[cfg(target_arch = "x86_64")]
     fn has_small_grid16(&self) -> bool {
         self.n.is_power_of_two() && self.m.get() <= 16 && self.k.get() <= 16
-    }
-
-    /// [`Cmj::fill_columns`] in AVX-512 lanes.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f")]
-    fn fill_columns_avx512(&self, first: u32, p: u32, xs: &mut [f32], ys: &mut [f32]) {
-        use std::arch::x86_64::*;
-
-        assert_eq!(xs.len(), ys.len(), "one column per coordinate");
-        let grid = SmallGrid16::new(self, p);
-        for (i, (xs, ys)) in xs.chunks_mut(16).zip(ys.chunks_mut(16)).enumerate() {
-            let (x, y) = grid.points(first + 16 * i as u32);
-            let keep = ((1u32 << xs.len()) - 1) as __mmask16;
-            // SAFETY: the masked stores write only the chunks' floats.
-            unsafe {
-                _mm512_mask_storeu_ps(xs.as_mut_ptr(), keep, x);
-                _mm512_mask_storeu_ps(ys.as_mut_ptr(), keep, y);
-            }
-        }
     }
 
     #[inline(always)]

@@ -1,4 +1,6 @@
 use super::*;
+#[cfg(target_arch = "x86_64")]
+use crate::simd::Lanes;
 
 #[test]
 fn cmj_is_stratified_on_the_grid_and_both_axes() {
@@ -30,17 +32,22 @@ fn fill_gives_the_samples_of_sample() {
     let mut fills: Vec<(&str, Fill)> = vec![("fill", Cmj::fill), ("portable", |c, f, p, o| c.fill_portable(f, p, o))];
     #[cfg(target_arch = "x86_64")]
     {
-        if crate::simd::cpu_isa() >= crate::simd::Isa::Avx2 {
-            // SAFETY: the CPU has AVX2, checked just above.
+        use crate::simd::{Avx, Avx512, Isa, cpu_isa};
+        if cpu_isa() >= Isa::Avx2 {
+            // SAFETY: the CPU has AVX2 and the rest of x86-64-v3, checked just above.
             fills.push(("avx2", |c, f, p, o| {
-                if c.has_small_grid16() { unsafe { c.fill_small_grid_avx2(f, p, o) } } else { c.fill_portable(f, p, o) }
+                if c.has_small_grid16() {
+                    unsafe { Avx::compiled(FillSmallGrid { cmj: c, first: f, p, out: o }) }
+                } else {
+                    c.fill_portable(f, p, o)
+                }
             }));
         }
-        if crate::simd::cpu_isa() >= crate::simd::Isa::Avx512 {
-            // SAFETY: the CPU has AVX-512F, checked just above.
+        if cpu_isa() >= Isa::Avx512 {
+            // SAFETY: the CPU has AVX-512F and x86-64-v3, checked just above.
             fills.push(("avx512", |c, f, p, o| {
                 if c.has_small_grid16() {
-                    unsafe { c.fill_small_grid_avx512(f, p, o) }
+                    unsafe { Avx512::compiled(FillSmallGrid { cmj: c, first: f, p, out: o }) }
                 } else {
                     c.fill_portable(f, p, o)
                 }
@@ -104,8 +111,6 @@ fn quadrant_slot_tables_put_each_sample_once_in_its_quarter() {
 #[cfg(target_arch = "x86_64")]
 #[test]
 fn quadrant_patterns_hold_each_sample_once_in_its_quarter() {
-    use std::arch::x86_64::*;
-
     for n in [4u32, 8, 12, 16, 32, 64, 128, 256, 512] {
         let cmj = Cmj::new(n);
         let splits = [16, 32, 64, 128, 256].contains(&n);
@@ -118,37 +123,35 @@ fn quadrant_patterns_hold_each_sample_once_in_its_quarter() {
             continue;
         }
         for p in [0u32, 1, 99, 0xdead_beef] {
-            // SAFETY (every block): the CPU has AVX2, checked above.
-            let pattern = unsafe { QuadrantPattern::<SmallGrid8>::new(&cmj, p) };
-            let points = |packet| {
-                let (mut x, mut y) = ([0.0f32; 8], [0.0f32; 8]);
-                unsafe {
-                    let (xs, ys) = pattern.points(packet);
-                    _mm256_storeu_ps(x.as_mut_ptr(), xs);
-                    _mm256_storeu_ps(y.as_mut_ptr(), ys);
-                }
-                (x.to_vec(), y.to_vec())
-            };
-            let marked = |g, marks: &[u32; 16]| unsafe { pattern.marked(g, marks) };
-            slots_hold_their_samples(&cmj, p, 8, points, marked);
-            if !crate::simd::avx512() {
-                continue;
+            // SAFETY: the CPU has AVX2 and x86-64-v3 (`avx2()` above).
+            unsafe { pattern_slots_hold_their_samples::<crate::simd::Avx>(&cmj, p) };
+            if crate::simd::avx512() {
+                // SAFETY: the CPU has AVX-512F, checked just above.
+                unsafe { pattern_slots_hold_their_samples::<crate::simd::Avx512>(&cmj, p) };
             }
-            // SAFETY (every block): the CPU has AVX-512F, checked just above.
-            let pattern = unsafe { QuadrantPattern::<SmallGrid16>::new(&cmj, p) };
-            let points = |packet| {
-                let (mut x, mut y) = ([0.0f32; 16], [0.0f32; 16]);
-                unsafe {
-                    let (xs, ys) = pattern.points(packet);
-                    _mm512_storeu_ps(x.as_mut_ptr(), xs);
-                    _mm512_storeu_ps(y.as_mut_ptr(), ys);
-                }
-                (x.to_vec(), y.to_vec())
-            };
-            let marked = |g, marks: &[u32; 16]| unsafe { pattern.marked(g, marks) };
-            slots_hold_their_samples(&cmj, p, 16, points, marked);
         }
     }
+}
+
+/// [`slots_hold_their_samples`] for pattern `p` of `cmj` in `L`'s lanes.
+///
+/// # Safety
+/// The CPU must have `L`'s instruction set.
+#[cfg(target_arch = "x86_64")]
+unsafe fn pattern_slots_hold_their_samples<L: crate::simd::SampleLanes>(cmj: &Cmj, p: u32) {
+    // SAFETY (every block): the caller's CPU has `L`'s instruction set.
+    let pattern = unsafe { QuadrantPattern::<L>::new(cmj, p) };
+    let points = |packet| {
+        let (mut x, mut y) = (vec![0.0f32; L::WIDTH], vec![0.0f32; L::WIDTH]);
+        unsafe {
+            let (xs, ys) = pattern.points(packet);
+            xs.store(&mut x);
+            ys.store(&mut y);
+        }
+        (x, y)
+    };
+    let marked = |g, marks: &[u32; 16]| unsafe { pattern.marked(g, marks) };
+    slots_hold_their_samples(cmj, p, L::WIDTH, points, marked);
 }
 
 /// The checks of the test above for one pattern `p` of `cmj` taken `width` slots at a time
