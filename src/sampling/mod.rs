@@ -137,7 +137,10 @@ impl SampleSets {
     /// one set by definition (regular).
     #[inline]
     pub fn frame_symmetry(&self, pixel: u32) -> Option<u32> {
-        let h = mix64(self.key ^ 0x7a21_0f3e_c4d9_86b5 ^ u64::from(pixel));
+        // One symmetry per 8 × 8 block of pixels: neighbours keep one orientation (and the
+        // caches the traversal warmed), while pixels that share a pattern lie far apart.
+        let block = (u64::from(pixel / self.width / 8) << 32) | u64::from(pixel % self.width / 8);
+        let h = mix64(self.key ^ 0x7a21_0f3e_c4d9_86b5 ^ block);
         self.symmetries.then_some((h >> 61) as u32)
     }
 
