@@ -7,9 +7,9 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use super::{
     check_distinct, console,
     frames::{Frames, animation_end, frame_count, parse_frames},
-    parse_aov, parse_fps, parse_sampler, parse_shard, parse_size, parse_time,
+    parse_aov, parse_fps, parse_shard, parse_time,
     peer_scene::PeerScene,
-    shot::{LookArgs, SceneArgs},
+    shot::{LookArgs, RunArgs, SceneArgs},
 };
 use crate::{
     Renderer,
@@ -17,7 +17,6 @@ use crate::{
     film::{OutputFile, OutputFormat, Picture, is_complete_image},
     partial::{self, Partial},
     resources::{Aov, RenderSettings},
-    sampling::SamplerKind,
     scene::gltf::{LoadOptions, MAX_FRAMING_POSES, SpawnOptions},
     sequence::frame_path,
     stats::{RayCounts, mrays_per_second},
@@ -30,6 +29,8 @@ pub(super) struct RenderArgs {
     shot: SceneArgs,
     #[command(flatten)]
     look: LookArgs,
+    #[command(flatten)]
+    run: RunArgs,
     /// Output image: .png (8-bit sRGB) or .exr (linear f32, unclamped). With --frames it must
     /// hold a frame-number placeholder: `{}`, `{:0N}` (zero-padded to N digits) or N `#`.
     #[arg(long, default_value = "hemi.png")]
@@ -68,19 +69,6 @@ pub(super) struct RenderArgs {
     /// and per-frame work.
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65_536))]
     spf: Option<u32>,
-    /// Image size, WIDTHxHEIGHT [default: 640x360, or a peer scene's own].
-    #[arg(long, value_parser = parse_size)]
-    size: Option<(u32, u32)>,
-    /// Seed of every random decision: the same seed gives the same image bit for bit
-    /// [default: 0, or a peer scene's seed].
-    #[arg(long)]
-    seed: Option<u64>,
-    /// Sample pattern: regular, random, jittered, n-rooks, multi-jittered, hammersley, cmj, zsobol.
-    #[arg(long, default_value = "cmj", value_parser = parse_sampler)]
-    sampler: SamplerKind,
-    /// Worker threads (default: one per core).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
-    threads: Option<u32>,
     /// Print a per-system timing table for every frame.
     #[arg(long)]
     stats: bool,
@@ -227,7 +215,7 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
         }
         _ => None,
     };
-    let size = args.size.or(peer.as_ref().map(|p| (p.width, p.height))).unwrap_or((640, 360));
+    let size = args.run.size.or(peer.as_ref().map(|p| (p.width, p.height))).unwrap_or((640, 360));
     let spp = args.spp.or(peer.as_ref().map(|p| p.samples)).unwrap_or(16);
     let set = spp.min(RenderSettings::ONE_FRAME_SPP);
     let default_spf = match args.sample_range {
@@ -241,8 +229,8 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
         samples_per_frame: args.spf.unwrap_or(default_spf),
         samples_per_set: set,
         max_spp: Some(spp),
-        seed: args.seed.or(peer.as_ref().map(|p| p.seed)).unwrap_or(0),
-        sampler: args.sampler,
+        seed: args.run.seed.or(peer.as_ref().map(|p| p.seed)).unwrap_or(0),
+        sampler: args.run.sampler,
         // The peers' contract: one primary ray through each pixel centre.
         jitter: peer.is_none(),
         // Coverage (alpha) is accumulated with the AOVs.
@@ -299,7 +287,7 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
     if let Some(background) = args.shot.background_radiance() {
         renderer.settings_mut().background = background;
     }
-    if let Some(threads) = args.threads {
+    if let Some(threads) = args.run.threads {
         renderer = renderer.with_threads(threads as usize)?;
     }
     let picture = Picture { look: args.look.look(), alpha: args.shot.transparent() };

@@ -9,6 +9,7 @@ use crate::{
     components::Camera,
     error::HemiError,
     look::{Look, Tonemap},
+    sampling::SamplerKind,
     scene::staging,
 };
 
@@ -96,6 +97,25 @@ impl SceneArgs {
         }
         Ok(())
     }
+}
+
+/// The image's size, its sampling and the threads that render it.
+#[derive(clap::Args, Debug, Clone)]
+pub struct RunArgs {
+    /// Image size, WIDTHxHEIGHT (for `hemi view`, the window's full-resolution size)
+    /// [default: 640x360, or a peer scene's own].
+    #[arg(long, value_parser = super::parse_size)]
+    pub size: Option<(u32, u32)>,
+    /// Seed of every random decision: the same seed gives the same image bit for bit
+    /// [default: 0, or a peer scene's seed].
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Sample pattern: regular, random, jittered, n-rooks, multi-jittered, hammersley, cmj, zsobol.
+    #[arg(long, default_value = "cmj", value_parser = super::parse_sampler)]
+    pub sampler: SamplerKind,
+    /// Worker threads (default: one per core).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub threads: Option<u32>,
 }
 
 /// The look of 8-bit output.

@@ -4,10 +4,9 @@ use std::{path::PathBuf, time::Instant};
 
 use super::{SceneSource, Viewer, ViewerOptions, window};
 use crate::{
-    cli::shot::{LookArgs, SceneArgs},
+    cli::shot::{LookArgs, RunArgs, SceneArgs},
     error::HemiError,
     resources::RenderSettings,
-    sampling::SamplerKind,
 };
 
 /// Options of `hemi view`.
@@ -17,9 +16,8 @@ pub struct ViewArgs {
     shot: SceneArgs,
     #[command(flatten)]
     look: LookArgs,
-    /// Window (full render) size, WIDTHxHEIGHT [default: 640x360, or a peer scene's own].
-    #[arg(long, value_parser = parse_size)]
-    size: Option<(u32, u32)>,
+    #[command(flatten)]
+    run: RunArgs,
     /// Samples per pixel a still view converges to [default: 1024, or a peer scene's
     /// ao.samples]: the image `hemi render --spp N` writes (byte for byte with --spf).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
@@ -35,15 +33,6 @@ pub struct ViewArgs {
     /// Keep the full resolution while moving.
     #[arg(long)]
     no_dynamic_resolution: bool,
-    /// Seed [default: 0, or a peer scene's seed].
-    #[arg(long)]
-    seed: Option<u64>,
-    /// Sample pattern (as `hemi render --sampler`).
-    #[arg(long, default_value = "cmj", value_parser = parse_sampler)]
-    sampler: SamplerKind,
-    /// Worker threads (default: one per core).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
-    threads: Option<u32>,
     /// Orbit once around the scene in this many seconds.
     #[arg(long, value_name = "SECONDS", value_parser = parse_ms)]
     turntable: Option<f64>,
@@ -64,26 +53,11 @@ pub struct ViewArgs {
     stats_json: Option<PathBuf>,
 }
 
-fn parse_size(s: &str) -> Result<(u32, u32), String> {
-    let (w, h) = s.split_once(['x', 'X']).ok_or("expected WIDTHxHEIGHT, e.g. 640x360")?;
-    let w: u32 = w.trim().parse().map_err(|_| format!("width '{w}' is not a whole number"))?;
-    let h: u32 = h.trim().parse().map_err(|_| format!("height '{h}' is not a whole number"))?;
-    RenderSettings { width: w, height: h, ..Default::default() }.validate()?;
-    Ok((w, h))
-}
-
 fn parse_ms(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
         Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
         _ => Err(format!("'{s}' must be a positive number")),
     }
-}
-
-fn parse_sampler(s: &str) -> Result<SamplerKind, String> {
-    SamplerKind::from_name(s).ok_or_else(|| {
-        let names: Vec<&str> = SamplerKind::ALL.iter().map(|k| k.name()).collect();
-        format!("unknown sampler '{s}' (expected one of: {})", names.join(", "))
-    })
 }
 
 /// Runs `hemi view`.
@@ -97,17 +71,18 @@ pub fn run(args: ViewArgs) -> Result<(), HemiError> {
     let shot = &args.shot;
     let source = SceneSource::open(shot.scene.as_deref(), shot.camera.clone(), shot.animation.clone(), warn)?;
     let (size, spp, seed) = source.defaults();
-    let settings = RenderSettings { seed: args.seed.unwrap_or(seed), sampler: args.sampler, ..Default::default() };
+    let settings =
+        RenderSettings { seed: args.run.seed.unwrap_or(seed), sampler: args.run.sampler, ..Default::default() };
     let mut renderer = source.renderer(settings, warn)?;
     shot.stage(renderer.world_mut())?;
     if let Some(background) = shot.background_radiance() {
         renderer.settings_mut().background = background;
     }
-    if let Some(threads) = args.threads {
+    if let Some(threads) = args.run.threads {
         renderer = renderer.with_threads(threads as usize)?;
     }
     let options = ViewerOptions {
-        size: args.size.unwrap_or(size),
+        size: args.run.size.unwrap_or(size),
         spp: args.spp.or(spp).unwrap_or(1024),
         spf: args.spf,
         target: std::time::Duration::from_secs_f64(args.target_ms / 1e3),
