@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Runs hemi, Embree 4 (embreex) and Mitsuba 3 (llvm_ad_rgb) on the same peer scenes, one after
-# the other in one run, and prints AO-ray throughput, render time and the ratios.
+# Runs hemi, native Embree 3 (C++, ../shared/peers/native: the best of its stream and packet
+# modes), Embree 4 (embreex) and Mitsuba 3 (llvm_ad_rgb) on the same peer scenes, one after the
+# other in one run, and prints AO-ray throughput, render time and the ratios.
 #
 #   scripts/compare-peers.sh [--spp N] [--threads N] [--rounds N] [--split] [SCENE ...]   (default: all five)
 #
@@ -37,13 +38,14 @@ done
 [ -d "$peers_src" ] || { echo "compare-peers: $peers_src not found (../shared must sit beside the repo)" >&2; exit 1; }
 
 . "$root/scripts/peers-venv.sh"
+. "$root/scripts/native-embree.sh"
 
 (cd "$root" && cargo build --release -q)
 hemi="$root/target/release/hemi"
 out="$(mktemp -d)"
 json() { python3 -c "import json,sys; d=json.loads(sys.stdin.read().strip().splitlines()[-1]); print($1)"; }
 
-printf '%-13s %5s | %-49s | %-28s | %-28s | %s\n' scene spp "hemi: s, AO Mrays/s (trace, kernel, queries)" "embree: s, AO Mrays/s" "mitsuba: s, AO Mrays/s" "hemi/mitsuba (kernel, trace), hemi/embree (trace)"
+printf '%-13s %5s | %-49s | %-12s | %-28s | %-28s | %s\n' scene spp "hemi: s, AO Mrays/s (trace, kernel, queries)" "native: AO" "embree: s, AO Mrays/s" "mitsuba: s, AO Mrays/s" "hemi kernel/native, hemi/mitsuba (kernel, trace), hemi/embree (trace)"
 for _ in $(seq "$rounds"); do
 for s in "${scenes[@]}"; do
     "$hemi" render "$peers_src/scenes/$s.json" --spp "$spp" --threads "$threads" --out "$out/$s.png" \
@@ -52,6 +54,8 @@ for s in "${scenes[@]}"; do
     h_ao=$(json "round(d['total']['ao_mrays_per_s'],2)" < "$out/$s.json")
     h_aok=$(json "round(d['total']['ao_kernel_mrays_per_s'],2)" < "$out/$s.json")
     h_aoq=$(json "round(d['total']['ao_query_mrays_per_s'],2)" < "$out/$s.json")
+    n_line=$(native_best "$s" "$spp" "$threads" --repeat 3 || true)
+    n_ao=$(echo "$n_line" | json "d['ao_mrays_s']" 2>/dev/null || echo nan)
     e_line=$(cd "$work" && .venv/bin/python embree_ao.py "$peers_src/scenes/$s.json" --spp "$spp" --threads "$threads" --out "$out/$s.embree" 2>/dev/null | tail -1 || true)
     if [ -n "$e_line" ] && e_s=$(echo "$e_line" | json "d['render_s']" 2>/dev/null); then
         e_ao=$(echo "$e_line" | json "d['ao_incl_gen_mrays_s']")
@@ -67,9 +71,9 @@ for s in "${scenes[@]}"; do
         echo "compare-peers: mitsuba failed on $s (run mitsuba_ao.py by hand to see why)" >&2
         m_s=nan; m_ao=nan
     fi
-    ratio=$(python3 -c "print(f'{$h_aok/$m_ao:.2f}x, {$h_ao/$m_ao:.2f}x, {$h_ao/$e_ao:.2f}x')" 2>/dev/null || echo "-")
-    printf '%-13s %5s | %10s s %12s %12s %12s | %10s s %12s       | %10s s %12s       | %s\n' "$s" "$spp" "$h_s" "$h_ao" "$h_aok" "$h_aoq" "$e_s" "$e_ao" "$m_s" "$m_ao" "$ratio"
-    echo "$s $h_s $h_ao $h_aok $h_aoq $e_s $e_ao $m_s $m_ao" >> "$out/runs.txt"
+    ratio=$(python3 -c "print(f'{$h_aok/$n_ao:.2f}x, {$h_aok/$m_ao:.2f}x, {$h_ao/$m_ao:.2f}x, {$h_ao/$e_ao:.2f}x')" 2>/dev/null || echo "-")
+    printf '%-13s %5s | %10s s %12s %12s %12s | %12s | %10s s %12s       | %10s s %12s       | %s\n' "$s" "$spp" "$h_s" "$h_ao" "$h_aok" "$h_aoq" "$n_ao" "$e_s" "$e_ao" "$m_s" "$m_ao" "$ratio"
+    echo "$s $h_s $h_ao $h_aok $h_aoq $e_s $e_ao $m_s $m_ao $n_ao" >> "$out/runs.txt"
     if [ "$split" = 1 ]; then
         # The scene with 1e-7-long AO rays (mesh paths made absolute), then both kernels' seconds on
         # it beside those of the run above.
@@ -104,12 +108,12 @@ for line in open(sys.argv[1]):
 def spread(xs):
     xs = [x for x in xs if math.isfinite(x)]
     return f"{statistics.median(xs):.2f}x ({min(xs):.2f}-{max(xs):.2f})" if xs else "-"
-print(f"{'scene':13s} | {'kernel / mitsuba':18s} | runs >= 1 | {'trace / mitsuba':18s} | {'queries / mitsuba':18s} | "
+print(f"{'scene':13s} | {'kernel / native':18s} | {'kernel / mitsuba':18s} | runs >= 1 | {'trace / mitsuba':18s} | {'queries / mitsuba':18s} | "
       f"{'hemi s / mitsuba s':18s} | {'trace / embree':18s}")
 for name, rows in runs.items():
-    h_s, h_ao, h_aok, h_aoq, e_s, e_ao, m_s, m_ao = zip(*rows)
+    h_s, h_ao, h_aok, h_aoq, e_s, e_ao, m_s, m_ao, n_ao = zip(*rows)
     kernel = [k / m for k, m in zip(h_aok, m_ao)]
-    print(f"{name:13s} | {spread(kernel):18s} | {sum(k >= 1 for k in kernel):2d} of {len(rows):<3d} | "
+    print(f"{name:13s} | {spread([k / n for k, n in zip(h_aok, n_ao)]):18s} | {spread(kernel):18s} | {sum(k >= 1 for k in kernel):2d} of {len(rows):<3d} | "
           f"{spread([t / m for t, m in zip(h_ao, m_ao)]):18s} | {spread([q / m for q, m in zip(h_aoq, m_ao)]):18s} | "
           f"{spread([h / m for h, m in zip(h_s, m_s)]):18s} | {spread([t / e for t, e in zip(h_ao, e_ao)]):18s}")
 PY
@@ -119,6 +123,7 @@ echo "hemi kernel = AO rays / the trace time spent in the ambient occluder (its 
 echo "the part Mitsuba's number times), from cycle counts of every sixteenth pixel; hemi queries = AO rays / the"
 echo "part of that in the AO rays' BVH queries alone (traversal and triangle tests; no sampling, set-up or sums;"
 echo "timed in a quarter of those pixels);"
+echo "native = native Embree 3's ao_mrays_s (AO rays over its AO phase, generation included), best of --stream, --packet 8 and 16;"
 echo "embree = ao_incl_gen_mrays_s (numpy ray generation + occlusion); mitsuba = ao_mrays_s (whole AO kernel, warm run)."
 if [ "$split" = 1 ]; then
     echo "AO kernel ms with rays 1e-7 long ('stub': sampling, set-up, sums, the walk to the origin's nodes) and"
