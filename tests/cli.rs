@@ -13,7 +13,7 @@ fn hemi(args: &[&str]) -> (i32, String, String) {
 }
 
 fn temp(name: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("hemi-cli-{}", std::process::id()));
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("hemi-cli");
     std::fs::create_dir_all(&dir).unwrap();
     dir.join(name)
 }

@@ -15,7 +15,7 @@ use hemi::{
 use serde_json::{Value, json};
 
 fn dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("hemi-anim-{}-{name}", std::process::id()));
+    let d = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("hemi-anim-{name}"));
     std::fs::create_dir_all(&d).unwrap();
     d
 }

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use hemi::{HemiError, scene::gltf};
 
 fn temp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("hemi-gltf-{}", std::process::id()));
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("hemi-gltf");
     std::fs::create_dir_all(&dir).unwrap();
     dir.join(name)
 }

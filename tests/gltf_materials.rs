@@ -191,7 +191,7 @@ fn a_corrupt_or_missing_image_is_one_warning_naming_it_and_the_factor_is_used() 
     assert!(w.contains("factor"), "{w}");
     assert!(scene.meshes[0][0].surface.is_none(), "nothing varies without the texture");
     // An image file that is not there (as BoomBox ships without its images).
-    let dir = std::env::temp_dir().join(format!("hemi-materials-{}", std::process::id()));
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("hemi-materials");
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("missing.gltf");
     let images = json!({"images": [{"uri": "gone.png"}], "textures": [{"source": 0}]});

@@ -18,7 +18,7 @@ use hemi::{
 use serde_json::{Value, json};
 
 fn dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("hemi-hostile-{}", std::process::id())).join(name);
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("hemi-hostile").join(name);
     std::fs::create_dir_all(&dir).unwrap();
     dir
 }

@@ -387,7 +387,7 @@ fn mutation_child() {
 #[test]
 fn mutated_files_fail_in_one_line_or_load() {
     let count = std::env::var("HEMI_MUTANTS").ok().and_then(|n| n.parse().ok()).unwrap_or(DEFAULT_MUTANTS);
-    let dir = std::env::temp_dir().join(format!("hemi-mutants-{}", std::process::id()));
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("hemi-mutants");
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     let start = Instant::now();

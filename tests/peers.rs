@@ -46,7 +46,7 @@ fn sponza_follows_the_contracts_ray_offset() {
 
 #[test]
 fn peer_scene_errors_name_the_file() {
-    let dir = std::env::temp_dir().join(format!("hemi-peer-{}", std::process::id()));
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("hemi-peer");
     std::fs::create_dir_all(&dir).unwrap();
     let bad = dir.join("bad.json");
     std::fs::write(&bad, r#"{"name": "x", "mesh": "m.glb", "camera": {"eye": [0,0,0]}}"#).unwrap();

@@ -54,7 +54,7 @@ fn render_streams_create_and_update_packets_to_tev() {
         stream.read_to_end(&mut bytes).unwrap();
         bytes
     });
-    let dir = std::env::temp_dir().join(format!("hemi-tev-{}", std::process::id()));
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("hemi-tev");
     std::fs::create_dir_all(&dir).unwrap();
     let out = dir.join("streamed.exr");
     let status = Command::new(env!("CARGO_BIN_EXE_hemi"))
@@ -98,7 +98,7 @@ fn render_streams_create_and_update_packets_to_tev() {
 fn an_unreachable_display_server_is_one_line_and_a_non_zero_exit() {
     // A port nobody listens on: bind one, then close it.
     let address = TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().to_string();
-    let out = std::env::temp_dir().join(format!("hemi-tev-none-{}.png", std::process::id()));
+    let out = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("hemi-tev-none.png");
     let output = Command::new(env!("CARGO_BIN_EXE_hemi"))
         .args(["render", "--size", "8x8", "--spp", "1", "--display-server", &address, "--out"])
         .arg(&out)
