@@ -278,10 +278,7 @@ impl SampleSets {
             SamplerKind::Regular => out.copy_from_slice(&self.points[first as usize..][..out.len()]),
             SamplerKind::ZSobol => {
                 let (x, y) = (pixel % self.width, pixel / self.width);
-                let seed = self.seed ^ mix64(pass as u64);
-                for (i, o) in indices.zip(out) {
-                    *o = Vec2::from(self.zsobol.sample(x, y, i, dim, seed));
-                }
+                self.zsobol.fill(x, y, first, dim, self.seed ^ mix64(pass as u64), out);
             }
             SamplerKind::CorrelatedMultiJittered => {
                 let p = self.cmj_pattern(pixel, pass, dim);

@@ -137,24 +137,19 @@ impl ZSobol {
         ZSobol { log2_spp, base4_digits: res_bits + log2_spp.div_ceil(2) }
     }
 
-    /// pbrt-v4's `ZSobolSampler::GetSampleIndex`: the hierarchically permuted index.
+    /// The base-4 digits of pbrt-v4's `ZSobolSampler::GetSampleIndex` that lie wholly above the
+    /// sample's bits (digit `log2_spp.div_ceil(2)` up) of `pixel` (the pixel's Morton index
+    /// shifted up by `log2_spp`), each permuted by a hash of the digits above it: the same for
+    /// every sample of the pixel.
     #[inline]
-    fn sample_index(&self, morton: u64, dim: u32) -> u64 {
-        let pow2 = self.log2_spp & 1 == 1;
-        let last = u32::from(pow2);
+    fn pixel_digits(&self, pixel: u64, dim: u32) -> u64 {
+        let odd = u32::from(self.log2_spp & 1 == 1);
+        let dim_key = 0x5555_5555u64.wrapping_mul(dim as u64);
         let mut index = 0u64;
-        let mut i = self.base4_digits;
-        while i > last {
-            i -= 1;
-            let shift = 2 * i - u32::from(pow2);
-            let digit = (morton >> shift) & 3;
-            let higher = morton >> (shift + 2);
-            let p = (mix_bits(higher ^ (0x5555_5555u64.wrapping_mul(dim as u64))) >> 24) % 24;
-            index |= (PERMUTATIONS[p as usize][digit as usize] as u64) << shift;
-        }
-        if pow2 {
-            let digit = morton & 1;
-            index |= digit ^ (mix_bits((morton >> 1) ^ (0x5555_5555u64.wrapping_mul(dim as u64))) & 1);
+        for i in self.log2_spp.div_ceil(2)..self.base4_digits {
+            let shift = 2 * i - odd;
+            let p = (mix_bits((pixel >> (shift + 2)) ^ dim_key) >> 24) % 24;
+            index |= (PERMUTATIONS[p as usize][((pixel >> shift) & 3) as usize] as u64) << shift;
         }
         index
     }
@@ -162,11 +157,59 @@ impl ZSobol {
     /// The 2-D sample of pixel (x, y), sample `index` (< 2^log2_spp), dimension `dim`.
     #[inline]
     pub fn sample(&self, x: u32, y: u32, index: u32, dim: u32, seed: u64) -> [f32; 2] {
-        let morton = (morton2(x, y) << self.log2_spp) | index as u64;
-        let a = self.sample_index(morton, dim) as u32;
+        let mut out = [glam::Vec2::ZERO];
+        self.fill(x, y, index, dim, seed, &mut out);
+        out[0].to_array()
+    }
+
+    /// [`ZSobol::sample`] for samples `first, first + 1, …` of pixel (x, y), one per element of
+    /// `out` (all below 2^log2_spp). A digit's permutation depends only on the digits above it,
+    /// so the pixel's own digits are permuted once for the run, and each of the sample's digits
+    /// (and the odd power of two's low bit) again only when the digits above it change: once
+    /// per 4^k samples for the k-th digit from the bottom, not once per sample.
+    #[inline]
+    pub fn fill(&self, x: u32, y: u32, first: u32, dim: u32, seed: u64, out: &mut [glam::Vec2]) {
+        let pixel = morton2(x, y) << self.log2_spp;
+        let high = self.pixel_digits(pixel, dim);
         let hash = mix64(seed ^ mix64(dim as u64 + 1));
+        let dim_key = 0x5555_5555u64.wrapping_mul(dim as u64);
+        fill_samples(self.log2_spp, [pixel, high], first, dim_key, (hash as u32, (hash >> 32) as u32), out);
+    }
+}
+
+crate::simd::multiversion! {
+    /// The loop of [`ZSobol::fill`]: `pixel` holds the pixel's Morton index shifted up by
+    /// `log2_spp`, and the same with its digits permuted ([`ZSobol::pixel_digits`]), `dim_key` the dimension's hash key and
+    /// `seeds` the Owen scrambling seeds of the two coordinates. Compiled per instruction set
+    /// (AVX-512 converts u32 to f32 in one instruction).
+    fn fill_samples(log2_spp: u32, pixel_and_digits: [u64; 2], first: u32, dim_key: u64, seeds: (u32, u32), out: &mut [glam::Vec2]) {
+        let [pixel, high] = pixel_and_digits;
         let to_unit = |bits: u32| (bits as f32 * (1.0 / 4_294_967_296.0)).min(super::ONE_MINUS_EPSILON);
-        [to_unit(fast_owen(sobol_bits(a, 0), hash as u32)), to_unit(fast_owen(sobol_bits(a, 1), (hash >> 32) as u32))]
+        let odd = log2_spp & 1 == 1;
+        // Per digit below the pixel's: the digits above it (a Morton index shifted right,
+        // below 2^62, so never u64::MAX) and their hash; entry 0 is the low bit's when `odd`.
+        let mut above = [(u64::MAX, 0u64); 17];
+        let mut hashed = |level: usize, key: u64| {
+            let (k, h) = &mut above[level];
+            if *k != key {
+                (*k, *h) = (key, mix_bits(key ^ dim_key));
+            }
+            *h
+        };
+        for (index, o) in (first..).zip(out) {
+            let morton = pixel | index as u64;
+            let mut a = high;
+            for i in u32::from(odd)..log2_spp.div_ceil(2) {
+                let shift = 2 * i - u32::from(odd);
+                let p = (hashed(i as usize, morton >> (shift + 2)) >> 24) % 24;
+                a |= (PERMUTATIONS[p as usize][((morton >> shift) & 3) as usize] as u64) << shift;
+            }
+            if odd {
+                a |= (morton & 1) ^ (hashed(0, morton >> 1) & 1);
+            }
+            let a = a as u32;
+            *o = glam::Vec2::new(to_unit(fast_owen(sobol_bits(a, 0), seeds.0)), to_unit(fast_owen(sobol_bits(a, 1), seeds.1)));
+        }
     }
 }
 
@@ -200,6 +243,54 @@ mod tests {
             s.sort();
             assert_eq!(s, [0, 1, 2, 3]);
             assert!(PERMUTATIONS[..i].iter().all(|b| b != a));
+        }
+    }
+
+    /// pbrt-v4's `GetSampleIndex` as written there: one loop over every digit.
+    fn pbrt_sample_index(z: &ZSobol, morton: u64, dim: u32) -> u64 {
+        let pow2 = z.log2_spp & 1 == 1;
+        let last = u32::from(pow2);
+        let mut index = 0u64;
+        let mut i = z.base4_digits;
+        while i > last {
+            i -= 1;
+            let shift = 2 * i - u32::from(pow2);
+            let digit = (morton >> shift) & 3;
+            let higher = morton >> (shift + 2);
+            let p = (mix_bits(higher ^ (0x5555_5555u64.wrapping_mul(dim as u64))) >> 24) % 24;
+            index |= (PERMUTATIONS[p as usize][digit as usize] as u64) << shift;
+        }
+        if pow2 {
+            let digit = morton & 1;
+            index |= digit ^ (mix_bits((morton >> 1) ^ (0x5555_5555u64.wrapping_mul(dim as u64))) & 1);
+        }
+        index
+    }
+
+    #[test]
+    fn runs_of_samples_equal_pbrts_index_sample_by_sample() {
+        for spp in [1, 2, 8, 16, 32, 64, 128, 1024] {
+            let z = ZSobol::new(spp, 640);
+            for (x, y, dim, seed) in [(0, 0, 0, 0), (3, 5, 1, 7), (639, 359, 4, 0xdead_beef), (100, 7, 2, 1 << 40)] {
+                let mut run = vec![glam::Vec2::ZERO; spp as usize];
+                z.fill(x, y, 0, dim, seed, &mut run);
+                let hash = mix64(seed ^ mix64(dim as u64 + 1));
+                for (i, got) in run.iter().enumerate() {
+                    let morton = (morton2(x, y) << z.log2_spp) | i as u64;
+                    let a = pbrt_sample_index(&z, morton, dim) as u32;
+                    let unit = |b: u32| (b as f32 * (1.0 / 4_294_967_296.0)).min(crate::sampling::ONE_MINUS_EPSILON);
+                    let want = [
+                        unit(fast_owen(sobol_bits(a, 0), hash as u32)),
+                        unit(fast_owen(sobol_bits(a, 1), (hash >> 32) as u32)),
+                    ];
+                    assert_eq!(got.to_array(), want, "spp {spp}, pixel ({x}, {y}), dim {dim}, sample {i}");
+                    assert_eq!(z.sample(x, y, i as u32, dim, seed), want);
+                }
+                // A run that starts mid-pixel gives the same samples.
+                let mut tail = vec![glam::Vec2::ZERO; spp as usize / 2];
+                z.fill(x, y, spp - tail.len() as u32, dim, seed, &mut tail);
+                assert_eq!(tail[..], run[run.len() - tail.len()..]);
+            }
         }
     }
 
