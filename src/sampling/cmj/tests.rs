@@ -54,7 +54,7 @@ fn fill_gives_the_samples_of_sample() {
             }));
         }
     }
-    for n in [1u32, 2, 8, 12, 16, 32, 64, 128, 256, 1024] {
+    for n in [1u32, 2, 8, 12, 16, 32, 48, 64, 128, 192, 256, 1000, 1024, 5000] {
         let cmj = Cmj::new(n);
         for p in [0u32, 1, 99, 0xdead_beef] {
             for first in [0, n / 3, n - 1] {
