@@ -214,22 +214,38 @@ impl SampleSets {
         }
     }
 
-    /// [`SampleSets::fill`] as two columns, x into `xs` and y into `ys` (same length), where
-    /// that is quicker: correlated multi-jittered sets whose patterns [`Cmj::fill_columns`]
-    /// computes in lanes. Returns false, writing nothing, for other sets or CPUs.
-    pub(crate) fn fill_columns(&self, pixel: u32, first: u32, dim: u32, xs: &mut [f32], ys: &mut [f32]) -> bool {
-        if self.kind != SamplerKind::CorrelatedMultiJittered || xs.len() != ys.len() {
-            return false;
-        }
-        for (pass, i, run) in self.passes(first, xs.len()) {
-            let p = self.cmj_pattern(pixel, pass, dim);
-            if !self.cmj.fill_columns(i, p, &mut xs[run.clone()], &mut ys[run.clone()]) {
-                // The first call decides for all (the pattern size is the same).
-                debug_assert_eq!(run.start, 0);
-                return false;
+    /// [`SampleSets::fill`] as two columns, x into `xs` and y into `ys` (same length):
+    /// correlated multi-jittered sets whose patterns [`Cmj::fill_columns`] computes in lanes go
+    /// straight to the columns, other sets through [`SampleSets::fill`] a block at a time.
+    pub(crate) fn fill_columns(&self, pixel: u32, first: u32, dim: u32, xs: &mut [f32], ys: &mut [f32]) {
+        assert_eq!(xs.len(), ys.len(), "two columns of the same length");
+        if self.kind == SamplerKind::CorrelatedMultiJittered {
+            let mut passes = self.passes(first, xs.len()).peekable();
+            // The first pass decides for all (the pattern size is the same).
+            if let Some(&(pass, i, ref run)) = passes.peek()
+                && self.cmj.fill_columns(
+                    i,
+                    self.cmj_pattern(pixel, pass, dim),
+                    &mut xs[run.clone()],
+                    &mut ys[run.clone()],
+                )
+            {
+                for (pass, i, run) in passes.skip(1) {
+                    let p = self.cmj_pattern(pixel, pass, dim);
+                    self.cmj.fill_columns(i, p, &mut xs[run.clone()], &mut ys[run]);
+                }
+                return;
             }
         }
-        true
+        const BLOCK: usize = 64;
+        let mut points = [Vec2::ZERO; BLOCK];
+        for (b, (xs, ys)) in xs.chunks_mut(BLOCK).zip(ys.chunks_mut(BLOCK)).enumerate() {
+            let points = &mut points[..xs.len()];
+            self.fill(pixel, first.wrapping_add((b * BLOCK) as u32), dim, points);
+            for ((x, y), p) in xs.iter_mut().zip(ys.iter_mut()).zip(points.iter()) {
+                (*x, *y) = (p.x, p.y);
+            }
+        }
     }
 
     /// Where samples `first, first + 1, …` (`len` of them) of `pixel` in dimension `dim` are
@@ -423,20 +439,17 @@ mod tests {
         for kind in SamplerKind::ALL {
             for n in [1u32, 12, 16] {
                 let sets = SampleSets::generate(kind, n, 9, 37, 23);
-                // The columns are computed for power-of-two CMJ sets where the CPU has AVX-512.
-                #[cfg(target_arch = "x86_64")]
-                assert_eq!(
-                    sets.fill_columns(0, 0, 4, &mut [0.0], &mut [0.0]),
-                    kind == SamplerKind::CorrelatedMultiJittered && n != 12 && crate::simd::avx512()
-                );
                 for (pixel, first, len) in [(0u32, 0u32, 40usize), (5, 7, 1), (100, 15, 33), (850, 3, 16)] {
                     let mut out = vec![Vec2::NAN; len];
                     sets.fill(pixel, first, 4, &mut out);
                     for (index, v) in (first..).zip(&out) {
                         assert_eq!(*v, sets.sample(pixel, index, 4), "{kind:?}, n {n}, index {index}");
                     }
-                    let (mut xs, mut ys) = (vec![f32::NAN; len], vec![f32::NAN; len]);
-                    if sets.fill_columns(pixel, first, 4, &mut xs, &mut ys) {
+                    // Columns: in lanes for power-of-two CMJ sets where the CPU has AVX-512, a
+                    // block at a time otherwise (runs longer than a block included).
+                    for len in [len, 150] {
+                        let (mut xs, mut ys) = (vec![f32::NAN; len], vec![f32::NAN; len]);
+                        sets.fill_columns(pixel, first, 4, &mut xs, &mut ys);
                         for (index, (&x, &y)) in (first..).zip(xs.iter().zip(&ys)) {
                             let v = sets.sample(pixel, index, 4);
                             assert_eq!((x, y), (v.x, v.y), "columns: {kind:?}, n {n}, index {index}");

@@ -152,8 +152,8 @@ impl DirectionRays {
     /// scene's packets are eight or sixteen wide and the sets are computed in lanes: straight
     /// from the patterns in quadrant order where the run is whole passes that split into
     /// quadrants ([`SampleSets::quadrant_passes`]), else, with sixteen-lane packets, sorted
-    /// into quadrants from columns ([`SampleSets::fill_columns`]). `None`, having done
-    /// nothing, elsewhere, and in scenes with alpha-tested meshes, which those packet queries
+    /// into quadrants from columns ([`SampleSets::fill_columns`], any sampler). `None`, having
+    /// done nothing, elsewhere, and in scenes with alpha-tested meshes, which those packet queries
     /// do not see (the general path's queries do). With `sum`, whole quadrant passes add the
     /// run's light there, summed, instead of to `arriving`.
     #[allow(clippy::too_many_arguments)]
@@ -192,14 +192,13 @@ impl DirectionRays {
             xs.resize(n, 0.5);
             ys.resize(n, 0.5);
             let len = arriving.len();
-            if sets.fill_columns(pixel, first, dim, &mut xs[..len], &mut ys[..len]) {
-                if let Some(sum) = sum {
-                    sum.per_sample = true;
-                }
-                let kernel = cosine::CompressedRun { rays: self, geometry, stack, spawn, frame, terms, arriving };
-                // SAFETY: sixteen-lane packets are used only where AVX-512 was detected.
-                return Some(unsafe { <crate::simd::Avx512 as crate::simd::Lanes>::compiled(kernel) });
+            sets.fill_columns(pixel, first, dim, &mut xs[..len], &mut ys[..len]);
+            if let Some(sum) = sum {
+                sum.per_sample = true;
             }
+            let kernel = cosine::CompressedRun { rays: self, geometry, stack, spawn, frame, terms, arriving };
+            // SAFETY: sixteen-lane packets are used only where AVX-512 was detected.
+            return Some(unsafe { <crate::simd::Avx512 as crate::simd::Lanes>::compiled(kernel) });
         }
         let _ = (geometry, stack, spawn, frame, sets, pixel, first, dim, terms, arriving, sum);
         None
