@@ -232,6 +232,26 @@ fn a_loaded_alpha_mask_lets_camera_rays_through_to_the_floor() {
     }
 }
 
+/// The viewer frames what it can see: a scene whose only bounded mesh is alpha-tested has that
+/// mesh's bounds (the plane beside it is unbounded and left out).
+#[cfg(feature = "view")]
+#[test]
+fn the_viewers_scene_bounds_include_alpha_tested_meshes() {
+    let sampler: Value = serde_json::from_str(NEAREST_CLAMP).unwrap();
+    let halves = [[255, 255, 255, 0], [255, 0, 0, 255]];
+    let material = textured_material(json!({}), json!({"alphaMode": "MASK"}));
+    let scene = load("bounds.gltf", &quad(material, None, one_texture(2, 1, &halves, sampler)));
+    let mut r = Renderer::new(common::settings(8, 8, 1, SamplerKind::CorrelatedMultiJittered));
+    let world = r.world_mut();
+    world.spawn((Plane { normal: Vec3::Z }, Transform::from_xyz(0.0, 0.0, -1.0), Matte::new(Vec3::ONE)));
+    scene.spawn(world, &SpawnOptions::default()).unwrap();
+    r.run_frame().unwrap();
+    let geometry = r.world().resource::<hemi::geometry::accel::SceneGeometry>();
+    assert!(geometry.has_alpha() && geometry.instances().is_empty(), "the quad is the alpha layer's alone");
+    let (lo, hi) = hemi::viewer::controller::scene_bounds(geometry).expect("the quad's bounds");
+    assert!(lo.abs_diff_eq(Vec3::ZERO, 1e-5) && hi.abs_diff_eq(Vec3::new(1.0, 1.0, 0.0), 1e-5), "{lo} {hi}");
+}
+
 /// A PNG header (signature, IHDR, IDAT, IEND) claiming `w` × `h` RGBA pixels, with no pixel data.
 fn png_header(w: u32, h: u32) -> Vec<u8> {
     fn crc32(bytes: &[u8]) -> u32 {

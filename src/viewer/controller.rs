@@ -116,9 +116,10 @@ pub fn control_camera(
     }
 }
 
-/// Union of the placed objects' bounds (planes are unbounded and left out).
+/// Union of the placed objects' bounds, alpha-tested meshes included (planes are unbounded and
+/// left out).
 pub fn scene_bounds(geometry: &SceneGeometry) -> Option<(Vec3, Vec3)> {
-    geometry.instances().iter().map(|i| i.bounds()).fold(None, |acc, b| {
+    geometry.instances().iter().chain(geometry.alpha_instances()).map(|i| i.bounds()).fold(None, |acc, b| {
         let (lo, hi) = (Vec3::from(b.min), Vec3::from(b.max));
         if !(lo.is_finite() && hi.is_finite()) || lo.cmpgt(hi).any() {
             return acc;

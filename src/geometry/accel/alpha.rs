@@ -53,6 +53,11 @@ pub struct AlphaLayer {
 type AlphaHit = (u32, u32, f32, f32);
 
 impl AlphaLayer {
+    /// The placed alpha-tested meshes, each as an instance of its own tree.
+    pub fn instances(&self) -> impl Iterator<Item = &Instance> {
+        self.meshes.iter().map(|(instance, ..)| instance)
+    }
+
     /// The layer over `meshes` (those with no bounds or an unusable placement are left out,
     /// as their opaque twins are), or `None` when none is left.
     pub fn new(meshes: Vec<AlphaMesh>) -> Option<Self> {

@@ -220,6 +220,12 @@ impl SceneGeometry {
         &self.instances
     }
 
+    /// The alpha-tested meshes' instances (none without such meshes), which
+    /// [`SceneGeometry::instances`] leaves out.
+    pub fn alpha_instances(&self) -> impl Iterator<Item = &Instance> {
+        self.alpha.iter().flat_map(|layer| layer.instances())
+    }
+
     /// Every bounded primitive placed in world space (instances expanded), for comparisons.
     pub fn world_prims(&self) -> Vec<Prim> {
         let mut out = Vec::new();
