@@ -238,6 +238,7 @@ pub fn update_bvh(
     stats.packet_lanes = geometry.packet_lanes();
     stats.bvh_prims = geometry.prim_count();
     stats.bvh_bytes = geometry.memory_bytes();
+    stats.bvh_triangles = geometry.triangle_count;
     stats.record("bvh", start.elapsed(), note);
 }
 

@@ -137,12 +137,15 @@ impl Blas {
             depth,
             source_triangles: None,
         };
-        let Bvh2 { nodes, primitive_indices: order, .. } = bvh;
-        // Traversal reads the wide tree: the binary nodes go before the packets are written,
-        // unless the BLAS is refit.
-        let nodes = (!spatial_splits).then_some(nodes);
+        let mut bvh = bvh;
+        if spatial_splits {
+            // Traversal reads the wide tree: the binary nodes go before the packets are written,
+            // unless the BLAS is refit.
+            bvh.nodes = Vec::new();
+        }
+        let order = &bvh.primitive_indices;
         let inputs = if len > 0 && triangle_count == len {
-            let inputs = blas.pack(&order, |i| triangle_of(&input.prim(i)));
+            let inputs = blas.pack(order, |i| triangle_of(&input.prim(i)));
             blas.objects = slot_values(&inputs, |i| input.prim(i).object);
             inputs
         } else {
@@ -151,8 +154,8 @@ impl Blas {
         };
         blas.source_triangles =
             sources.map(|t| slot_values(&inputs, |i| t.get(i as usize).copied().unwrap_or(u32::MAX)));
-        if let Some(nodes) = nodes {
-            blas.refit_tree = Some(Bvh2 { nodes, primitive_indices: order, ..Bvh2::default() });
+        if !spatial_splits {
+            blas.refit_tree = Some(bvh);
         }
         blas
     }
@@ -233,8 +236,10 @@ impl Blas {
         }
         bvh.refit_all();
         self.bounds = bvh.nodes.first().map(|n| *n.aabb());
+        // The moved boxes may collapse into another wide tree, whose leaves take the slots in
+        // another order: each slot's object (a deformable BLAS's: its triangle) follows.
         self.tree = Tree::from_bvh2(&bvh.nodes);
-        self.pack(&bvh.primitive_indices, triangle);
+        self.objects = self.pack(&bvh.primitive_indices, triangle);
         self.refit_tree = Some(bvh);
     }
 
