@@ -20,14 +20,14 @@ pub struct Converted {
 
 /// Meshes' triangles in world space, gathered for one BLAS by [`append_mesh`].
 #[derive(Default)]
-pub struct Bake {
+pub(crate) struct Bake {
     /// The triangles, each with its object's index.
-    pub triangles: IndexedTriangles,
+    pub(crate) triangles: IndexedTriangles,
     /// Zero-area triangles skipped (they can never be hit).
-    pub degenerate: usize,
+    pub(crate) degenerate: usize,
     /// When kept (`Some`), each triangle's index in its mesh, in `triangles` order: what a
     /// bake of textured meshes needs to find the texture coordinates of a hit.
-    pub sources: Option<Vec<u32>>,
+    pub(crate) sources: Option<Vec<u32>>,
 }
 
 /// The entity's affine transform, or why it is unusable.
@@ -109,7 +109,7 @@ pub fn mesh(mesh: &Mesh, t: &Transform, object: u32) -> Result<Converted, String
 /// [`mesh`], appended to `out` as indexed triangles (nothing is appended on an error): a bake
 /// gathers every mesh in one set of vectors this way, 16 bytes a vertex and 16 a triangle
 /// (the dragon's 871k triangles took 70 MB as primitives of their own).
-pub fn append_mesh(mesh: &Mesh, t: &Transform, object: u32, out: &mut Bake) -> Result<(), String> {
+pub(crate) fn append_mesh(mesh: &Mesh, t: &Transform, object: u32, out: &mut Bake) -> Result<(), String> {
     let base = out.triangles.positions.len();
     let first = u32::try_from(base + mesh.positions.len())
         .map(|_| base as u32)

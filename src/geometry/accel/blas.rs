@@ -101,7 +101,7 @@ impl Blas {
     /// [`Blas::build`] over indexed triangles, keeping each slot's `sources` entry (the
     /// triangle's index in its mesh, in the order of `triangles`) where given, so that hits on
     /// it report their triangle.
-    pub fn build_indexed(triangles: IndexedTriangles, sources: Option<&[u32]>) -> Self {
+    pub(crate) fn build_indexed(triangles: IndexedTriangles, sources: Option<&[u32]>) -> Self {
         Blas::build_with(triangles, true, sources)
     }
 
@@ -568,14 +568,15 @@ impl std::fmt::Debug for Blas {
 
 /// Triangles as indices into shared vertices, each with its [`Prim::object`]: a large mesh's
 /// input to a BLAS at 16 bytes a vertex and 16 a triangle, where a [`Prim`] takes 80.
+/// The vertex indices must be in range (the meshes are validated first).
 #[derive(Clone, Debug, Default)]
-pub struct IndexedTriangles {
+pub(crate) struct IndexedTriangles {
     /// Vertices.
-    pub positions: Vec<Vec3A>,
+    pub(crate) positions: Vec<Vec3A>,
     /// Each triangle's vertices, counter-clockwise seen from the front.
-    pub triangles: Vec<[u32; 3]>,
+    pub(crate) triangles: Vec<[u32; 3]>,
     /// Each triangle's [`Prim::object`].
-    pub objects: Vec<u32>,
+    pub(crate) objects: Vec<u32>,
 }
 
 impl IndexedTriangles {

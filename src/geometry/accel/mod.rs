@@ -20,9 +20,10 @@ mod tlas;
 mod tree;
 
 pub use alpha::{AlphaCounts, AlphaLayer, AlphaMesh};
+pub use blas::Blas;
+pub(crate) use blas::IndexedTriangles;
 #[cfg(test)]
 pub(crate) use blas::subtree_depth;
-pub use blas::{Blas, IndexedTriangles};
 #[cfg(target_arch = "x86_64")]
 pub(crate) use kernels::{KernelLanes, SceneLanes};
 pub use ray_order::RayOrder;
