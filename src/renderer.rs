@@ -14,7 +14,7 @@ use crate::{
     resources::{Accumulation, FrameSamples, Image, RenderSettings, SceneProblems, Time},
     sampling::{SampleSets, SamplerKind},
     scene::{DEFAULT_BACKGROUND, spawn_default_scene},
-    stats::FrameStats,
+    stats::{FrameStats, take_peak_rss},
     systems::frame_schedule,
 };
 
@@ -35,6 +35,7 @@ pub struct Renderer {
     schedule: Schedule,
     pool: Option<rayon::ThreadPool>,
     frames: u64,
+    measure_memory: bool,
 }
 
 impl Renderer {
@@ -51,7 +52,7 @@ impl Renderer {
         world.init_resource::<Image>();
         world.init_resource::<SceneProblems>();
         world.init_resource::<FrameStats>();
-        let mut r = Renderer { world, schedule: frame_schedule(), pool: None, frames: 0 };
+        let mut r = Renderer { world, schedule: frame_schedule(), pool: None, frames: 0, measure_memory: false };
         r.add_light::<AmbientOccluder>()
             .add_light::<PointLight>()
             .add_light::<DirectionalLight>()
@@ -137,10 +138,20 @@ impl Renderer {
         self.render(spp)
     }
 
+    /// Whether frames measure the process's peak resident set size before them and in each
+    /// system ([`FrameStats::peak_rss_before`], [`crate::stats::SystemTime::peak_rss`]): off
+    /// by default, as it reads `/proc` twice per system.
+    pub fn measure_memory(&mut self, on: bool) {
+        self.measure_memory = on;
+    }
+
     /// Runs one frame: BVH upkeep, sample sets, tracing, accumulation, resolve.
     /// Fails, without tracing, while the scene holds something that cannot be rendered.
     pub fn run_frame(&mut self) -> Result<&FrameStats, HemiError> {
-        *self.world.resource_mut::<FrameStats>() = FrameStats { frame: self.frames, ..Default::default() };
+        let (measure_memory, peak_rss_before) =
+            (self.measure_memory, self.measure_memory.then(take_peak_rss).flatten());
+        *self.world.resource_mut::<FrameStats>() =
+            FrameStats { frame: self.frames, measure_memory, peak_rss_before, ..Default::default() };
         match &self.pool {
             Some(pool) => pool.install(|| self.schedule.run(&mut self.world)),
             None => self.schedule.run(&mut self.world),

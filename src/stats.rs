@@ -204,6 +204,9 @@ pub struct SystemTime {
     pub time: Duration,
     /// What it did (e.g. "rebuilt", "skipped: unchanged").
     pub note: String,
+    /// The process's peak resident set size while it ran, in bytes, when measured (see
+    /// [`FrameStats::measure_memory`]).
+    pub peak_rss: Option<u64>,
 }
 
 /// What the last frame did and cost. Reset at the start of every frame.
@@ -236,6 +239,8 @@ pub struct FrameStats {
     pub bvh_prims: usize,
     /// Bytes of BVH nodes and primitives.
     pub bvh_bytes: usize,
+    /// Triangles the BVH stores (each shared mesh once).
+    pub bvh_triangles: usize,
     /// Bytes of the accumulation, frame and image buffers.
     pub buffer_bytes: usize,
     /// Samples rejected because they were NaN or infinite (should stay 0).
@@ -249,12 +254,24 @@ pub struct FrameStats {
     /// What restarted accumulation this frame (`Transform of entity 4v0 changed`); `None`
     /// when the frame added to the samples before it.
     pub reset: Option<String>,
+    /// Whether each system's peak resident set size is measured (two reads of `/proc` per
+    /// system, so only when asked for: [`crate::Renderer::measure_memory`]).
+    pub measure_memory: bool,
+    /// The process's peak resident set size between the previous frame and this one (on the
+    /// first frame: since the process started, the scene's loading included), when measured.
+    pub peak_rss_before: Option<u64>,
 }
 
 impl FrameStats {
     /// Records a system's time.
     pub fn record(&mut self, name: &'static str, time: Duration, note: impl Into<String>) {
-        self.systems.push(SystemTime { name, time, note: note.into() });
+        let peak_rss = if self.measure_memory { take_peak_rss() } else { None };
+        self.systems.push(SystemTime { name, time, note: note.into(), peak_rss });
+    }
+
+    /// Bytes of the BVH per triangle it stores (`None` without triangles).
+    pub fn bvh_bytes_per_triangle(&self) -> Option<f64> {
+        (self.bvh_triangles > 0).then(|| self.bvh_bytes as f64 / self.bvh_triangles as f64)
     }
 
     /// Time of the named system this frame (zero if it did not run).
@@ -306,7 +323,14 @@ impl FrameStats {
         let systems: Vec<serde_json::Value> = self
             .systems
             .iter()
-            .map(|s| serde_json::json!({ "name": s.name, "ms": s.time.as_secs_f64() * 1e3, "note": s.note }))
+            .map(|s| {
+                let mut system =
+                    serde_json::json!({ "name": s.name, "ms": s.time.as_secs_f64() * 1e3, "note": s.note });
+                if let Some(peak) = s.peak_rss {
+                    system["peak_rss_bytes"] = peak.into();
+                }
+                system
+            })
             .collect();
         let mut json = serde_json::json!({
             "frame": self.frame,
@@ -335,10 +359,15 @@ impl FrameStats {
                 "packet_lanes": self.packet_lanes,
                 "prims": self.bvh_prims,
                 "bytes": self.bvh_bytes,
+                "triangles": self.bvh_triangles,
+                "bytes_per_triangle": self.bvh_bytes_per_triangle(),
             },
             "buffer_bytes": self.buffer_bytes,
             "nonfinite_samples": self.nonfinite_samples,
         });
+        if let Some(peak) = self.peak_rss_before {
+            json["peak_rss_before_bytes"] = peak.into();
+        }
         if TraversalCounts::ENABLED {
             json["traversal"] = serde_json::json!(self.traversal);
         }
@@ -380,7 +409,7 @@ impl FrameStats {
         let r = &self.rays;
         let _ = writeln!(
             s,
-            "  rays: {} primary, {} ao, {} shadow; bvh: {} binary nodes, {} {}-wide{}, {} prims, {:.1} MiB{}; buffers {:.1} MiB",
+            "  rays: {} primary, {} ao, {} shadow; bvh: {} binary nodes, {} {}-wide{}, {} prims, {:.1} MiB{}{}; buffers {:.1} MiB",
             r.primary,
             r.ao,
             r.shadow,
@@ -390,9 +419,13 @@ impl FrameStats {
             if self.packet_lanes > 0 { format!(", {}-ray packets", self.packet_lanes) } else { String::new() },
             self.bvh_prims,
             self.bvh_bytes as f64 / (1 << 20) as f64,
+            self.bvh_bytes_per_triangle().map_or(String::new(), |b| format!(", {b:.1} B per triangle")),
             if self.bvh_built { " (built)" } else { "" },
             self.buffer_bytes as f64 / (1 << 20) as f64,
         );
+        if let Some(line) = self.peak_rss_line() {
+            let _ = writeln!(s, "  {line}");
+        }
         if TraversalCounts::ENABLED {
             let _ = writeln!(s, "  {}", traversal_line(&self.traversal, r.total()));
         }
@@ -409,6 +442,37 @@ impl FrameStats {
         }
         s
     }
+}
+
+impl FrameStats {
+    /// The `--stats` line of peak resident set sizes: before the frame, then by system.
+    fn peak_rss_line(&self) -> Option<String> {
+        let mib = |b: u64| b as f64 / (1 << 20) as f64;
+        let systems = self.systems.iter().filter_map(|s| s.peak_rss.map(|p| format!("{} {:.1}", s.name, mib(p))));
+        let all: Vec<String> = self
+            .peak_rss_before
+            .map(|p| format!("before the frame {:.1}", mib(p)))
+            .into_iter()
+            .chain(systems)
+            .collect();
+        (!all.is_empty()).then(|| format!("peak RSS (MiB): {}", all.join(", ")))
+    }
+}
+
+/// The process's peak resident set size since the last call (or since it started), in bytes,
+/// and a fresh start for the next: Linux's `VmHWM`, reset through `/proc/self/clear_refs`.
+/// `None` where the system offers neither.
+pub fn take_peak_rss() -> Option<u64> {
+    let peak = peak_rss_in(&std::fs::read_to_string("/proc/self/status").ok()?)?;
+    // 5 sets the peak to the current resident set size (Linux 4.0 and later).
+    std::fs::write("/proc/self/clear_refs", "5").ok()?;
+    Some(peak)
+}
+
+/// The `VmHWM` of a `/proc/PID/status` text, in bytes.
+fn peak_rss_in(status: &str) -> Option<u64> {
+    let kib = status.lines().find_map(|l| l.strip_prefix("VmHWM:"))?.trim().strip_suffix("kB")?.trim();
+    kib.parse::<u64>().ok().map(|k| k * 1024)
 }
 
 /// The `--stats` line of `counts` over `rays` rays (all kinds): totals and per ray.
@@ -435,6 +499,30 @@ pub(crate) fn traversal_line(counts: &TraversalCounts, rays: u64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_peak_rss_is_read_in_bytes_from_vm_hwm() {
+        let status = "Name:\themi\nVmPeak:\t  812344 kB\nVmHWM:\t  113664 kB\nVmRSS:\t   85000 kB\n";
+        assert_eq!(peak_rss_in(status), Some(113_664 * 1024));
+        assert_eq!(peak_rss_in("VmRSS:\t 85000 kB\n"), None);
+    }
+
+    #[test]
+    fn the_peak_rss_since_the_last_take_covers_a_buffer_touched_and_freed_in_between() {
+        // Only this test takes the peak in this process: other tests only add to it.
+        let Some(_) = take_peak_rss() else {
+            eprintln!("skipped: no /proc/self/status or clear_refs here");
+            return;
+        };
+        let size = 64 << 20;
+        let buffer = std::hint::black_box(vec![1u8; size]);
+        assert_eq!(buffer.iter().step_by(4096).map(|&b| b as usize).sum::<usize>(), size / 4096);
+        drop(buffer);
+        // The resident set now is well under the buffer (it was freed), so a reading of the
+        // current size instead of the peak would fail here.
+        let peak = take_peak_rss().unwrap();
+        assert!(peak >= size as u64, "peak {peak} after a buffer of {size}");
+    }
 
     /// How many pixels `picked` picks in each 16 × 16 tile of a 512 × 512 image.
     fn picked_per_tile(picked: impl Fn(u32) -> bool) -> Vec<u32> {

@@ -238,6 +238,7 @@ pub fn update_bvh(
     stats.packet_lanes = geometry.packet_lanes();
     stats.bvh_prims = geometry.prim_count();
     stats.bvh_bytes = geometry.memory_bytes();
+    stats.bvh_triangles = geometry.triangle_count;
     stats.record("bvh", start.elapsed(), note);
 }
 
@@ -431,12 +432,16 @@ fn bake_static_meshes<'a>(
     found: &mut Vec<String>,
 ) -> (HashSet<Entity>, Option<Arc<Blas>>) {
     let bakes = |entry: &ShapeData<'a>| static_mesh(entry, users).filter(|&(_, s)| shared || !s).map(|(m, _)| m);
-    // Every baked triangle goes straight into one vector, sized once.
-    let mut all = world_space::Converted::default();
-    all.prims.reserve(entries.iter().filter_map(bakes).map(|m| m.0.indices.len()).sum());
+    // Every baked triangle goes straight into one set of vectors, sized once.
+    let mut all = world_space::Bake::default();
+    let (vertices, triangles) =
+        entries.iter().filter_map(bakes).fold((0, 0), |(v, t), m| (v + m.0.positions.len(), t + m.0.indices.len()));
+    all.triangles.positions.reserve_exact(vertices);
+    all.triangles.triangles.reserve_exact(triangles);
+    all.triangles.objects.reserve_exact(triangles);
     // Textured meshes' hits need their triangles: kept only when some baked mesh has a surface.
     let textured = entries.iter().any(|e| bakes(e).is_some() && e.10.is_some());
-    all.triangles = textured.then(Vec::new);
+    all.sources = textured.then(|| Vec::with_capacity(triangles));
     let mut baked = HashSet::new();
     for (object, entry) in entries.iter().enumerate() {
         let Some(mesh) = bakes(entry) else { continue };
@@ -448,14 +453,11 @@ fn bake_static_meshes<'a>(
             found.push(describe(entity, name, e));
         }
     }
-    if all.prims.is_empty() {
+    if all.triangles.triangles.is_empty() {
         return (baked, None);
     }
-    let world_space::Converted { prims, degenerate, triangles } = all;
-    let mut blas = Blas::build(prims);
-    if let Some(triangles) = triangles {
-        blas = blas.with_source_triangles(&triangles);
-    }
+    let world_space::Bake { triangles, degenerate, sources } = all;
+    let mut blas = Blas::build_indexed(triangles, sources.as_deref());
     blas.degenerate_triangles = degenerate;
     (baked, Some(Arc::new(blas)))
 }

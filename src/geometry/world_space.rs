@@ -4,7 +4,7 @@
 use glam::{Affine3A, Vec3, Vec3A};
 
 use super::{
-    accel::{Prim, Shape},
+    accel::{IndexedTriangles, Prim, Shape},
     shapes::{PlanePrim, SpherePrim, Triangle},
 };
 use crate::components::{Cuboid, Matte, Mesh, Plane, Sphere, Transform};
@@ -16,9 +16,18 @@ pub struct Converted {
     pub prims: Vec<Prim>,
     /// Zero-area triangles skipped (they can never be hit).
     pub degenerate: usize,
-    /// When kept (`Some`), each mesh triangle primitive's index in its mesh, in `prims` order:
-    /// what a bake of textured meshes needs to find the texture coordinates of a hit.
-    pub triangles: Option<Vec<u32>>,
+}
+
+/// Meshes' triangles in world space, gathered for one BLAS by [`append_mesh`].
+#[derive(Default)]
+pub(crate) struct Bake {
+    /// The triangles, each with its object's index.
+    pub(crate) triangles: IndexedTriangles,
+    /// Zero-area triangles skipped (they can never be hit).
+    pub(crate) degenerate: usize,
+    /// When kept (`Some`), each triangle's index in its mesh, in `triangles` order: what a
+    /// bake of textured meshes needs to find the texture coordinates of a hit.
+    pub(crate) sources: Option<Vec<u32>>,
 }
 
 /// The entity's affine transform, or why it is unusable.
@@ -85,33 +94,56 @@ fn sign(bit: i32) -> f32 {
 
 /// A mesh's triangles in world space; zero-area triangles are counted and skipped.
 pub fn mesh(mesh: &Mesh, t: &Transform, object: u32) -> Result<Converted, String> {
-    let mut out = Converted::default();
-    append_mesh(mesh, t, object, &mut out)?;
+    let mut world = Vec::new();
+    append_vertices(mesh, t, &mut world)?;
+    let mut out = Converted { prims: Vec::with_capacity(mesh.indices.len()), degenerate: 0 };
+    for tri in &mesh.indices {
+        match Triangle::new(world[tri[0] as usize], world[tri[1] as usize], world[tri[2] as usize]) {
+            Some(tri) => out.prims.push(Prim { shape: Shape::Triangle(tri), object }),
+            None => out.degenerate += 1,
+        }
+    }
     Ok(out)
 }
 
-/// [`mesh`], appended to `out` (nothing is appended on an error): a bake gathers every mesh
-/// in one allocation this way (the dragon's 871k triangles, 70 MB, were copied once more and
-/// their pages touched twice when each mesh had a vector of its own).
-pub fn append_mesh(mesh: &Mesh, t: &Transform, object: u32, out: &mut Converted) -> Result<(), String> {
+/// [`mesh`], appended to `out` as indexed triangles (nothing is appended on an error): a bake
+/// gathers every mesh in one set of vectors this way, 16 bytes a vertex and 16 a triangle
+/// (the dragon's 871k triangles took 70 MB as primitives of their own).
+pub(crate) fn append_mesh(mesh: &Mesh, t: &Transform, object: u32, out: &mut Bake) -> Result<(), String> {
+    let base = out.triangles.positions.len();
+    let first = u32::try_from(base + mesh.positions.len())
+        .map(|_| base as u32)
+        .map_err(|_| format!("the baked meshes hold more than {} vertices", u32::MAX))?;
+    append_vertices(mesh, t, &mut out.triangles.positions)?;
+    let IndexedTriangles { positions, triangles, objects } = &mut out.triangles;
+    triangles.reserve(mesh.indices.len());
+    objects.reserve(mesh.indices.len());
+    for (k, tri) in mesh.indices.iter().enumerate() {
+        let tri = tri.map(|i| first + i);
+        let [a, b, c] = tri.map(|i| positions[i as usize]);
+        if Triangle::new(a, b, c).is_some() {
+            triangles.push(tri);
+            objects.push(object);
+            if let Some(sources) = &mut out.sources {
+                sources.push(k as u32);
+            }
+        } else {
+            out.degenerate += 1;
+        }
+    }
+    Ok(())
+}
+
+/// Appends `mesh`'s vertices placed by `t` to `out` (nothing on an error).
+fn append_vertices(mesh: &Mesh, t: &Transform, out: &mut Vec<Vec3A>) -> Result<(), String> {
     let m = affine(t)?;
     mesh.validate()?;
-    let world: Vec<Vec3A> = mesh.positions.iter().map(|&p| m.transform_point3a(p.into())).collect();
-    if let Some(i) = world.iter().position(|p| !p.is_finite()) {
-        return Err(format!("vertex {i} overflows to {} after the transform", world[i]));
-    }
-    out.prims.reserve(mesh.indices.len());
-    for (k, tri) in mesh.indices.iter().enumerate() {
-        let [a, b, c] = tri.map(|i| world[i as usize]);
-        match Triangle::new(a, b, c) {
-            Some(tri) => {
-                out.prims.push(Prim { shape: Shape::Triangle(tri), object });
-                if let Some(triangles) = &mut out.triangles {
-                    triangles.push(k as u32);
-                }
-            }
-            None => out.degenerate += 1,
-        }
+    let base = out.len();
+    out.extend(mesh.positions.iter().map(|&p| m.transform_point3a(p.into())));
+    if let Some(i) = out[base..].iter().position(|p| !p.is_finite()) {
+        let e = format!("vertex {i} overflows to {} after the transform", out[base + i]);
+        out.truncate(base);
+        return Err(e);
     }
     Ok(())
 }

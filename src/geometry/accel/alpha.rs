@@ -121,7 +121,7 @@ impl AlphaLayer {
     pub(super) fn surface(&self, (k, slot, b1, b2): AlphaHit, ray: &Ray) -> SurfaceHit {
         let (inst, blas, _) = &self.meshes[k as usize];
         let object = inst.object.unwrap_or(0);
-        let tri = blas.prims[slot as usize].object;
+        let tri = blas.object(slot);
         let hit = match inst.local_ray(&ray.with_tmax(f32::INFINITY)) {
             Some((local, dt)) if !inst.identity => {
                 inst.to_world_hit(blas.surface(slot, &local.with_tmax(ray.tmax - dt), b1, b2, object), dt)
@@ -146,7 +146,7 @@ fn ray_key(ray: &Ray) -> u64 {
 #[inline]
 fn cut_out(layer: &AlphaLayer, k: u32, slot: u32, (b1, b2): (f32, f32), key: u64, counts: &mut AlphaCounts) -> bool {
     let (_, blas, surface) = &layer.meshes[k as usize];
-    let tri = blas.prims[slot as usize].object;
+    let tri = blas.object(slot);
     let passes = surface.passes(tri, b1, b2, key ^ u64::from(k).wrapping_mul(0xd6e8_feb8_6659_fd93));
     counts.candidates += 1;
     counts.cut += u64::from(passes);

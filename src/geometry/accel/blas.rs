@@ -49,17 +49,32 @@ pub(super) const PACKET_RUN: usize = 4;
 /// Primitive count under which a BLAS gets small leaves (see [`small_set_params`]).
 pub(super) const SMALL_SET: usize = 1024;
 
-/// A bottom-level BVH: an obvhs BVH2 over primitives stored in leaf order.
+/// A bottom-level BVH: a wide tree over primitives stored in leaf order.
+///
+/// An all-triangle BLAS keeps its triangles only in the leaves' packets of four, where
+/// primitive slot `4p + l` is lane `l` of packet `p`; a BLAS with spheres keeps its primitives
+/// in leaf order, slot `k` being the `k`-th. The binary tree it was collapsed from is dropped
+/// once the wide tree is built, except where it is refit.
 #[derive(Clone)]
 pub struct Blas {
-    bvh: Bvh2,
+    /// The binary tree as built, kept for [`Blas::refit`] in a deformable BLAS only.
+    refit_tree: Option<Bvh2>,
+    /// Bounds of everything in this BLAS (`None` when it is empty).
+    bounds: Option<Aabb>,
+    /// Nodes of the binary tree as built.
+    binary_nodes: usize,
     /// The BVH2 collapsed to a wide tree, which traversal uses. Its leaves are ranges of
     /// `packets` when every primitive is a triangle, else ranges of `prims`.
     pub(super) tree: Tree,
     /// Each leaf's triangles in packets of four, when every primitive is a triangle.
     pub(super) packets: Vec<Tri4>,
-    /// The primitives in leaf order.
+    /// Each packet lane's [`Prim::object`] (`u32::MAX` in unused lanes), beside `packets`.
+    objects: Vec<u32>,
+    /// The primitives in leaf order, when some are not triangles.
     pub(super) prims: Vec<Prim>,
+    /// Primitives in the leaves (a triangle that spatial splits put in several leaves once per
+    /// leaf).
+    slots: usize,
     /// Triangles stored.
     pub triangle_count: usize,
     /// Zero-area triangles dropped at build time (they can never be hit).
@@ -80,65 +95,75 @@ impl Blas {
     /// cost build time without lowering the SAH cost; splits chosen node by node pay off in
     /// scenes of large triangles such as Sponza.)
     pub fn build(prims: Vec<Prim>) -> Self {
-        Blas::build_with(prims, true)
+        Blas::build_with(prims, true, None)
+    }
+
+    /// [`Blas::build`] over indexed triangles, keeping each slot's `sources` entry (the
+    /// triangle's index in its mesh, in the order of `triangles`) where given, so that hits on
+    /// it report their triangle.
+    pub(crate) fn build_indexed(triangles: IndexedTriangles, sources: Option<&[u32]>) -> Self {
+        Blas::build_with(triangles, true, sources)
     }
 
     /// [`Blas::build`], with or without spatial splits. Without them each primitive is in one
-    /// leaf, so that a deformable BLAS can be refit.
-    fn build_with(prims: Vec<Prim>, spatial_splits: bool) -> Self {
-        let triangle_count = prims.iter().filter(|p| matches!(p.shape, Shape::Triangle(_))).count();
-        let (bvh, depth) = if prims.is_empty() {
+    /// leaf, and the binary tree is kept so that a deformable BLAS can be refit.
+    fn build_with(input: impl BuildInput, spatial_splits: bool, sources: Option<&[u32]>) -> Self {
+        let len = input.len();
+        let triangle_count = input.triangle_count();
+        let prim = |i: usize| input.prim(i as u32);
+        let (bvh, depth) = if len == 0 {
             (Bvh2::default(), 0)
-        } else if prims.len() < SMALL_SET {
-            let aabbs: Vec<Aabb> = prims.iter().map(Prim::bounds).collect();
+        } else if len < SMALL_SET {
+            let aabbs: Vec<Aabb> = (0..len).map(|i| prim(i).bounds()).collect();
             let bvh = build_bvh2(&aabbs, small_set_params(), &mut Duration::default());
             let depth = subtree_depth(&bvh.nodes);
             (bvh, depth)
-        } else if spatial_splits && triangle_count == prims.len() {
-            binned_sah::build_with_spatial_splits(prims.len(), |i| match prims[i].shape {
-                Shape::Triangle(t) => t.p,
-                Shape::Sphere(_) => unreachable!("an all-triangle set"),
-            })
+        } else if spatial_splits && triangle_count == len {
+            binned_sah::build_with_spatial_splits(len, |i| triangle_of(&prim(i)).p)
         } else {
-            binned_sah::build(prims.len(), |i| prims[i].bounds())
+            binned_sah::build(len, |i| prim(i).bounds())
         };
-        let prims = bvh.primitive_indices.par_iter().with_min_len(PAR_CHUNK).map(|&i| prims[i as usize]).collect();
         let mut blas = Blas {
-            bvh,
-            tree: Tree::default(),
+            refit_tree: None,
+            bounds: bvh.nodes.first().map(|n| *n.aabb()),
+            binary_nodes: bvh.nodes.len(),
+            tree: Tree::from_bvh2(&bvh.nodes),
             packets: Vec::new(),
-            prims,
+            objects: Vec::new(),
+            prims: Vec::new(),
+            slots: bvh.primitive_indices.len(),
             triangle_count,
             degenerate_triangles: 0,
             depth,
             source_triangles: None,
         };
-        blas.build_tree();
+        let mut bvh = bvh;
+        if spatial_splits {
+            // Traversal reads the wide tree: the binary nodes go before the packets are written,
+            // unless the BLAS is refit.
+            bvh.nodes = Vec::new();
+        }
+        let order = &bvh.primitive_indices;
+        let inputs = if len > 0 && triangle_count == len {
+            let inputs = blas.pack(order, |i| triangle_of(&input.prim(i)));
+            blas.objects = slot_values(&inputs, |i| input.prim(i).object);
+            inputs
+        } else {
+            blas.prims = order.par_iter().with_min_len(PAR_CHUNK).map(|&i| input.prim(i)).collect();
+            order.clone()
+        };
+        blas.source_triangles =
+            sources.map(|t| slot_values(&inputs, |i| t.get(i as usize).copied().unwrap_or(u32::MAX)));
+        if !spatial_splits {
+            blas.refit_tree = Some(bvh);
+        }
         blas
     }
 
-    /// This BLAS, built from primitives whose triangle indices in their meshes were
-    /// `triangles` (in the order given to [`Blas::build`]), keeping each slot's index so that
-    /// hits on it report their triangle.
-    pub fn with_source_triangles(mut self, triangles: &[u32]) -> Self {
-        let slots = self.bvh.primitive_indices.iter().map(|&i| triangles.get(i as usize).copied().unwrap_or(u32::MAX));
-        self.source_triangles = Some(slots.collect());
-        self
-    }
-
-    /// Collapses the BVH2 into the wide tree and, for an all-triangle BLAS, packs each leaf's
-    /// triangles into packets of four.
-    fn build_tree(&mut self) {
-        self.tree = Tree::from_bvh2(&self.bvh.nodes);
-        self.packets.clear();
-        let prims = &self.prims;
-        if prims.is_empty() || !prims.iter().all(|p| matches!(p.shape, Shape::Triangle(_))) {
-            return;
-        }
-        let triangle = |k: u32| match prims[k as usize].shape {
-            Shape::Triangle(t) => (k, t),
-            Shape::Sphere(_) => unreachable!("an all-triangle BLAS"),
-        };
+    /// Packs each leaf's triangles (`triangle(i)` for input primitive `i`; the leaves hold
+    /// ranges of `order`) into packets of four and points the leaves at their packets: returns
+    /// the input primitive behind each packet lane (`u32::MAX` in unused lanes).
+    fn pack(&mut self, order: &[u32], triangle: impl Fn(u32) -> Triangle + Sync) -> Vec<u32> {
         // Leaves in node order get consecutive packet ranges; the packets are filled in parallel.
         let mut lanes = Vec::new();
         self.tree.map_leaves(|first, count| {
@@ -148,25 +173,36 @@ impl Blas {
         });
         // Written straight into an allocation of the right size, advised onto huge pages.
         self.packets = crate::huge_pages::vec_on_huge_pages(lanes.len());
-        self.packets.par_extend(
-            lanes.par_iter().with_min_len(PAR_CHUNK / 4).map(|&(first, end)| Tri4::pack((first..end).map(triangle))),
-        );
+        self.packets.par_extend(lanes.par_iter().enumerate().with_min_len(PAR_CHUNK / 4).map(|(p, &(first, end))| {
+            Tri4::pack((first..end).enumerate().map(|(l, k)| ((4 * p + l) as u32, triangle(order[k as usize]))))
+        }));
+        let mut inputs = vec![u32::MAX; 4 * lanes.len()];
+        for (packet, &(first, end)) in inputs.chunks_exact_mut(4).zip(&lanes) {
+            for (lane, k) in packet.iter_mut().zip(first..end) {
+                *lane = order[k as usize];
+            }
+        }
+        inputs
     }
 
     /// A mesh's triangles in its own frame; zero-area triangles are counted and skipped. Each
     /// primitive's `object` is its triangle's index in the mesh (the instance names the object),
     /// which a hit reports for textured surfaces.
     pub fn from_mesh(mesh: &Mesh) -> Self {
-        let mut prims = Vec::with_capacity(mesh.indices.len());
+        let mut input = IndexedTriangles::with_vertices(mesh);
+        input.triangles.reserve_exact(mesh.indices.len());
+        input.objects.reserve_exact(mesh.indices.len());
         let mut degenerate = 0;
-        for (k, tri) in mesh.indices.iter().enumerate() {
-            let [a, b, c] = tri.map(|i| Vec3A::from(mesh.positions[i as usize]));
-            match Triangle::new(a, b, c) {
-                Some(t) => prims.push(Prim { shape: Shape::Triangle(t), object: k as u32 }),
-                None => degenerate += 1,
+        for (k, &tri) in mesh.indices.iter().enumerate() {
+            let [a, b, c] = tri.map(|i| input.positions[i as usize]);
+            if Triangle::new(a, b, c).is_some() {
+                input.triangles.push(tri);
+                input.objects.push(k as u32);
+            } else {
+                degenerate += 1;
             }
         }
-        let mut blas = Blas::build(prims);
+        let mut blas = Blas::build_indexed(input, None);
         blas.degenerate_triangles = degenerate;
         blas
     }
@@ -175,41 +211,46 @@ impl Blas {
     /// are never hit) so that [`Blas::refit`] can move the vertices without rebuilding; as in
     /// [`Blas::from_mesh`], a primitive's `object` is its triangle's index.
     pub fn deformable(mesh: &Mesh) -> Self {
-        let prims = mesh.indices.iter().enumerate().map(|(k, tri)| {
-            let p = tri.map(|i| Vec3A::from(mesh.positions[i as usize]));
-            Prim { shape: Shape::Triangle(Triangle { p }), object: k as u32 }
-        });
-        Blas::build_with(prims.collect(), false)
+        let mut input = IndexedTriangles::with_vertices(mesh);
+        input.triangles = mesh.indices.clone();
+        input.objects = (0..mesh.indices.len() as u32).collect();
+        Blas::build_with(input, false, None)
     }
 
     /// Moves the triangles of a [`Blas::deformable`] BLAS to `positions` (same triangles as at
     /// build time) and refits the node bounds bottom-up (obvhs `refit_all`); the tree topology
     /// stays that of the build, so the result depends only on the build mesh and `positions`.
     pub fn refit(&mut self, positions: &[Vec3], indices: &[[u32; 3]]) {
-        for (slot, &original) in self.bvh.primitive_indices.iter().enumerate() {
-            let p = indices[original as usize].map(|i| Vec3A::from(positions[i as usize]));
-            self.prims[slot].shape = Shape::Triangle(Triangle { p });
-        }
-        for node in &mut self.bvh.nodes {
+        let Some(mut bvh) = self.refit_tree.take() else { return };
+        let triangle = |i: u32| Triangle { p: indices[i as usize].map(|v| Vec3A::from(positions[v as usize])) };
+        for node in &mut bvh.nodes {
             if node.prim_count > 0 {
                 let first = node.first_index as usize;
-                let leaf = &self.prims[first..first + node.prim_count as usize];
-                let aabb = leaf.iter().fold(Aabb::empty(), |acc, p| acc.union(&p.bounds()));
+                let leaf = &bvh.primitive_indices[first..first + node.prim_count as usize];
+                let aabb = leaf.iter().fold(Aabb::empty(), |acc, &i| {
+                    let (min, max) = triangle(i).bounds();
+                    acc.union(&Aabb::new(min, max))
+                });
                 node.set_aabb(aabb);
             }
         }
-        self.bvh.refit_all();
-        self.build_tree();
+        bvh.refit_all();
+        self.bounds = bvh.nodes.first().map(|n| *n.aabb());
+        // The moved boxes may collapse into another wide tree, whose leaves take the slots in
+        // another order: each slot's object (a deformable BLAS's: its triangle) follows.
+        self.tree = Tree::from_bvh2(&bvh.nodes);
+        self.objects = self.pack(&bvh.primitive_indices, triangle);
+        self.refit_tree = Some(bvh);
     }
 
     /// Bounds of everything in this BLAS.
     pub fn bounds(&self) -> Option<Aabb> {
-        self.bvh.nodes.first().map(|n| *n.aabb())
+        self.bounds
     }
 
     /// Number of nodes of the binary tree as built.
     pub fn node_count(&self) -> usize {
-        self.bvh.nodes.len()
+        self.binary_nodes
     }
 
     /// Number of nodes of the wide tree traversal uses ([`Blas::node_width`] children each).
@@ -217,21 +258,57 @@ impl Blas {
         self.tree.len()
     }
 
-    /// The primitives, each once (a triangle that spatial splits put in several leaves is
-    /// stored once per leaf), in the order of their first leaves.
-    pub fn prims(&self) -> impl Iterator<Item = &Prim> {
-        let mut seen = vec![false; self.prims.len()];
-        let mut first_leaf = move |&i: &u32| !std::mem::replace(&mut seen[i as usize], true);
-        self.bvh.primitive_indices.iter().zip(&self.prims).filter_map(move |(i, p)| first_leaf(i).then_some(p))
+    /// Number of primitives in the leaves (a triangle that spatial splits put in several
+    /// leaves once per leaf).
+    pub fn slot_count(&self) -> usize {
+        self.slots
     }
 
-    /// Bytes held by nodes and primitives.
+    /// Each primitive slot and its primitive, in slot order.
+    pub(super) fn slotted(&self) -> impl Iterator<Item = (u32, Prim)> + '_ {
+        let packed = self.packets.iter().enumerate().flat_map(move |(p, packet)| {
+            (0..4).filter(move |&l| packet.slot[l] != u32::MAX).map(move |l| {
+                let slot = (4 * p + l) as u32;
+                (slot, Prim { shape: Shape::Triangle(packet.triangle(l)), object: self.objects[slot as usize] })
+            })
+        });
+        packed.chain(self.prims.iter().enumerate().map(|(k, p)| (k as u32, *p)))
+    }
+
+    /// The primitives, each once (a triangle that spatial splits put in several leaves is
+    /// stored once per leaf; the same vertices with the same object and source triangle count
+    /// once), in slot order.
+    pub fn prims(&self) -> impl Iterator<Item = Prim> + '_ {
+        let mut seen = std::collections::HashSet::new();
+        self.slotted().filter_map(move |(slot, prim)| {
+            let shape = match prim.shape {
+                Shape::Triangle(t) => t.p.map(|v| v.to_array().map(f32::to_bits)),
+                Shape::Sphere(_) => return Some(prim),
+            };
+            let source = self.source_triangles.as_ref().map(|t| t[slot as usize]);
+            seen.insert((shape, prim.object, source)).then_some(prim)
+        })
+    }
+
+    /// The `object` of the primitive in `slot` (see [`Prim::object`]).
+    #[inline]
+    pub(super) fn object(&self, slot: u32) -> u32 {
+        if self.packets.is_empty() { self.prims[slot as usize].object } else { self.objects[slot as usize] }
+    }
+
+    /// Bytes held by the tree traversal reads, the primitives and the per-slot tables (and the
+    /// binary tree a deformable BLAS keeps).
     pub fn memory_bytes(&self) -> usize {
-        self.bvh.nodes.len() * size_of::<Bvh2Node>()
+        let binary = self
+            .refit_tree
+            .as_ref()
+            .map_or(0, |b| b.nodes.len() * size_of::<Bvh2Node>() + b.primitive_indices.len() * size_of::<u32>());
+        binary
             + self.tree.memory_bytes()
             + self.packets.len() * size_of::<Tri4>()
-            + self.prims.len() * (size_of::<Prim>() + 4)
-            + self.source_triangles.as_ref().map_or(0, |t| t.len() * 4)
+            + self.objects.len() * size_of::<u32>()
+            + self.prims.len() * size_of::<Prim>()
+            + self.source_triangles.as_ref().map_or(0, |t| t.len() * size_of::<u32>())
     }
 
     /// Children per node of the tree traversal uses (8 with AVX, else 4).
@@ -427,6 +504,9 @@ impl Blas {
     }
 
     pub(super) fn surface(&self, slot: u32, ray: &Ray, b1: f32, b2: f32, object: u32) -> SurfaceHit {
+        if let Some(packet) = self.packets.get(slot as usize / 4) {
+            return packet.triangle(slot as usize % 4).surface(ray, ray.tmax, b1, b2, object);
+        }
         let prim = &self.prims[slot as usize];
         match prim.shape {
             Shape::Triangle(tri) => tri.surface(ray, ray.tmax, b1, b2, object),
@@ -479,11 +559,86 @@ impl Occluder for Blas {
 impl std::fmt::Debug for Blas {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Blas")
-            .field("nodes", &self.bvh.nodes.len())
-            .field("prims", &self.prims.len())
+            .field("nodes", &self.binary_nodes)
+            .field("slots", &self.slots)
             .field("depth", &self.depth)
             .finish()
     }
+}
+
+/// Triangles as indices into shared vertices, each with its [`Prim::object`]: a large mesh's
+/// input to a BLAS at 16 bytes a vertex and 16 a triangle, where a [`Prim`] takes 80.
+/// The vertex indices must be in range (the meshes are validated first).
+#[derive(Clone, Debug, Default)]
+pub(crate) struct IndexedTriangles {
+    /// Vertices.
+    pub(crate) positions: Vec<Vec3A>,
+    /// Each triangle's vertices, counter-clockwise seen from the front.
+    pub(crate) triangles: Vec<[u32; 3]>,
+    /// Each triangle's [`Prim::object`].
+    pub(crate) objects: Vec<u32>,
+}
+
+impl IndexedTriangles {
+    /// `mesh`'s vertices and no triangles yet.
+    fn with_vertices(mesh: &Mesh) -> Self {
+        IndexedTriangles { positions: mesh.positions.iter().map(|&p| p.into()).collect(), ..Default::default() }
+    }
+}
+
+/// The primitives a BLAS is built from, by index.
+trait BuildInput: Sync {
+    /// Number of primitives.
+    fn len(&self) -> usize;
+    /// Number of them that are triangles.
+    fn triangle_count(&self) -> usize;
+    /// Primitive `i`.
+    fn prim(&self, i: u32) -> Prim;
+}
+
+impl BuildInput for Vec<Prim> {
+    fn len(&self) -> usize {
+        self.as_slice().len()
+    }
+
+    fn triangle_count(&self) -> usize {
+        self.iter().filter(|p| matches!(p.shape, Shape::Triangle(_))).count()
+    }
+
+    #[inline]
+    fn prim(&self, i: u32) -> Prim {
+        self[i as usize]
+    }
+}
+
+impl BuildInput for IndexedTriangles {
+    fn len(&self) -> usize {
+        self.triangles.len()
+    }
+
+    fn triangle_count(&self) -> usize {
+        self.triangles.len()
+    }
+
+    #[inline]
+    fn prim(&self, i: u32) -> Prim {
+        let p = self.triangles[i as usize].map(|v| self.positions[v as usize]);
+        Prim { shape: Shape::Triangle(Triangle { p }), object: self.objects[i as usize] }
+    }
+}
+
+/// The triangle of a primitive of an all-triangle set.
+#[inline]
+fn triangle_of(prim: &Prim) -> Triangle {
+    match prim.shape {
+        Shape::Triangle(t) => t,
+        Shape::Sphere(_) => unreachable!("an all-triangle set"),
+    }
+}
+
+/// `value(i)` for the input primitive `i` behind each slot (`u32::MAX` where there is none).
+fn slot_values(inputs: &[u32], value: impl Fn(u32) -> u32 + Sync) -> Vec<u32> {
+    inputs.par_iter().with_min_len(PAR_CHUNK).map(|&i| if i == u32::MAX { u32::MAX } else { value(i) }).collect()
 }
 
 /// Depth of the deepest leaf of a BVH2 (the root alone is 1; an empty tree is 0), by a

@@ -21,6 +21,7 @@ mod tree;
 
 pub use alpha::{AlphaCounts, AlphaLayer, AlphaMesh};
 pub use blas::Blas;
+pub(crate) use blas::IndexedTriangles;
 #[cfg(test)]
 pub(crate) use blas::subtree_depth;
 #[cfg(target_arch = "x86_64")]

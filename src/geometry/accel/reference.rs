@@ -28,11 +28,11 @@ impl SceneGeometry {
                 }
             };
             let shear = Shear::new(local.dir);
-            for (slot, prim) in blas.prims.iter().enumerate() {
-                if let Some((t, b1, b2)) = hit_prim(prim, &local, &shear) {
+            for (slot, prim) in blas.slotted() {
+                if let Some((t, b1, b2)) = hit_prim(&prim, &local, &shear) {
                     local.tmax = t;
                     ray.tmax = t + dt;
-                    best = Some((i as u32, slot as u32, b1, b2));
+                    best = Some((i as u32, slot, b1, b2));
                 }
             }
         }

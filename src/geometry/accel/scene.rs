@@ -207,7 +207,7 @@ impl SceneGeometry {
     /// Number of primitives stored in the leaves (shared meshes once; a triangle that spatial
     /// splits put in several leaves once per leaf).
     pub fn prim_count(&self) -> usize {
-        self.blases.iter().map(|b| b.prims.len()).sum()
+        self.blases.iter().map(|b| b.slot_count()).sum()
     }
 
     /// The bottom-level BVHs.
@@ -382,7 +382,7 @@ impl SceneGeometry {
     pub(super) fn surface(&self, i: u32, slot: u32, ray: &Ray, b1: f32, b2: f32) -> SurfaceHit {
         let inst = &self.instances[i as usize];
         let blas = &self.blases[inst.blas as usize];
-        let prim = blas.prims[slot as usize].object;
+        let prim = blas.object(slot);
         // A mesh instance's primitives hold their triangle's index in the mesh; a world-space
         // BLAS's hold their object's, and a bake of textured meshes keeps the triangles apart.
         let (object, prim) = match inst.object {

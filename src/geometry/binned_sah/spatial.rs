@@ -43,7 +43,7 @@ const LARGE_TRIANGLE: f32 = 1e-4;
 /// A finely tessellated model on a ground quad has almost none (the dragon: 2 of 871k), and
 /// splitting there barely cut its traversal counts for a much longer build.
 fn worth_splitting(refs: &[Ref], root_area: f32) -> bool {
-    let large = refs.iter().filter(|r| r.aabb.half_area() > LARGE_TRIANGLE * root_area).count();
+    let large = refs.iter().filter(|r| r.aabb().half_area() > LARGE_TRIANGLE * root_area).count();
     large * 100 >= refs.len()
 }
 
@@ -63,10 +63,10 @@ pub fn build(count: usize, triangle: impl Fn(usize) -> [Vec3A; 3] + Sync) -> (Bv
         .with_min_len(PARALLEL_MIN)
         .map(|i| {
             let [a, b, c] = triangle(i);
-            Ref { aabb: Aabb::new(a.min(b).min(c), a.max(b).max(c)), index: i as u32 }
+            Ref::new(Aabb::new(a.min(b).min(c), a.max(b).max(c)), i as u32)
         })
         .collect();
-    let root_area = refs.iter().fold(Aabb::INVALID, |b, r| b.union(&r.aabb)).half_area();
+    let root_area = refs.iter().fold(Aabb::INVALID, |b, r| b.union(&r.aabb())).half_area();
     if !worth_splitting(&refs, root_area) {
         return super::build_refs(refs);
     }
@@ -75,7 +75,7 @@ pub fn build(count: usize, triangle: impl Fn(usize) -> [Vec3A; 3] + Sync) -> (Bv
     let (nodes, leaf_refs, depth) = subtree(&input, refs, budget);
     let bvh = Bvh2 {
         nodes,
-        primitive_indices: leaf_refs.iter().map(|r| r.index).collect(),
+        primitive_indices: leaf_refs.iter().map(Ref::index).collect(),
         children_are_ordered_after_parents: true,
         max_depth: (depth + 1).max(DEFAULT_MAX_STACK_DEPTH),
         ..Default::default()
@@ -137,11 +137,11 @@ fn slabs(refs: &[Ref], axis: usize, min: f32, width: f32) -> [Slab; SPATIAL_BINS
     let slab_of = |x: f32| (((x - min) * scale) as usize).min(SPATIAL_BINS - 1);
     let mut slabs = [Slab::EMPTY; SPATIAL_BINS];
     for r in refs {
-        let (first, last) = (slab_of(r.aabb.min[axis]), slab_of(r.aabb.max[axis]));
+        let (first, last) = (slab_of(r.aabb().min[axis]), slab_of(r.aabb().max[axis]));
         // The reference's box cut at the slab boundaries: as good an estimate of where its
         // triangle's parts lie as clipping the triangle to each slab (the same traversal counts
         // on the peer scenes, within 1 %), at a fraction of the cost.
-        let mut rest = r.aabb;
+        let mut rest = r.aabb();
         for (k, slab) in slabs.iter_mut().enumerate().take(last).skip(first) {
             let plane = min + (k + 1) as f32 * width;
             let mut part = rest;
@@ -270,14 +270,14 @@ fn split_by_plane<T: Fn(usize) -> [Vec3A; 3]>(
     let mut crossed = Vec::new();
     let (mut left_bounds, mut right_bounds) = (Aabb::INVALID, Aabb::INVALID);
     for r in refs {
-        if r.aabb.max[axis] <= position {
-            left_bounds = left_bounds.union(&r.aabb);
+        if r.aabb().max[axis] <= position {
+            left_bounds = left_bounds.union(&r.aabb());
             left.push(r);
-        } else if r.aabb.min[axis] >= position {
-            right_bounds = right_bounds.union(&r.aabb);
+        } else if r.aabb().min[axis] >= position {
+            right_bounds = right_bounds.union(&r.aabb());
             right.push(r);
         } else {
-            let (l, rr) = split_part(&triangle(r.index as usize), &r.aabb, axis, position);
+            let (l, rr) = split_part(&triangle(r.index() as usize), &r.aabb(), axis, position);
             match (is_valid(&l), is_valid(&rr)) {
                 (true, true) => {
                     left_bounds = left_bounds.union(&l);
@@ -285,11 +285,11 @@ fn split_by_plane<T: Fn(usize) -> [Vec3A; 3]>(
                     crossed.push((r, l, rr));
                 }
                 (true, false) => {
-                    left_bounds = left_bounds.union(&r.aabb);
+                    left_bounds = left_bounds.union(&r.aabb());
                     left.push(r);
                 }
                 _ => {
-                    right_bounds = right_bounds.union(&r.aabb);
+                    right_bounds = right_bounds.union(&r.aabb());
                     right.push(r);
                 }
             }
@@ -299,15 +299,15 @@ fn split_by_plane<T: Fn(usize) -> [Vec3A; 3]>(
     let (area_left, area_right) = (left_bounds.half_area(), right_bounds.half_area());
     let split_cost = area_left * n_left + area_right * n_right;
     for (r, l, rr) in crossed {
-        let all_left = left_bounds.union(&r.aabb).half_area() * n_left + area_right * (n_right - 1.0);
-        let all_right = area_left * (n_left - 1.0) + right_bounds.union(&r.aabb).half_area() * n_right;
+        let all_left = left_bounds.union(&r.aabb()).half_area() * n_left + area_right * (n_right - 1.0);
+        let all_right = area_left * (n_left - 1.0) + right_bounds.union(&r.aabb()).half_area() * n_right;
         if all_left < split_cost && all_left <= all_right {
             left.push(r);
         } else if all_right < split_cost {
             right.push(r);
         } else {
-            left.push(Ref { aabb: l, index: r.index });
-            right.push(Ref { aabb: rr, index: r.index });
+            left.push(Ref::new(l, r.index()));
+            right.push(Ref::new(rr, r.index()));
         }
     }
     (left, right)
