@@ -7,14 +7,10 @@
 #   scripts/compare-memory.sh [--spp N] [--threads N] [--rounds N] [--hemi BIN] [SCENE ...]
 #
 # Defaults: 1 spp, 2 threads, 3 rounds, target/release/hemi, and the scenes dragon,
-# many_spheres and sponza. The native bench is built on first use in $HEMI_NATIVE_DIR (default
-# /tmp/hemi-native) from a copy of ../shared/peers/native, as its README says (g++ and
-# libembree-dev, and python3-numpy for its scene export, installed with apt-get when missing
-# and run as root); each scene is exported to its .aoscene once.
+# many_spheres and sponza. The native bench is built on first use (scripts/native-embree.sh).
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 peers_src="$root/../shared/peers"
-work="${HEMI_NATIVE_DIR:-/tmp/hemi-native}"
 spp=1
 threads=2
 rounds=3
@@ -35,23 +31,9 @@ for n in "$spp" "$threads" "$rounds"; do
     [[ "$n" =~ ^[1-9][0-9]*$ ]] || { echo "compare-memory: '$n' is not a positive whole number" >&2; exit 2; }
 done
 [ -x "$hemi" ] || { echo "compare-memory: $hemi not found (cargo build --release first)" >&2; exit 1; }
-[ -d "$peers_src/native" ] || { echo "compare-memory: $peers_src/native not found (../shared must sit beside the repo)" >&2; exit 1; }
 
-apt_install() {
-    [ "$(id -u)" = 0 ] || { echo "compare-memory: needs $* (apt-get install -y $*)" >&2; exit 1; }
-    apt-get install -y -q "$@" >/dev/null 2>&1 || { apt-get update -q >/dev/null && apt-get install -y -q "$@" >/dev/null; }
-}
-[ -x /usr/bin/time ] || apt_install time
-bench="$work/build/embree_ao_bench_e3"
-if [ ! -x "$bench" ]; then
-    echo "compare-memory: building the native Embree bench in $work" >&2
-    command -v g++ >/dev/null && [ -e /usr/include/embree3/rtcore.h ] || apt_install g++ libembree-dev
-    rm -rf "$work" && cp -r "$peers_src/native" "$work" && chmod -R u+w "$work"
-    make -s -C "$work" >&2
-fi
-python=python3
-"$python" -c 'import numpy' 2>/dev/null || python=/usr/bin/python3
-"$python" -c 'import numpy' 2>/dev/null || { apt_install python3-numpy; python=/usr/bin/python3; }
+. "$root/scripts/native-embree.sh"
+[ -x /usr/bin/time ] || native_apt time
 
 tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
@@ -63,18 +45,16 @@ peak_kib() {
 declare -A hemi_kib native_kib
 for s in "${scenes[@]}"; do
     [ -f "$peers_src/scenes/$s.json" ] || { echo "compare-memory: no scene $s in $peers_src/scenes" >&2; exit 2; }
-    if [ ! -f "$work/out/$s.aoscene" ]; then
-        (cd "$work" && PYTHONPATH="$peers_src" "$python" export_scene.py "$peers_src/scenes/$s.json" >/dev/null)
-    fi
+    native_scene "$s" >/dev/null
 done
 for round in $(seq "$rounds"); do
     for s in "${scenes[@]}"; do
         # Alternate which runs first, so a slow or crowded spell hits both alike.
         if [ $((round % 2)) = 1 ]; then
             h=$(peak_kib "$hemi" render "$peers_src/scenes/$s.json" --spp "$spp" --threads "$threads" --out "$tmp/$s.exr")
-            n=$(peak_kib "$bench" "$work/out/$s.aoscene" --spp "$spp" --repeat 1 --threads "$threads")
+            n=$(peak_kib "$native_bench" "$native/out/$s.aoscene" --spp "$spp" --repeat 1 --threads "$threads")
         else
-            n=$(peak_kib "$bench" "$work/out/$s.aoscene" --spp "$spp" --repeat 1 --threads "$threads")
+            n=$(peak_kib "$native_bench" "$native/out/$s.aoscene" --spp "$spp" --repeat 1 --threads "$threads")
             h=$(peak_kib "$hemi" render "$peers_src/scenes/$s.json" --spp "$spp" --threads "$threads" --out "$tmp/$s.exr")
         fi
         hemi_kib[$s]="${hemi_kib[$s]:-} $h"
@@ -87,7 +67,7 @@ median() { tr ' ' '\n' | grep . | sort -n | awk '{v[NR]=$1} END {print (NR % 2) 
 echo "| scene (triangles) | hemi peak RSS (MiB) | native Embree 3 (MiB) | hemi ÷ Embree |"
 echo "|---|---|---|---|"
 for s in "${scenes[@]}"; do
-    tris=$(od -An -t u4 -j 16 -N 4 "$work/out/$s.aoscene" | tr -d ' ')
+    tris=$(od -An -t u4 -j 16 -N 4 "$native/out/$s.aoscene" | tr -d ' ')
     h=$(echo "${hemi_kib[$s]}" | median)
     n=$(echo "${native_kib[$s]}" | median)
     awk -v s="$s" -v t="$tris" -v h="$h" -v n="$n" \
