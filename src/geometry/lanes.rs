@@ -6,7 +6,7 @@ use std::arch::x86_64::*;
 use glam::{DVec3, Vec3A};
 
 use super::ray::Ray;
-use crate::simd::{Avx, Avx512, Lanes, avx::transpose8, avx512::transpose16};
+use crate::simd::{Avx, Avx512, Lanes, Portable, avx::transpose8, avx512::transpose16};
 
 /// A packet's rays in lanes, one ray per lane: origin, direction and reciprocal direction per
 /// axis, and the far end of the segment.
@@ -260,6 +260,50 @@ impl PacketLanes for Avx512 {
     }
 }
 
+/// Lane by lane: each field copied from its ray, each plane distance computed as
+/// [`Triangle::finish`] computes it.
+///
+/// [`Triangle::finish`]: super::shapes::Triangle::finish
+impl PacketLanes for Portable {
+    #[inline(always)]
+    unsafe fn rays(rays: &[Ray]) -> RayLanes<Self> {
+        let last = rays.len() - 1;
+        let field = |f: &dyn Fn(&Ray) -> f32| Portable(std::array::from_fn(|k| f(&rays[k.min(last)])));
+        RayLanes {
+            origin: [field(&|r| r.origin.x), field(&|r| r.origin.y), field(&|r| r.origin.z)],
+            dir: [field(&|r| r.dir.x), field(&|r| r.dir.y), field(&|r| r.dir.z)],
+            inv_dir: [field(&|r| r.inv_dir.x), field(&|r| r.inv_dir.y), field(&|r| r.inv_dir.z)],
+            tmax: field(&|r| r.tmax),
+        }
+    }
+    #[inline(always)]
+    unsafe fn write_rays(lanes: &RayLanes<Self>, out: &mut [Ray], at: &[u32]) {
+        // The fourth lane 0, as the vector types write it.
+        let vector = |v: &[Portable; 3], k: usize| Vec3A::from_vec4(glam::Vec4::new(v[0].0[k], v[1].0[k], v[2].0[k], 0.0));
+        for (k, &at) in at[..8].iter().enumerate() {
+            out[at as usize] = Ray {
+                origin: vector(&lanes.origin, k),
+                dir: vector(&lanes.dir, k),
+                inv_dir: vector(&lanes.inv_dir, k),
+                tmax: lanes.tmax.0[k],
+            };
+        }
+    }
+    #[inline(always)]
+    unsafe fn plane_hits(n: DVec3, a: DVec3, o: &[Self; 3], d: &[Self; 3], tmax: Self) -> u32 {
+        let dot = |x: f64, y: f64, z: f64| n.x * x + n.y * y + n.z * z;
+        let mut meets = 0;
+        for k in 0..8 {
+            let lane = |v: &[Self; 3], i: usize| f64::from(v[i].0[k]);
+            let denom = dot(lane(d, 0), lane(d, 1), lane(d, 2));
+            let num = dot(a.x - lane(o, 0), a.y - lane(o, 1), a.z - lane(o, 2));
+            let t = (num / denom) as f32;
+            meets |= u32::from(denom != 0.0 && t > 0.0 && t < tmax.0[k]) << k;
+        }
+        meets
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use glam::Vec3A;
@@ -274,6 +318,8 @@ mod tests {
     /// own lane.
     #[test]
     fn rays_are_transposed_into_their_lanes() {
+        // SAFETY: the portable lanes need no instruction set.
+        unsafe { rays_into_lanes::<Portable>() };
         both_widths(rays_into_lanes::<Avx>, rays_into_lanes::<Avx512>);
     }
 
@@ -281,6 +327,8 @@ mod tests {
     /// in lane order within a group, and lanes in none get the given index.
     #[test]
     fn grouped_lanes_get_their_places_in_order() {
+        // SAFETY: the portable lanes need no instruction set.
+        unsafe { places_in_order::<Portable>() };
         both_widths(places_in_order::<Avx>, places_in_order::<Avx512>);
     }
 
@@ -291,6 +339,8 @@ mod tests {
     /// and so are the bounds.
     #[test]
     fn the_segments_box_holds_every_live_segment() {
+        // SAFETY: the portable lanes need no instruction set.
+        unsafe { segments_in_the_box::<Portable>() };
         both_widths(segments_in_the_box::<Avx>, segments_in_the_box::<Avx512>);
     }
 
