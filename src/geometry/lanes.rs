@@ -6,7 +6,7 @@ use std::arch::x86_64::*;
 use glam::{DVec3, Vec3A};
 
 use super::ray::Ray;
-use crate::simd::{Avx, Avx512, Lanes, avx::transpose8, avx512::transpose16};
+use crate::simd::{Avx, Avx512, Lanes, Portable, avx::transpose8, avx512::transpose16};
 
 /// A packet's rays in lanes, one ray per lane: origin, direction and reciprocal direction per
 /// axis, and the far end of the segment.
@@ -260,6 +260,51 @@ impl PacketLanes for Avx512 {
     }
 }
 
+/// Lane by lane: each field copied from its ray, each plane distance computed as
+/// [`Triangle::finish`] computes it.
+///
+/// [`Triangle::finish`]: super::shapes::Triangle::finish
+impl PacketLanes for Portable {
+    #[inline(always)]
+    unsafe fn rays(rays: &[Ray]) -> RayLanes<Self> {
+        let last = rays.len() - 1;
+        let field = |f: &dyn Fn(&Ray) -> f32| Portable(std::array::from_fn(|k| f(&rays[k.min(last)])));
+        RayLanes {
+            origin: [field(&|r| r.origin.x), field(&|r| r.origin.y), field(&|r| r.origin.z)],
+            dir: [field(&|r| r.dir.x), field(&|r| r.dir.y), field(&|r| r.dir.z)],
+            inv_dir: [field(&|r| r.inv_dir.x), field(&|r| r.inv_dir.y), field(&|r| r.inv_dir.z)],
+            tmax: field(&|r| r.tmax),
+        }
+    }
+    #[inline(always)]
+    unsafe fn write_rays(lanes: &RayLanes<Self>, out: &mut [Ray], at: &[u32]) {
+        // The fourth lane 0, as the vector types write it.
+        let vector =
+            |v: &[Portable; 3], k: usize| Vec3A::from_vec4(glam::Vec4::new(v[0].0[k], v[1].0[k], v[2].0[k], 0.0));
+        for (k, &at) in at[..8].iter().enumerate() {
+            out[at as usize] = Ray {
+                origin: vector(&lanes.origin, k),
+                dir: vector(&lanes.dir, k),
+                inv_dir: vector(&lanes.inv_dir, k),
+                tmax: lanes.tmax.0[k],
+            };
+        }
+    }
+    #[inline(always)]
+    unsafe fn plane_hits(n: DVec3, a: DVec3, o: &[Self; 3], d: &[Self; 3], tmax: Self) -> u32 {
+        let dot = |x: f64, y: f64, z: f64| n.x * x + n.y * y + n.z * z;
+        let mut meets = 0;
+        for k in 0..8 {
+            let lane = |v: &[Self; 3], i: usize| f64::from(v[i].0[k]);
+            let denom = dot(lane(d, 0), lane(d, 1), lane(d, 2));
+            let num = dot(a.x - lane(o, 0), a.y - lane(o, 1), a.z - lane(o, 2));
+            let t = (num / denom) as f32;
+            meets |= u32::from(denom != 0.0 && t > 0.0 && t < tmax.0[k]) << k;
+        }
+        meets
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use glam::Vec3A;
@@ -274,6 +319,8 @@ mod tests {
     /// own lane.
     #[test]
     fn rays_are_transposed_into_their_lanes() {
+        // SAFETY: the portable lanes need no instruction set.
+        unsafe { rays_into_lanes::<Portable>() };
         both_widths(rays_into_lanes::<Avx>, rays_into_lanes::<Avx512>);
     }
 
@@ -281,7 +328,63 @@ mod tests {
     /// in lane order within a group, and lanes in none get the given index.
     #[test]
     fn grouped_lanes_get_their_places_in_order() {
+        // SAFETY: the portable lanes need no instruction set.
+        unsafe { places_in_order::<Portable>() };
         both_widths(places_in_order::<Avx>, places_in_order::<Avx512>);
+    }
+
+    /// The portable lanes gather, write back and plane-test rays with the vector lanes' bits,
+    /// rays with zero, infinite and NaN components and planes parallel to them included.
+    #[test]
+    fn portable_packets_give_the_vector_lanes_bits() {
+        both_widths(same_packets_as::<Avx>, same_packets_as::<Avx512>);
+    }
+
+    /// [`portable_packets_give_the_vector_lanes_bits`] for `L` (eight or sixteen lanes).
+    ///
+    /// # Safety
+    /// The CPU must have `L`'s instruction set.
+    unsafe fn same_packets_as<L: PacketLanes>() {
+        use glam::DVec3;
+        let mut rng = SplitMix64::new(17);
+        let special = [0.0, -0.0, 1.0, f32::INFINITY, f32::NEG_INFINITY, f32::NAN];
+        let mut x = || {
+            let r = rng.next_f32();
+            if r < 0.15 { special[(r * 40.0) as usize % 6] } else { (r - 0.5) * 8.0 }
+        };
+        let mut hits = 0;
+        for p in 0..1_000 {
+            let rays: Vec<Ray> = (0..L::WIDTH)
+                .map(|_| Ray::new(Vec3A::new(x(), x(), x()), Vec3A::new(x(), x(), x()), x().abs()))
+                .collect();
+            // The plane's normal along the rays' first direction now and then (no hit).
+            let n = if p % 7 == 0 { DVec3::new(0.0, 0.0, 1.0) } else { DVec3::new(x().into(), x().into(), 1.5) };
+            let a = DVec3::new(x().into(), 0.5, -0.25);
+            // SAFETY: the caller's CPU has `L`'s instruction set; the portable lanes need none.
+            let (want, got, back) = unsafe {
+                let (v, q) = (L::rays(&rays), Portable::rays(&rays[..8]));
+                let mut back = vec![Ray::new(Vec3A::ZERO, Vec3A::X, 0.0); 8];
+                Portable::write_rays(&q, &mut back, &[7, 6, 5, 4, 3, 2, 1, 0]);
+                let want = L::plane_hits(n, a, &v.origin, &v.dir, v.tmax) & 0xff;
+                (want, Portable::plane_hits(n, a, &q.origin, &q.dir, q.tmax), back)
+            };
+            assert_eq!(got, want, "packet {p}: plane hits");
+            hits += got.count_ones();
+            let bits = |v: Vec3A| glam::Vec4::from(__m128::from(v)).to_array().map(f32::to_bits);
+            for (k, ray) in rays[..8].iter().enumerate() {
+                let b = &back[7 - k];
+                let zero_w = |v: Vec3A| {
+                    let mut w = bits(v);
+                    w[3] = 0;
+                    w
+                };
+                assert_eq!(bits(b.origin), zero_w(ray.origin), "packet {p}: origin {k} written back");
+                assert_eq!(bits(b.dir), zero_w(ray.dir), "packet {p}: dir {k} written back");
+                assert_eq!(bits(b.inv_dir), zero_w(ray.inv_dir), "packet {p}: inv_dir {k} written back");
+                assert_eq!(b.tmax.to_bits(), ray.tmax.to_bits(), "packet {p}: tmax {k} written back");
+            }
+        }
+        assert!(hits > 500 && hits < 7_000, "{hits} plane hits in 8000 lanes");
     }
 
     /// The segments' box holds, in exact arithmetic, every live lane's origin and every point
@@ -291,6 +394,8 @@ mod tests {
     /// and so are the bounds.
     #[test]
     fn the_segments_box_holds_every_live_segment() {
+        // SAFETY: the portable lanes need no instruction set.
+        unsafe { segments_in_the_box::<Portable>() };
         both_widths(segments_in_the_box::<Avx>, segments_in_the_box::<Avx512>);
     }
 

@@ -287,6 +287,8 @@ mod tests {
     #[test]
     fn packet_edges_are_the_single_ray_edges_bit_for_bit() {
         use crate::simd::{Avx, Avx512, both_widths};
+        // SAFETY: the portable lanes need no instruction set.
+        unsafe { packet_edges_are_single_ray_edges::<crate::simd::Portable>() };
         both_widths(packet_edges_are_single_ray_edges::<Avx>, packet_edges_are_single_ray_edges::<Avx512>);
     }
 
@@ -363,6 +365,8 @@ mod tests {
     #[test]
     fn a_packet_leaving_a_triangle_gets_exactly_finish_s_plane_hits() {
         use crate::simd::{Avx, Avx512, both_widths};
+        // SAFETY: the portable lanes need no instruction set.
+        unsafe { packet_leaving_a_triangle::<crate::simd::Portable>() };
         both_widths(packet_leaving_a_triangle::<Avx>, packet_leaving_a_triangle::<Avx512>);
     }
 

@@ -18,7 +18,8 @@
 
 mod lanes;
 // Not yet instantiated by the kernels (under `HEMI_SIMD=portable` they take the scalar
-// paths); today it is the tested reference the vector lane types are checked against.
+// paths); today it is the tested reference the vector lane types, and their ray packets
+// (`geometry::lanes::PacketLanes`), are checked against.
 #[allow(dead_code)]
 mod portable;
 
