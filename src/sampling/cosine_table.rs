@@ -53,8 +53,7 @@ impl CosineTable {
         let mut dirs = vec![0.0; per_pattern * count as usize];
         dirs.par_chunks_mut(per_pattern).enumerate().for_each(|(i, out)| {
             let fill = FillPattern { cmj, p: first.wrapping_add(i as u32), out };
-            // SAFETY: the CPU was just found to have these lanes' instruction set.
-            unsafe { crate::simd::run_in(lanes, fill) };
+            crate::simd::run_in(lanes, fill);
         });
         Some(CosineTable { lanes, first, count, per_pattern, dirs })
     }
@@ -91,18 +90,15 @@ struct FillPattern<'a> {
 impl<L: SampleLanes> Kernel<L> for FillPattern<'_> {
     type Output = ();
     #[inline(always)]
-    unsafe fn run(self) {
+    fn run(self, isa: L::Isa) {
         let FillPattern { cmj, p, out } = self;
         let width = L::WIDTH;
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        unsafe {
-            let pattern = QuadrantPattern::<L>::new(cmj, p);
-            for (packet, out) in out.chunks_exact_mut(3 * width).enumerate() {
-                let (x, y) = pattern.points(packet);
-                let dirs = cosine_hemisphere_lanes(x, y);
-                for (axis, v) in dirs.into_iter().enumerate() {
-                    v.store(&mut out[axis * width..]);
-                }
+        let pattern = QuadrantPattern::<L>::new(isa, cmj, p);
+        for (packet, out) in out.chunks_exact_mut(3 * width).enumerate() {
+            let (x, y) = pattern.points(packet);
+            let dirs = cosine_hemisphere_lanes(x, y);
+            for (axis, v) in dirs.into_iter().enumerate() {
+                v.store(&mut out[axis * width..]);
             }
         }
     }

@@ -17,11 +17,8 @@
 //! dispatch for plain loops the compiler vectorises.
 
 mod lanes;
-// Not yet instantiated by the kernels (under `HEMI_SIMD=portable` they take the scalar
-// paths); today it is the tested reference the vector lane types, and their ray packets
-// (`geometry::lanes::PacketLanes`), are checked against.
-#[allow(dead_code)]
 mod portable;
+mod token;
 
 #[cfg(target_arch = "x86_64")]
 pub(crate) mod avx;
@@ -37,8 +34,10 @@ pub(crate) use avx512::Avx512;
 #[cfg(target_arch = "x86_64")]
 pub(crate) use lanes::SampleLanes;
 pub(crate) use lanes::{CompressLanes, FusedLanes, Lanes};
-#[allow(unused_imports)]
 pub(crate) use portable::Portable;
+pub(crate) use token::Plain;
+#[cfg(target_arch = "x86_64")]
+pub(crate) use token::{HasAvx2, HasAvx512};
 #[cfg(target_arch = "x86_64")]
 pub(crate) use u32_lanes::U32Lanes;
 
@@ -129,35 +128,32 @@ pub(crate) fn packet_lanes() -> usize {
 /// instruction set: the entry points marked `#[target_feature]` are generated there, once per
 /// lane type, and `run` (`#[inline(always)]` in each implementation) is inlined into them with
 /// everything it inlines in turn.
-pub(crate) trait Kernel<L> {
+pub(crate) trait Kernel<L: Lanes> {
     /// What the kernel returns.
     type Output;
-    /// Runs the kernel.
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
-    unsafe fn run(self) -> Self::Output;
+    /// Runs the kernel; `isa` proves the CPU has `L`'s instruction set.
+    fn run(self, isa: L::Isa) -> Self::Output;
 }
 
 /// Runs `kernel` in `lanes` lanes, compiled for that lane type's instruction set: [`Avx512`]
-/// for sixteen, [`Avx`] for eight; `None`, having done nothing, for other widths.
-///
-/// # Safety
-/// The CPU must have the instruction set of the lane type of that width ([`avx512()`],
-/// [`avx2()`]).
+/// for sixteen, [`Avx`] for eight; `None`, having done nothing, for other widths and where
+/// [`isa`] does not allow that lane type.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-pub(crate) unsafe fn run_in<K, O>(lanes: usize, kernel: K) -> Option<O>
+pub(crate) fn run_in<K, O>(lanes: usize, kernel: K) -> Option<O>
 where
     K: Kernel<Avx, Output = O> + Kernel<Avx512, Output = O>,
 {
-    // SAFETY: the caller's CPU has the instruction set of the lane type of this width.
-    unsafe {
-        match lanes {
-            16 => Some(Avx512::compiled(kernel)),
-            8 => Some(Avx::compiled(kernel)),
-            _ => None,
-        }
+    match lanes {
+        16 => match HasAvx512::allowed() {
+            Some(isa) => Some(Avx512::compiled(isa, kernel)),
+            None => None,
+        },
+        8 => match HasAvx2::allowed() {
+            Some(isa) => Some(Avx::compiled(isa, kernel)),
+            None => None,
+        },
+        _ => None,
     }
 }
 
@@ -165,18 +161,15 @@ where
 /// it has AVX-512 as well (whatever the environment caps [`isa`] at: the copies are tested
 /// wherever they can run), saying which it skips.
 #[cfg(all(test, target_arch = "x86_64"))]
-pub(crate) fn both_widths(eight: unsafe fn(), sixteen: unsafe fn()) {
-    if cpu_isa() < Isa::Avx2 {
+pub(crate) fn both_widths(eight: impl FnOnce(HasAvx2), sixteen: impl FnOnce(HasAvx512)) {
+    let Some(v3) = HasAvx2::on_cpu() else {
         eprintln!("no AVX2 on this CPU: packets are not used and not tested");
         return;
-    }
-    // SAFETY: AVX2 and the rest of x86-64-v3 were detected.
-    unsafe { eight() };
-    if cpu_isa() >= Isa::Avx512 {
-        // SAFETY: AVX-512 was detected.
-        unsafe { sixteen() };
-    } else {
-        eprintln!("no AVX-512 on this CPU: sixteen-lane packets are not used and not tested");
+    };
+    eight(v3);
+    match HasAvx512::on_cpu() {
+        Some(v4) => sixteen(v4),
+        None => eprintln!("no AVX-512 on this CPU: sixteen-lane packets are not used and not tested"),
     }
 }
 

@@ -4,7 +4,7 @@
 
 use glam::Vec3A;
 
-use super::{FusedLanes, Kernel, Lanes};
+use super::{FusedLanes, Kernel, Lanes, Plain};
 
 /// Eight f32 lanes in an array.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -33,21 +33,26 @@ impl Portable {
 /// Every lane of a mask.
 const ALL: u32 = 0xff;
 
-// No method has a safety requirement: `unsafe` only because the trait's methods are.
 impl Lanes for Portable {
     const WIDTH: usize = 8;
     type Mask = u32;
+    type Isa = Plain;
 
     #[inline(always)]
-    unsafe fn splat(x: f32) -> Self {
+    fn isa(self) -> Plain {
+        Plain
+    }
+
+    #[inline(always)]
+    fn splat(_: Plain, x: f32) -> Self {
         Portable([x; 8])
     }
     #[inline(always)]
-    unsafe fn places(groups: &[u32; 4], start: &[u32; 4], none: u32) -> [u32; 16] {
+    fn places(_: Plain, groups: &[u32; 4], start: &[u32; 4], none: u32) -> [u32; 16] {
         super::lanes::places8(groups, start, none)
     }
     #[inline(always)]
-    unsafe fn load(x: &[f32]) -> Self {
+    fn load(_: Plain, x: &[f32]) -> Self {
         Portable(std::array::from_fn(|k| x[k]))
     }
     #[inline(always)]
@@ -55,118 +60,116 @@ impl Lanes for Portable {
         self.0[j]
     }
     #[inline(always)]
-    unsafe fn store(self, out: &mut [f32]) {
+    fn store(self, out: &mut [f32]) {
         out[..8].copy_from_slice(&self.0);
     }
     #[inline(always)]
-    unsafe fn add_to(x: Self, y: Self, z: Self, out: &mut [Vec3A]) {
+    fn add_to(x: Self, y: Self, z: Self, out: &mut [Vec3A]) {
         for (k, out) in out[..8].iter_mut().enumerate() {
             *out += Vec3A::new(x.0[k], y.0[k], z.0[k]);
         }
     }
     #[inline(always)]
-    unsafe fn add(self, b: Self) -> Self {
+    fn add(self, b: Self) -> Self {
         self.zip(b, |a, b| a + b)
     }
     #[inline(always)]
-    unsafe fn sub(self, b: Self) -> Self {
+    fn sub(self, b: Self) -> Self {
         self.zip(b, |a, b| a - b)
     }
     #[inline(always)]
-    unsafe fn mul(self, b: Self) -> Self {
+    fn mul(self, b: Self) -> Self {
         self.zip(b, |a, b| a * b)
     }
     #[inline(always)]
-    unsafe fn div(self, b: Self) -> Self {
+    fn div(self, b: Self) -> Self {
         self.zip(b, |a, b| a / b)
     }
     #[inline(always)]
-    unsafe fn neg(self) -> Self {
+    fn neg(self) -> Self {
         self.map(|a| -a)
     }
     #[inline(always)]
-    unsafe fn sqrt(self) -> Self {
+    fn sqrt(self) -> Self {
         self.map(f32::sqrt)
     }
     #[inline(always)]
-    unsafe fn abs(self) -> Self {
+    fn abs(self) -> Self {
         self.map(f32::abs)
     }
     #[inline(always)]
-    unsafe fn max_keep(self, b: Self) -> Self {
+    fn max_keep(self, b: Self) -> Self {
         self.zip(b, |a, b| if a > b { a } else { b })
     }
     #[inline(always)]
-    unsafe fn min_keep(self, b: Self) -> Self {
+    fn min_keep(self, b: Self) -> Self {
         self.zip(b, |a, b| if a < b { a } else { b })
     }
     #[inline(always)]
-    unsafe fn lt(self, b: Self) -> u32 {
+    fn lt(self, b: Self) -> u32 {
         self.test(b, |a, b| a < b)
     }
     #[inline(always)]
-    unsafe fn gt(self, b: Self) -> u32 {
+    fn gt(self, b: Self) -> u32 {
         self.test(b, |a, b| a > b)
     }
     #[inline(always)]
-    unsafe fn le(self, b: Self) -> u32 {
+    fn le(self, b: Self) -> u32 {
         self.test(b, |a, b| a <= b)
     }
     #[inline(always)]
-    unsafe fn ne(self, b: Self) -> u32 {
+    fn ne(self, b: Self) -> u32 {
         self.test(b, |a, b| a != b)
     }
     #[inline(always)]
-    unsafe fn eq_or_nan(self, b: Self) -> u32 {
+    fn eq_or_nan(self, b: Self) -> u32 {
         self.test(b, |a, b| a == b || a.is_nan() || b.is_nan())
     }
     #[inline(always)]
-    unsafe fn select(self, m: u32, if_set: Self) -> Self {
+    fn select(self, m: u32, if_set: Self) -> Self {
         Portable(std::array::from_fn(|k| if m >> k & 1 != 0 { if_set.0[k] } else { self.0[k] }))
     }
     #[inline(always)]
-    unsafe fn and(a: u32, b: u32) -> u32 {
+    fn and(a: u32, b: u32) -> u32 {
         a & b
     }
     #[inline(always)]
-    unsafe fn or(a: u32, b: u32) -> u32 {
+    fn or(a: u32, b: u32) -> u32 {
         a | b
     }
     #[inline(always)]
-    unsafe fn andnot(a: u32, b: u32) -> u32 {
+    fn andnot(a: u32, b: u32) -> u32 {
         !a & b & ALL
     }
     #[inline(always)]
-    unsafe fn least(self) -> f32 {
+    fn least(self) -> f32 {
         self.0.into_iter().fold(f32::INFINITY, |m, a| if a < m { a } else { m })
     }
     #[inline(always)]
-    unsafe fn greatest(self) -> f32 {
+    fn greatest(self) -> f32 {
         self.0.into_iter().fold(f32::NEG_INFINITY, |m, a| if a > m { a } else { m })
     }
     #[inline(always)]
-    unsafe fn bits(m: u32) -> u32 {
+    fn bits(m: u32) -> u32 {
         m & ALL
     }
     #[inline(always)]
-    unsafe fn mask(bits: u32) -> u32 {
+    fn mask(_: Plain, bits: u32) -> u32 {
         bits & ALL
     }
     #[inline(always)]
-    unsafe fn compiled<K: Kernel<Self>>(kernel: K) -> K::Output {
-        // SAFETY: the portable code needs no instruction set.
-        unsafe { kernel.run() }
+    fn compiled<K: Kernel<Self>>(isa: Plain, kernel: K) -> K::Output {
+        kernel.run(isa)
     }
     #[inline(never)]
-    unsafe fn compiled_apart<K: Kernel<Self>>(kernel: K) -> K::Output {
-        // SAFETY: the portable code needs no instruction set.
-        unsafe { kernel.run() }
+    fn compiled_apart<K: Kernel<Self>>(isa: Plain, kernel: K) -> K::Output {
+        kernel.run(isa)
     }
 }
 
 impl FusedLanes for Portable {
     #[inline(always)]
-    unsafe fn mul_add(self, b: Self, c: Self) -> Self {
+    fn mul_add(self, b: Self, c: Self) -> Self {
         Portable(std::array::from_fn(|k| self.0[k].mul_add(b.0[k], c.0[k])))
     }
 }
@@ -174,20 +177,20 @@ impl FusedLanes for Portable {
 #[cfg(all(test, target_arch = "x86_64"))]
 mod tests {
     use super::*;
-    use crate::{random::SplitMix64, simd::Avx};
+    use crate::{
+        random::SplitMix64,
+        simd::{Avx, HasAvx2},
+    };
 
     /// Every operation of the portable lanes gives the AVX lanes' bits, infinities and signed
     /// zeros included, and NaN where they give NaN (where the CPU has AVX2).
     #[test]
     fn portable_lanes_give_the_avx_bits() {
-        crate::simd::both_widths(same_as_avx, || {});
+        crate::simd::both_widths(same_as_avx, |_| {});
     }
 
     /// [`portable_lanes_give_the_avx_bits`].
-    ///
-    /// # Safety
-    /// The CPU must have AVX2.
-    unsafe fn same_as_avx() {
+    fn same_as_avx(isa: HasAvx2) {
         let mut rng = SplitMix64::new(3);
         let special = [0.0, -0.0, 1.0, -2.5, f32::INFINITY, f32::NEG_INFINITY, f32::NAN, 1e-40];
         let mut v = || {
@@ -200,53 +203,50 @@ mod tests {
         let bits = |x: [f32; 8]| x.map(|x| if x.is_nan() { u32::MAX } else { x.to_bits() });
         for _ in 0..2_000 {
             let (a, b, c) = (v(), v(), v());
-            // SAFETY: the caller's CPU has AVX2; the lane types' methods ask nothing else.
-            unsafe {
-                let (pa, pb, pc) = (Portable(a), Portable(b), Portable(c));
-                let (xa, xb, xc) = (Avx::load(&a), Avx::load(&b), Avx::load(&c));
-                let same = |p: Portable, x: Avx, what: &str| {
-                    let x: [f32; 8] = std::array::from_fn(|k| x.lane(k));
-                    assert_eq!(bits(p.0), bits(x), "{what} of {a:?}, {b:?}");
-                };
-                same(pa.add(pb), xa.add(xb), "add");
-                same(pa.sub(pb), xa.sub(xb), "sub");
-                same(pa.mul(pb), xa.mul(xb), "mul");
-                same(pa.div(pb), xa.div(xb), "div");
-                same(pa.neg(), xa.neg(), "neg");
-                same(pa.abs(), xa.abs(), "abs");
-                same(pa.max_keep(pb), xa.max_keep(xb), "max_keep");
-                same(pa.min_keep(pb), xa.min_keep(xb), "min_keep");
-                same(pa.mul_add(pb, pc), xa.mul_add(xb, xc), "mul_add");
-                let masks = [
-                    (pa.lt(pb), Avx::bits(xa.lt(xb))),
-                    (pa.gt(pb), Avx::bits(xa.gt(xb))),
-                    (pa.le(pb), Avx::bits(xa.le(xb))),
-                    (pa.ne(pb), Avx::bits(xa.ne(xb))),
-                    (pa.eq_or_nan(pb), Avx::bits(xa.eq_or_nan(xb))),
-                ];
-                for (i, (p, x)) in masks.into_iter().enumerate() {
-                    assert_eq!(Portable::bits(p), x, "comparison {i} of {a:?}, {b:?}");
-                }
-                let m = pa.lt(pb);
-                same(pa.select(m, pc), xa.select(xa.lt(xb), xc), "select");
-                let n = pc.gt(pb);
-                let xn = xc.gt(xb);
-                assert_eq!(Portable::bits(Portable::and(m, n)), Avx::bits(Avx::and(xa.lt(xb), xn)));
-                assert_eq!(Portable::bits(Portable::or(m, n)), Avx::bits(Avx::or(xa.lt(xb), xn)));
-                assert_eq!(Portable::bits(Portable::andnot(m, n)), Avx::bits(Avx::andnot(xa.lt(xb), xn)));
-                let k = a[0].to_bits() & 0xff;
-                assert_eq!(Portable::bits(Portable::mask(k)), Avx::bits(Avx::mask(k)));
-                if a.iter().all(|x| !x.is_nan()) {
-                    assert_eq!(pa.least(), xa.least());
-                    assert_eq!(pa.greatest(), xa.greatest());
-                }
-                let mut sums = [Vec3A::ONE; 8];
-                let mut want = sums;
-                Portable::add_to(pa, pb, pc, &mut sums);
-                Avx::add_to(xa, xb, xc, &mut want);
-                let lanes = |v: &[Vec3A; 8]| v.map(|v| glam::Vec4::from(std::arch::x86_64::__m128::from(v)).to_array());
-                assert_eq!(format!("{:?}", lanes(&sums)), format!("{:?}", lanes(&want)));
+            let (pa, pb, pc) = (Portable(a), Portable(b), Portable(c));
+            let (xa, xb, xc) = (Avx::load(isa, &a), Avx::load(isa, &b), Avx::load(isa, &c));
+            let same = |p: Portable, x: Avx, what: &str| {
+                let x: [f32; 8] = std::array::from_fn(|k| x.lane(k));
+                assert_eq!(bits(p.0), bits(x), "{what} of {a:?}, {b:?}");
+            };
+            same(pa.add(pb), xa.add(xb), "add");
+            same(pa.sub(pb), xa.sub(xb), "sub");
+            same(pa.mul(pb), xa.mul(xb), "mul");
+            same(pa.div(pb), xa.div(xb), "div");
+            same(pa.neg(), xa.neg(), "neg");
+            same(pa.abs(), xa.abs(), "abs");
+            same(pa.max_keep(pb), xa.max_keep(xb), "max_keep");
+            same(pa.min_keep(pb), xa.min_keep(xb), "min_keep");
+            same(pa.mul_add(pb, pc), xa.mul_add(xb, xc), "mul_add");
+            let masks = [
+                (pa.lt(pb), Avx::bits(xa.lt(xb))),
+                (pa.gt(pb), Avx::bits(xa.gt(xb))),
+                (pa.le(pb), Avx::bits(xa.le(xb))),
+                (pa.ne(pb), Avx::bits(xa.ne(xb))),
+                (pa.eq_or_nan(pb), Avx::bits(xa.eq_or_nan(xb))),
+            ];
+            for (i, (p, x)) in masks.into_iter().enumerate() {
+                assert_eq!(Portable::bits(p), x, "comparison {i} of {a:?}, {b:?}");
             }
+            let m = pa.lt(pb);
+            same(pa.select(m, pc), xa.select(xa.lt(xb), xc), "select");
+            let n = pc.gt(pb);
+            let xn = xc.gt(xb);
+            assert_eq!(Portable::bits(Portable::and(m, n)), Avx::bits(Avx::and(xa.lt(xb), xn)));
+            assert_eq!(Portable::bits(Portable::or(m, n)), Avx::bits(Avx::or(xa.lt(xb), xn)));
+            assert_eq!(Portable::bits(Portable::andnot(m, n)), Avx::bits(Avx::andnot(xa.lt(xb), xn)));
+            let k = a[0].to_bits() & 0xff;
+            assert_eq!(Portable::bits(Portable::mask(Plain, k)), Avx::bits(Avx::mask(isa, k)));
+            if a.iter().all(|x| !x.is_nan()) {
+                assert_eq!(pa.least(), xa.least());
+                assert_eq!(pa.greatest(), xa.greatest());
+            }
+            let mut sums = [Vec3A::ONE; 8];
+            let mut want = sums;
+            Portable::add_to(pa, pb, pc, &mut sums);
+            Avx::add_to(xa, xb, xc, &mut want);
+            let lanes = |v: &[Vec3A; 8]| v.map(|v| glam::Vec4::from(std::arch::x86_64::__m128::from(v)).to_array());
+            assert_eq!(format!("{:?}", lanes(&sums)), format!("{:?}", lanes(&want)));
         }
     }
 }

@@ -5,17 +5,19 @@ use obvhs::bvh2::node::Bvh2Node;
 
 use crate::geometry::{
     ray::Ray,
-    wide_bvh::{Bvh4, Node, NodeTest, WideBvh},
+    wide_bvh::{Bvh4, NodeTest, WideBvh},
 };
+use crate::simd::Plain;
 #[cfg(target_arch = "x86_64")]
-use crate::simd::{Avx, Kernel, Lanes};
+use crate::simd::{Avx, HasAvx2, Kernel, Lanes};
 
-/// The wide tree traversal uses: eight children per node where the CPU has AVX, else four.
+/// The wide tree traversal uses: eight children per node where the CPU has AVX2 (with the
+/// token that proves it), else four.
 #[derive(Clone, Debug)]
 pub(super) enum Tree {
     Four(Bvh4),
     #[cfg(target_arch = "x86_64")]
-    Eight(crate::geometry::wide_bvh::Bvh8),
+    Eight(crate::geometry::wide_bvh::Bvh8, HasAvx2),
 }
 
 impl Default for Tree {
@@ -30,9 +32,10 @@ impl Tree {
     pub(super) fn from_bvh2(bvh2: &[Bvh2Node]) -> Self {
         #[cfg(target_arch = "x86_64")]
         if bvh_width() == 8
+            && let Some(isa) = HasAvx2::allowed()
             && let Some(tree) = crate::geometry::wide_bvh::Bvh8::from_bvh2(bvh2)
         {
-            return Tree::Eight(tree);
+            return Tree::Eight(tree, isa);
         }
         Tree::Four(Bvh4::from_bvh2(bvh2))
     }
@@ -41,7 +44,7 @@ impl Tree {
         match self {
             Tree::Four(t) => t.map_leaves(f),
             #[cfg(target_arch = "x86_64")]
-            Tree::Eight(t) => t.map_leaves(f),
+            Tree::Eight(t, _) => t.map_leaves(f),
         }
     }
 
@@ -49,7 +52,7 @@ impl Tree {
         match self {
             Tree::Four(t) => t.memory_bytes(),
             #[cfg(target_arch = "x86_64")]
-            Tree::Eight(t) => t.memory_bytes(),
+            Tree::Eight(t, _) => t.memory_bytes(),
         }
     }
 
@@ -57,7 +60,7 @@ impl Tree {
         match self {
             Tree::Four(t) => t.len(),
             #[cfg(target_arch = "x86_64")]
-            Tree::Eight(t) => t.len(),
+            Tree::Eight(t, _) => t.len(),
         }
     }
 
@@ -65,7 +68,7 @@ impl Tree {
         match self {
             Tree::Four(_) => 4,
             #[cfg(target_arch = "x86_64")]
-            Tree::Eight(_) => 8,
+            Tree::Eight(..) => 8,
         }
     }
 
@@ -73,20 +76,17 @@ impl Tree {
     #[inline(always)]
     pub(super) fn query<Q: TreeQuery>(&self, query: Q) -> Q::Output {
         match self {
-            Tree::Four(tree) => query.run(tree),
-            // SAFETY: an eight-wide tree is built only where AVX2 was detected.
+            Tree::Four(tree) => query.run(tree, Plain),
             #[cfg(target_arch = "x86_64")]
-            Tree::Eight(tree) => unsafe { Avx::compiled(OnTree { tree, query }) },
+            Tree::Eight(tree, isa) => Avx::compiled(*isa, OnTree { tree, query }),
         }
     }
 }
 
-/// A traversal written once for either node width.
+/// A traversal written once for either node width, given the token of its node test.
 pub(super) trait TreeQuery {
     type Output;
-    fn run<const W: usize>(self, tree: &WideBvh<W>) -> Self::Output
-    where
-        Node<W>: NodeTest<W>;
+    fn run<const W: usize>(self, tree: &WideBvh<W>, test: impl NodeTest<W>) -> Self::Output;
 }
 
 /// A [`TreeQuery`] over an eight-wide tree as a kernel, so that it is compiled for the
@@ -98,11 +98,11 @@ struct OnTree<'a, Q> {
 }
 
 #[cfg(target_arch = "x86_64")]
-impl<L, Q: TreeQuery> Kernel<L> for OnTree<'_, Q> {
+impl<Q: TreeQuery> Kernel<Avx> for OnTree<'_, Q> {
     type Output = Q::Output;
     #[inline(always)]
-    unsafe fn run(self) -> Q::Output {
-        self.query.run(self.tree)
+    fn run(self, isa: HasAvx2) -> Q::Output {
+        self.query.run(self.tree, isa)
     }
 }
 
@@ -117,21 +117,23 @@ pub(super) struct OccludedEach<'a, T> {
 
 /// What an [`OccludedEach`] query traverses: a BLAS, or the scene through its top level.
 pub(super) trait Occluder {
-    /// Whether anything reached through `tree` blocks `ray`. Uses `stack` above its length.
-    fn occluded_in<const W: usize>(&self, tree: &WideBvh<W>, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool
-    where
-        Node<W>: NodeTest<W>;
+    /// Whether anything reached through `tree` (nodes tested by `test`) blocks `ray`. Uses
+    /// `stack` above its length.
+    fn occluded_in<const W: usize>(
+        &self,
+        tree: &WideBvh<W>,
+        test: impl NodeTest<W>,
+        ray: &Ray,
+        stack: &mut Vec<(u32, f32)>,
+    ) -> bool;
 }
 
 impl<T: Occluder> TreeQuery for OccludedEach<'_, T> {
     type Output = ();
     #[inline(always)]
-    fn run<const W: usize>(self, tree: &WideBvh<W>)
-    where
-        Node<W>: NodeTest<W>,
-    {
+    fn run<const W: usize>(self, tree: &WideBvh<W>, test: impl NodeTest<W>) {
         for (ray, b) in self.rays.iter().zip(self.blocked.iter_mut()) {
-            *b = *b || self.target.occluded_in(tree, ray, self.stack);
+            *b = *b || self.target.occluded_in(tree, test, ray, self.stack);
         }
     }
 }

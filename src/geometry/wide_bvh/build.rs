@@ -145,7 +145,7 @@ impl<const W: usize> WideBvh<W> {
             return WideBvh { nodes: vec![node], bounds: *root.aabb() };
         }
         // One wide node per BVH2 inner node at most, so the pushes below never reallocate.
-        let mut nodes = crate::huge_pages::vec_on_huge_pages(bvh2.len() / 2 + 1);
+        let mut nodes = crate::geometry::huge_pages::vec_on_huge_pages(bvh2.len() / 2 + 1);
         nodes.push(Node::EMPTY);
         let plan = SlotPlan::new(bvh2, W);
         // (BVH2 node whose subtree fills the wide node, wide node)
