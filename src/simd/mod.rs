@@ -145,14 +145,8 @@ where
     K: Kernel<Avx, Output = O> + Kernel<Avx512, Output = O>,
 {
     match lanes {
-        16 => match HasAvx512::allowed() {
-            Some(isa) => Some(Avx512::compiled(isa, kernel)),
-            None => None,
-        },
-        8 => match HasAvx2::allowed() {
-            Some(isa) => Some(Avx::compiled(isa, kernel)),
-            None => None,
-        },
+        16 => HasAvx512::allowed().map(|isa| Avx512::compiled(isa, kernel)),
+        8 => HasAvx2::allowed().map(|isa| Avx::compiled(isa, kernel)),
         _ => None,
     }
 }

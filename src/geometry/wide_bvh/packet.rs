@@ -214,7 +214,6 @@ impl WideBvh<8> {
     /// `leaf(first, count, lanes, stack)` tests a leaf against `lanes` and returns those it
     /// blocks; `single(node, lane, stack)` answers one ray from node `node`. Both may use
     /// `stack` above its length. Returns the blocked lanes.
-
     #[inline(always)]
     pub(crate) fn occluded_packet(
         &self,
