@@ -276,10 +276,29 @@ impl<L: KernelLanes> Kernel<L> for TopPackets<'_> {
     #[inline(always)]
     fn run(self, isa: L::Isa) {
         let TopPackets { scene, top, rays, order, stack, blocked } = self;
-        in_packets::<L>(rays, order, blocked, |chunk, live| {
-            let lanes = L::rays(isa, chunk);
-            L::compiled(isa, TopPacket { scene, top, lanes: &lanes, ray: |k| chunk[k], live, stack })
-        });
+        in_packets::<L>(rays, order, blocked, |rays, live| L::compiled(isa, TopRays { scene, top, rays, live, stack }));
+    }
+}
+
+/// [`TopPacket`] of one packet of `rays` (lanes of `live`), gathered into lanes here: a kernel
+/// of its own, as the gather's intrinsics inline only into code compiled for their set.
+#[cfg(target_arch = "x86_64")]
+struct TopRays<'a> {
+    scene: &'a SceneGeometry,
+    top: &'a Bvh8,
+    rays: &'a [Ray],
+    live: u32,
+    stack: &'a mut Vec<(u32, f32)>,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl<L: KernelLanes> Kernel<L> for TopRays<'_> {
+    type Output = u32;
+    #[inline(always)]
+    fn run(self, isa: L::Isa) -> u32 {
+        let TopRays { scene, top, rays, live, stack } = self;
+        let lanes = L::rays(isa, rays);
+        L::compiled(isa, TopPacket { scene, top, lanes: &lanes, ray: |k| rays[k], live, stack })
     }
 }
 
