@@ -1,4 +1,4 @@
-//! Eight lanes in an AVX register, for CPUs with x86-64-v3 ([`super::avx2()`]).
+//! Eight lanes in an AVX register, for CPUs with x86-64-v3 ([`super::HasAvx2`]).
 
 use std::arch::x86_64::*;
 

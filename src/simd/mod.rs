@@ -37,7 +37,7 @@ pub(crate) use lanes::{CompressLanes, FusedLanes, Lanes};
 pub(crate) use portable::Portable;
 pub(crate) use token::Plain;
 #[cfg(target_arch = "x86_64")]
-pub(crate) use token::{HasAvx2, HasAvx512};
+pub(crate) use token::{Eight, HasAvx2, HasAvx512};
 #[cfg(target_arch = "x86_64")]
 pub(crate) use u32_lanes::U32Lanes;
 
@@ -106,14 +106,8 @@ pub fn isa() -> Isa {
     })
 }
 
-/// Whether the eight-lane copies may run: [`isa`] is at least [`Isa::Avx2`], which they are
-/// compiled for.
-pub(crate) fn avx2() -> bool {
-    isa() >= Isa::Avx2
-}
-
-/// Whether the AVX-512 copies may run: [`isa`] is [`Isa::Avx512`] (which includes everything
-/// [`avx2()`] asks for; the copies are compiled with it too).
+/// Whether the AVX-512 copies may run: [`isa`] is [`Isa::Avx512`] (which includes x86-64-v3;
+/// the copies are compiled with it too).
 pub(crate) fn avx512() -> bool {
     isa() >= Isa::Avx512
 }
@@ -136,17 +130,20 @@ pub(crate) trait Kernel<L: Lanes> {
 }
 
 /// Runs `kernel` in `lanes` lanes, compiled for that lane type's instruction set: [`Avx512`]
-/// for sixteen, [`Avx`] for eight; `None`, having done nothing, for other widths and where
-/// [`isa`] does not allow that lane type.
+/// for sixteen (where [`isa`] allows it), [`Avx`] for eight where it allows AVX2, else
+/// [`Portable`]; `None`, having done nothing, for other widths.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 pub(crate) fn run_in<K, O>(lanes: usize, kernel: K) -> Option<O>
 where
-    K: Kernel<Avx, Output = O> + Kernel<Avx512, Output = O>,
+    K: Kernel<Avx, Output = O> + Kernel<Avx512, Output = O> + Kernel<Portable, Output = O>,
 {
     match lanes {
         16 => HasAvx512::allowed().map(|isa| Avx512::compiled(isa, kernel)),
-        8 => HasAvx2::allowed().map(|isa| Avx::compiled(isa, kernel)),
+        8 => Some(match Eight::allowed() {
+            Eight::Avx(isa) => Avx::compiled(isa, kernel),
+            Eight::Portable(isa) => Portable::compiled(isa, kernel),
+        }),
         _ => None,
     }
 }

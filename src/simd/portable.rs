@@ -2,9 +2,13 @@
 //! reference the vector lane types are tested against. Each method is the scalar operation
 //! lane by lane (the compiler may vectorise the loops); masks are bit sets.
 
+#[cfg(target_arch = "x86_64")]
+use glam::Vec2;
 use glam::Vec3A;
 
 use super::{FusedLanes, Kernel, Lanes, Plain};
+#[cfg(target_arch = "x86_64")]
+use super::{SampleLanes, U32Lanes};
 
 /// Eight f32 lanes in an array.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -157,7 +161,7 @@ impl Lanes for Portable {
     fn mask(_: Plain, bits: u32) -> u32 {
         bits & ALL
     }
-    #[inline(always)]
+    #[inline]
     fn compiled<K: Kernel<Self>>(isa: Plain, kernel: K) -> K::Output {
         kernel.run(isa)
     }
@@ -171,6 +175,110 @@ impl FusedLanes for Portable {
     #[inline(always)]
     fn mul_add(self, b: Self, c: Self) -> Self {
         Portable(std::array::from_fn(|k| self.0[k].mul_add(b.0[k], c.0[k])))
+    }
+}
+
+/// Eight u32 lanes in an array: [`Portable`]'s u32 lanes ([`SampleLanes::U32`]), each method
+/// the scalar operation lane by lane, wrapping as the vector types wrap.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct PortableU32(pub(crate) [u32; 8]);
+
+#[cfg(target_arch = "x86_64")]
+impl PortableU32 {
+    /// `f` of each pair of lanes.
+    #[inline(always)]
+    fn zip(self, b: Self, f: impl Fn(u32, u32) -> u32) -> Self {
+        PortableU32(std::array::from_fn(|k| f(self.0[k], b.0[k])))
+    }
+}
+
+/// Shifts by 32 or more give 0, as the vector shifts (`vpsrlvd`, `vpsllvd`) do.
+#[cfg(target_arch = "x86_64")]
+impl U32Lanes for PortableU32 {
+    const WIDTH: usize = 8;
+    type Table16 = [u32; 16];
+    type Isa = Plain;
+
+    #[inline(always)]
+    fn isa(self) -> Plain {
+        Plain
+    }
+    #[inline(always)]
+    fn splat(_: Plain, x: u32) -> Self {
+        PortableU32([x; 8])
+    }
+    #[inline(always)]
+    fn consecutive(_: Plain, first: u32) -> Self {
+        PortableU32(std::array::from_fn(|k| first.wrapping_add(k as u32)))
+    }
+    #[inline(always)]
+    fn xor(self, b: Self) -> Self {
+        self.zip(b, |a, b| a ^ b)
+    }
+    #[inline(always)]
+    fn and(self, b: Self) -> Self {
+        self.zip(b, |a, b| a & b)
+    }
+    #[inline(always)]
+    fn add(self, b: Self) -> Self {
+        self.zip(b, u32::wrapping_add)
+    }
+    #[inline(always)]
+    fn mul(self, b: Self) -> Self {
+        self.zip(b, u32::wrapping_mul)
+    }
+    #[inline(always)]
+    fn shr(self, n: Self) -> Self {
+        self.zip(n, |a, n| a.checked_shr(n).unwrap_or(0))
+    }
+    #[inline(always)]
+    fn shl(self, n: Self) -> Self {
+        self.zip(n, |a, n| a.checked_shl(n).unwrap_or(0))
+    }
+    #[inline(always)]
+    fn or(self, b: Self) -> Self {
+        self.zip(b, |a, b| a | b)
+    }
+    #[inline(always)]
+    fn load(_: Plain, x: &[u32]) -> Self {
+        PortableU32(std::array::from_fn(|k| x[k]))
+    }
+    #[inline(always)]
+    fn store(self, out: &mut [u32]) {
+        out[..8].copy_from_slice(&self.0);
+    }
+    #[inline(always)]
+    fn table16(_: Plain, entries: &[u32; 16]) -> [u32; 16] {
+        *entries
+    }
+    #[inline(always)]
+    fn lookup16(self, table: [u32; 16]) -> Self {
+        PortableU32(self.0.map(|i| table[(i & 15) as usize]))
+    }
+    #[inline(always)]
+    fn test(self, b: Self) -> u32 {
+        (0..8).fold(0, |m, k| m | u32::from(self.0[k] & b.0[k] != 0) << k)
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl SampleLanes for Portable {
+    type U32 = PortableU32;
+
+    #[inline(always)]
+    fn from_u32(i: PortableU32) -> Self {
+        Portable(i.0.map(|i| i as f32))
+    }
+    #[inline(always)]
+    fn from_small_u32(i: PortableU32) -> Self {
+        Portable(i.0.map(|i| i as f32))
+    }
+    #[inline(always)]
+    fn store_points(x: Self, y: Self, out: &mut [Vec2]) {
+        for (k, out) in out.iter_mut().take(8).enumerate() {
+            *out = Vec2::new(x.0[k], y.0[k]);
+        }
     }
 }
 

@@ -62,3 +62,23 @@ impl From<HasAvx512> for HasAvx2 {
         HasAvx2(())
     }
 }
+
+/// The token of the eight-lane copies this process runs: AVX2's where [`isa`] allows it, else
+/// the portable lanes' (the same kernels, in plain arrays).
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Eight {
+    /// [`super::Avx`] lanes.
+    Avx(HasAvx2),
+    /// [`super::Portable`] lanes.
+    Portable(Plain),
+}
+
+#[cfg(target_arch = "x86_64")]
+impl Eight {
+    /// The eight lanes [`isa`] allows.
+    #[inline]
+    pub(crate) fn allowed() -> Self {
+        HasAvx2::allowed().map_or(Eight::Portable(Plain), Eight::Avx)
+    }
+}

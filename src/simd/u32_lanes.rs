@@ -209,15 +209,16 @@ mod tests {
     use super::*;
     use crate::{
         random::SplitMix64,
-        simd::{Avx, Avx512, CompressLanes, Lanes, SampleLanes},
+        simd::{Avx, Avx512, CompressLanes, Lanes, Plain, Portable, SampleLanes},
     };
 
     /// The u32 lanes' tables, lookups, tests and runs, the conversions to f32 lanes (rounded as
     /// `as f32` rounds, halfway cases and the top of the range included) and the stores of
     /// points give the scalar values lane by lane and write nothing past their lanes: for
-    /// eight lanes (AVX2) and sixteen (AVX-512), where the CPU has them.
+    /// the portable lanes, eight lanes (AVX2) and sixteen (AVX-512), where the CPU has them.
     #[test]
     fn u32_lanes_give_the_scalar_values() {
+        same_as_scalar::<Portable>(Plain);
         crate::simd::both_widths(same_as_scalar::<Avx>, |isa| {
             same_as_scalar::<Avx512>(isa);
             partial_stores_keep_to_their_lanes(isa);

@@ -9,15 +9,15 @@ use crate::geometry::{
 };
 use crate::simd::Plain;
 #[cfg(target_arch = "x86_64")]
-use crate::simd::{Avx, HasAvx2, Kernel, Lanes};
+use crate::simd::{Avx, Eight, Kernel, Lanes, Portable};
 
-/// The wide tree traversal uses: eight children per node where the CPU has AVX2 (with the
-/// token that proves it), else four.
+/// The wide tree traversal uses: eight children per node (with the token of the eight lanes
+/// that test them, AVX2's or the portable ones'), or four where `HEMI_BVH_WIDTH` asks for it.
 #[derive(Clone, Debug)]
 pub(super) enum Tree {
     Four(Bvh4),
     #[cfg(target_arch = "x86_64")]
-    Eight(crate::geometry::wide_bvh::Bvh8, HasAvx2),
+    Eight(crate::geometry::wide_bvh::Bvh8, Eight),
 }
 
 impl Default for Tree {
@@ -27,15 +27,13 @@ impl Default for Tree {
 }
 
 impl Tree {
-    /// Collapses `bvh2` to eight children per node where the CPU has AVX and `HEMI_BVH_WIDTH`
-    /// is not 4, else to four.
+    /// Collapses `bvh2` to eight children per node unless `HEMI_BVH_WIDTH` is 4, else to four.
     pub(super) fn from_bvh2(bvh2: &[Bvh2Node]) -> Self {
         #[cfg(target_arch = "x86_64")]
         if bvh_width() == 8
-            && let Some(isa) = HasAvx2::allowed()
             && let Some(tree) = crate::geometry::wide_bvh::Bvh8::from_bvh2(bvh2)
         {
-            return Tree::Eight(tree, isa);
+            return Tree::Eight(tree, Eight::allowed());
         }
         Tree::Four(Bvh4::from_bvh2(bvh2))
     }
@@ -72,13 +70,16 @@ impl Tree {
         }
     }
 
-    /// Runs `query` over this tree; an eight-wide tree is traversed by code compiled for AVX2.
+    /// Runs `query` over this tree; an eight-wide tree is traversed by code compiled for its
+    /// eight lanes.
     #[inline(always)]
     pub(super) fn query<Q: TreeQuery>(&self, query: Q) -> Q::Output {
         match self {
             Tree::Four(tree) => query.run(tree, Plain),
             #[cfg(target_arch = "x86_64")]
-            Tree::Eight(tree, isa) => Avx::compiled(*isa, OnTree { tree, query }),
+            Tree::Eight(tree, Eight::Avx(isa)) => Avx::compiled(*isa, OnTree { tree, query }),
+            #[cfg(target_arch = "x86_64")]
+            Tree::Eight(tree, Eight::Portable(isa)) => Portable::compiled(*isa, OnTree { tree, query }),
         }
     }
 }
@@ -98,10 +99,10 @@ struct OnTree<'a, Q> {
 }
 
 #[cfg(target_arch = "x86_64")]
-impl<Q: TreeQuery> Kernel<Avx> for OnTree<'_, Q> {
+impl<L: Lanes<Isa: NodeTest<8>>, Q: TreeQuery> Kernel<L> for OnTree<'_, Q> {
     type Output = Q::Output;
     #[inline(always)]
-    fn run(self, isa: HasAvx2) -> Q::Output {
+    fn run(self, isa: L::Isa) -> Q::Output {
         self.query.run(self.tree, isa)
     }
 }
@@ -139,7 +140,7 @@ impl<T: Occluder> TreeQuery for OccludedEach<'_, T> {
 }
 
 /// The node width asked for: 4 when the environment variable `HEMI_BVH_WIDTH` is `4`,
-/// else 8 (which falls back to 4 without AVX). Read once per process.
+/// else 8. Read once per process.
 #[cfg(target_arch = "x86_64")]
 pub(super) fn bvh_width() -> usize {
     static WIDTH: std::sync::OnceLock<usize> = std::sync::OnceLock::new();

@@ -116,15 +116,16 @@ impl Bvh4 {
 }
 
 impl Bvh8 {
-    /// Collapses a BVH2 as [`Bvh4::from_bvh2`] does, or `None` where the CPU lacks the
-    /// eight-lane copies' instruction sets (x86-64-v3: AVX2, FMA, BMI1/2, LZCNT, POPCNT).
+    /// Collapses a BVH2 as [`Bvh4::from_bvh2`] does, or `None` on architectures whose
+    /// traversal has no eight-lane kernels.
     pub fn from_bvh2(bvh2: &[Bvh2Node]) -> Option<Self> {
         #[cfg(target_arch = "x86_64")]
-        if crate::simd::avx2() {
-            return Some(Self::collapse(bvh2));
+        return Some(Self::collapse(bvh2));
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            let _ = bvh2;
+            None
         }
-        let _ = bvh2;
-        None
     }
 }
 

@@ -22,8 +22,9 @@ fn cmj_is_stratified_on_the_grid_and_both_axes() {
     }
 }
 
-/// Every fill path gives `sample`'s values: each small-grid vector copy this CPU has (AVX-512
-/// and AVX2 lanes for power-of-two grids up to 16 × 16, n ≤ 256), the portable loop, and the
+/// Every fill path gives `sample`'s values: the small-grid copy in portable lanes and each
+/// vector copy this CPU has (AVX-512 and AVX2 lanes, for power-of-two grids up to 16 × 16,
+/// n ≤ 256), the portable loop, and the
 /// dispatch (the copy of the loop the environment picks, above 256 and for other n);
 /// one sample at a time for other n. So do the columns, wherever they are computed.
 #[test]
@@ -32,7 +33,14 @@ fn fill_gives_the_samples_of_sample() {
     let mut fills: Vec<(&str, Fill)> = vec![("fill", Cmj::fill), ("portable", |c, f, p, o| c.fill_portable(f, p, o))];
     #[cfg(target_arch = "x86_64")]
     {
-        use crate::simd::{Avx, Avx512, HasAvx2, HasAvx512};
+        use crate::simd::{Avx, Avx512, HasAvx2, HasAvx512, Plain, Portable};
+        fills.push(("portable lanes", |c, f, p, o| {
+            if c.has_small_grid16() {
+                Portable::compiled(Plain, FillSmallGrid { cmj: c, first: f, p, out: o })
+            } else {
+                c.fill_portable(f, p, o)
+            }
+        }));
         if HasAvx2::on_cpu().is_some() {
             fills.push(("avx2", |c, f, p, o| match HasAvx2::on_cpu() {
                 Some(isa) if c.has_small_grid16() => Avx::compiled(isa, FillSmallGrid { cmj: c, first: f, p, out: o }),
@@ -100,27 +108,24 @@ fn quadrant_slot_tables_put_each_sample_once_in_its_quarter() {
 
 /// A quadrant pattern's slots hold every sample of the pattern once, each at
 /// [`Cmj::sample`]'s point, quarter by quarter of x (so of the azimuth 2πx); and a mark on
-/// a slot reads back on exactly the sample whose point that slot holds. For each width
-/// this CPU has: eight lanes (AVX2) and sixteen (AVX-512).
+/// a slot reads back on exactly the sample whose point that slot holds. For the portable
+/// lanes and each vector width this CPU has: eight lanes (AVX2) and sixteen (AVX-512).
 #[cfg(target_arch = "x86_64")]
 #[test]
 fn quadrant_patterns_hold_each_sample_once_in_its_quarter() {
     for n in [4u32, 8, 12, 16, 32, 64, 128, 256, 512] {
         let cmj = Cmj::new(n);
         let splits = [16, 32, 64, 128, 256].contains(&n);
-        if !crate::simd::avx2() {
-            assert!(!cmj.has_quadrants(), "n {n}: quadrants without AVX2");
-            continue;
-        }
         assert_eq!(cmj.has_quadrants(), splits, "n {n}");
         if !splits {
             continue;
         }
         for p in [0u32, 1, 99, 0xdead_beef] {
-            if let Some(isa) = crate::simd::HasAvx2::allowed() {
+            pattern_slots_hold_their_samples::<crate::simd::Portable>(crate::simd::Plain, &cmj, p);
+            if let Some(isa) = crate::simd::HasAvx2::on_cpu() {
                 pattern_slots_hold_their_samples::<crate::simd::Avx>(isa, &cmj, p);
             }
-            if let Some(isa) = crate::simd::HasAvx512::allowed() {
+            if let Some(isa) = crate::simd::HasAvx512::on_cpu() {
                 pattern_slots_hold_their_samples::<crate::simd::Avx512>(isa, &cmj, p);
             }
         }
