@@ -17,14 +17,14 @@ use super::{
 };
 use crate::{geometry::lanes::RayLanes, random::SplitMix64, simd::Plain};
 
-/// The node test of the eight-wide trees `Bvh8::from_bvh2` builds: AVX2's, where they are built.
-fn eight_test() -> impl NodeTest<8> {
+/// `check(test)` for each eight-wide node test this CPU can run: the portable one, and AVX2's
+/// where it has AVX2 (the two decide alike, bit for bit).
+fn each_eight_test(mut check: impl FnMut(&dyn Fn(&WideBvh<8>, &Ray) -> (Leaves, Leaves))) {
+    check(&|tree, ray| visited(tree, Plain, ray));
     #[cfg(target_arch = "x86_64")]
-    {
-        crate::simd::HasAvx2::allowed().expect("an eight-wide tree exists")
+    if let Some(isa) = crate::simd::HasAvx2::on_cpu() {
+        check(&|tree, ray| visited(tree, isa, ray));
     }
-    #[cfg(not(target_arch = "x86_64"))]
-    Plain
 }
 
 /// Leaves as (first, count).
@@ -82,7 +82,9 @@ fn a_ray_leaving_a_flat_box_it_starts_on_enters_no_leaf() {
     assert_eq!(down4.len(), 1, "the floor box the ray comes down on: {down4:?}");
     assert_ne!(up4, down4);
     if let Some(eight) = Bvh8::from_bvh2(&bvh2) {
-        assert_eq!((visited(&eight, eight_test(), &up).0, visited(&eight, eight_test(), &down).0), (up4, down4));
+        each_eight_test(|visit| {
+            assert_eq!((visit(&eight, &up).0, visit(&eight, &down).0), (up4.clone(), down4.clone()))
+        });
     }
 }
 
@@ -92,14 +94,19 @@ fn a_ray_leaving_a_flat_box_it_starts_on_enters_no_leaf() {
 #[cfg(target_arch = "x86_64")]
 #[test]
 fn a_packet_visits_exactly_the_leaves_each_ray_enters() {
-    use crate::simd::{Avx, Avx512, HasAvx2, HasAvx512};
+    use crate::simd::{Avx, Avx512, HasAvx2, HasAvx512, Portable};
     for (offset, size) in [(0.0, 1.0), (3.0e4, 1.0e-2)] {
         let (bvh2, tree) = packet_test_scene(offset, size);
         let Some(tree) = tree else {
-            eprintln!("no AVX on this CPU: packets are not used and not tested");
+            eprintln!("no eight-wide trees on this architecture: packets are not used and not tested");
             return;
         };
-        let isa = HasAvx2::allowed().expect("an eight-wide tree exists");
+        let general = |r: &RayLanes<Portable>, _| RayPacket::new(r);
+        packets_visit_the_leaves_rays_enter::<Portable, _>(Plain, &bvh2, &tree, offset, size, general, true);
+        let Some(isa) = HasAvx2::on_cpu() else {
+            eprintln!("no AVX2 on this CPU: eight-lane vector packets are not used and not tested");
+            return;
+        };
         packets_visit_the_leaves_rays_enter::<Avx, _>(isa, &bvh2, &tree, offset, size, |r, _| RayPacket::new(r), true);
         if let Some(isa) = HasAvx512::on_cpu() {
             let general = |r: &RayLanes<Avx512>, _| RayPacket::new(r);
@@ -113,14 +120,19 @@ fn a_packet_visits_exactly_the_leaves_each_ray_enters() {
 #[cfg(target_arch = "x86_64")]
 #[test]
 fn a_fused_packet_visits_every_leaf_each_ray_truly_enters() {
-    use crate::simd::{Avx, Avx512, HasAvx2, HasAvx512};
+    use crate::simd::{Avx, Avx512, HasAvx2, HasAvx512, Portable};
     for (offset, size) in [(0.0, 1.0), (3.0e4, 1.0e-2)] {
         let (bvh2, tree) = packet_test_scene(offset, size);
         let Some(tree) = tree else {
-            eprintln!("no AVX2 on this CPU: packets are not used and not tested");
+            eprintln!("no eight-wide trees on this architecture: packets are not used and not tested");
             return;
         };
-        let isa = HasAvx2::allowed().expect("an eight-wide tree exists");
+        let fused = |r: &RayLanes<Portable>, live| FusedPacket::new(r, live);
+        packets_visit_the_leaves_rays_enter::<Portable, _>(Plain, &bvh2, &tree, offset, size, fused, false);
+        let Some(isa) = HasAvx2::on_cpu() else {
+            eprintln!("no AVX2 on this CPU: eight-lane vector packets are not used and not tested");
+            return;
+        };
         let fused = |r: &RayLanes<Avx>, live| FusedPacket::new(r, live);
         packets_visit_the_leaves_rays_enter::<Avx, _>(isa, &bvh2, &tree, offset, size, fused, false);
         let Some(isa) = HasAvx512::on_cpu() else {
@@ -134,7 +146,7 @@ fn a_fused_packet_visits_every_leaf_each_ray_truly_enters() {
 
 #[cfg(target_arch = "x86_64")]
 /// 3,000 random boxes of up to 1.5·`size` in a cube of 20·`size` around (`offset`, 0, 0),
-/// plus eight flat ones on y = 0, as a BVH2 and its eight-wide tree (`None` without AVX).
+/// plus eight flat ones on y = 0, as a BVH2 and its eight-wide tree (`None` on other architectures).
 fn packet_test_scene(offset: f32, size: f32) -> (Vec<Bvh2Node>, Option<Bvh8>) {
     let mut rng = SplitMix64::new(17);
     let base = Vec3::new(offset, 0.0, 0.0);
@@ -300,7 +312,7 @@ fn the_entry_node_holds_every_leaf_a_box_overlaps() {
     for (offset, size) in [(0.0, 1.0), (3.0e4, 1.0e-2)] {
         let (bvh2, tree) = packet_test_scene(offset, size);
         let Some(tree) = tree else {
-            eprintln!("no AVX2 on this CPU: packets are not used and not tested");
+            eprintln!("no eight-wide trees on this architecture: packets are not used and not tested");
             return;
         };
         let mut rng = SplitMix64::new(19);
@@ -317,7 +329,11 @@ fn the_entry_node_holds_every_leaf_a_box_overlaps() {
                 .filter(|n| n.aabb().min.cmple(hi).all() && n.aabb().max.cmpge(lo).all())
                 .map(|n| (n.first_index, n.prim_count))
                 .collect();
-            match tree.entry_node(eight_test(), lo, hi) {
+            let entry = tree.entry_node(Plain, lo, hi);
+            if let Some(isa) = crate::simd::HasAvx2::on_cpu() {
+                assert_eq!(tree.entry_node(isa, lo, hi), entry, "box {q}: AVX2 and portable lanes differ");
+            }
+            match entry {
                 None => {
                     assert!(overlapping.is_empty(), "box {q}: no entry, yet it overlaps {overlapping:?}");
                     empty += 1;
@@ -444,7 +460,7 @@ fn both_widths_visit_exactly_the_leaves_the_ray_enters() {
     let four = Bvh4::from_bvh2(&bvh2);
     let eight = Bvh8::from_bvh2(&bvh2);
     if eight.is_none() {
-        eprintln!("no AVX on this CPU: the eight-wide tree is not built and not tested");
+        eprintln!("no eight-wide trees on this architecture: not built and not tested");
     }
     let mut rng = SplitMix64::new(8);
     let mut entered = 0;
@@ -462,7 +478,9 @@ fn both_widths_visit_exactly_the_leaves_the_ray_enters() {
         entered += expected.len();
         assert_eq!(visited(&four, Plain, &ray), (expected.clone(), expected.clone()), "4-wide, ray {i}");
         if let Some(eight) = &eight {
-            assert_eq!(visited(eight, eight_test(), &ray), (expected.clone(), expected), "8-wide, ray {i}");
+            each_eight_test(|visit| {
+                assert_eq!(visit(eight, &ray), (expected.clone(), expected.clone()), "8-wide, ray {i}")
+            });
         }
     }
     assert!(entered > 4_000, "rays should enter many leaves ({entered})");
