@@ -1,16 +1,16 @@
-//! hemi's SIMD layer: which instruction sets the vector copies may use, and the lane types
-//! they are written over.
+//! hemi's SIMD layer: which instruction sets the vector copies may use, the tokens that prove
+//! it, and the lane types they are written over.
 //!
 //! The instruction set is detected here and nowhere else: what the CPU has, less AVX-512 when
 //! the environment variable `HEMI_NO_AVX512` is `1` (so that the copies an AVX2-only CPU runs
 //! can be run, tested and timed on a CPU with both), and none at all when `HEMI_SIMD` is
-//! `portable` (every query then takes the code that needs no vector instruction set, as on
-//! other architectures).
+//! `portable` (the eight-lane kernels then run in the portable lanes). Only this module makes
+//! the tokens ([`HasAvx2`], [`HasAvx512`], [`Plain`]) that let code run a set's instructions.
 //!
-//! Lane types of f32 ([`Lanes`]) are eight lanes in an AVX register ([`Avx`]), sixteen in an AVX-512
-//! one ([`Avx512`]), or eight in plain arrays (`Portable`, no intrinsics, any target; the
-//! reference the other two are tested against); of u32, `U32Lanes` for the samplers' hashes,
-//! paired with the f32 lanes of the same width by `SampleLanes`.
+//! Lane types of f32 ([`Lanes`]) are eight lanes in an AVX register ([`Avx`]), sixteen in an
+//! AVX-512 one ([`Avx512`]), or eight in plain arrays ([`Portable`], no intrinsics; the reference
+//! the other two are tested against); of u32, `U32Lanes` for the samplers' hashes, paired with
+//! the f32 lanes of the same width by `SampleLanes`.
 //! Kernels are written once, generic over the lane type, and compiled per instruction set in
 //! functions marked `#[target_feature]`: a closure or generic function only inlines into code
 //! compiled for the same instruction set. [`multiversion!`] generates such copies and their

@@ -1,6 +1,7 @@
-//! Eight lanes in a plain array, with no intrinsics: the lane type of any target, and the
-//! reference the vector lane types are tested against. Each method is the scalar operation
-//! lane by lane (the compiler may vectorise the loops); masks are bit sets.
+//! Eight lanes in a plain array, with no intrinsics: the lanes the eight-lane kernels run in
+//! where AVX2 is not allowed, and the reference the vector lane types are tested against. Each
+//! method is the scalar operation lane by lane (the compiler may vectorise the loops); masks
+//! are bit sets.
 
 #[cfg(target_arch = "x86_64")]
 use glam::Vec2;

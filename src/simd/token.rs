@@ -4,6 +4,7 @@
 //! lane types' constructors take a token, and a lane value, made only from a token or from
 //! other values, is a proof in turn.
 
+#[cfg(target_arch = "x86_64")]
 use super::{Isa, isa};
 
 /// Proof that the CPU has x86-64-v3 (AVX2, FMA, BMI1/2, LZCNT, POPCNT): the eight-lane
@@ -54,7 +55,7 @@ impl HasAvx512 {
     }
 }
 
-/// AVX-512 is only detected together with x86-64-v3 ([`cpu_isa`]).
+/// AVX-512 is only detected together with x86-64-v3 ([`cpu_isa`](super::cpu_isa)).
 #[cfg(target_arch = "x86_64")]
 impl From<HasAvx512> for HasAvx2 {
     #[inline(always)]

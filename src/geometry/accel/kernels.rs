@@ -1,5 +1,5 @@
 //! The packet kernels: occlusion and closest hits of ray packets, written once over the lane
-//! type and compiled per instruction set by [`Lanes::compiled`].
+//! type and compiled per instruction set by [`Lanes::compiled`](crate::simd::Lanes::compiled).
 //!
 //! Each kernel below is one out-of-line copy per lane type (as a call between them was before
 //! they were generic), and the closures they hand to the generic traversal are written inside
