@@ -19,13 +19,13 @@ impl Portable {
     /// `f` of each lane.
     #[inline(always)]
     fn map(self, f: impl Fn(f32) -> f32) -> Self {
-        Portable(self.0.map(f))
+        Portable(lanes(|k| f(self.0[k])))
     }
 
     /// `f` of each pair of lanes.
     #[inline(always)]
     fn zip(self, b: Self, f: impl Fn(f32, f32) -> f32) -> Self {
-        Portable(std::array::from_fn(|k| f(self.0[k], b.0[k])))
+        Portable(lanes(|k| f(self.0[k], b.0[k])))
     }
 
     /// The lanes where `f` holds.
@@ -33,6 +33,17 @@ impl Portable {
     fn test(self, b: Self, f: impl Fn(f32, f32) -> bool) -> u32 {
         (0..8).fold(0, |m, k| m | u32::from(f(self.0[k], b.0[k])) << k)
     }
+}
+
+/// The lanes `f(0)`, …, `f(7)`: a plain loop, which inlines where `std::array::from_fn` and
+/// `map` were left out of line.
+#[inline(always)]
+fn lanes<T: Copy + Default>(f: impl Fn(usize) -> T) -> [T; 8] {
+    let mut out = [T::default(); 8];
+    for (k, out) in out.iter_mut().enumerate() {
+        *out = f(k);
+    }
+    out
 }
 
 /// Every lane of a mask.
@@ -58,7 +69,7 @@ impl Lanes for Portable {
     }
     #[inline(always)]
     fn load(_: Plain, x: &[f32]) -> Self {
-        Portable(std::array::from_fn(|k| x[k]))
+        Portable(lanes(|k| x[k]))
     }
     #[inline(always)]
     fn lane(&self, j: usize) -> f32 {
@@ -132,7 +143,7 @@ impl Lanes for Portable {
     }
     #[inline(always)]
     fn select(self, m: u32, if_set: Self) -> Self {
-        Portable(std::array::from_fn(|k| if m >> k & 1 != 0 { if_set.0[k] } else { self.0[k] }))
+        Portable(lanes(|k| if m >> k & 1 != 0 { if_set.0[k] } else { self.0[k] }))
     }
     #[inline(always)]
     fn and(a: u32, b: u32) -> u32 {
@@ -175,8 +186,20 @@ impl Lanes for Portable {
 impl FusedLanes for Portable {
     #[inline(always)]
     fn mul_add(self, b: Self, c: Self) -> Self {
-        Portable(std::array::from_fn(|k| self.0[k].mul_add(b.0[k], c.0[k])))
+        Portable(lanes(|k| fused(self.0[k], b.0[k], c.0[k])))
     }
+}
+
+/// `a·b + c` rounded once, as `f32::mul_add`, without its library call where no FMA
+/// instruction is compiled in: the product is exact in f64 and the sum rounds once there, and
+/// rounding that to f32 is the single rounding unless the f64 sum lies on an f32 halfway point
+/// or is an f32 subnormal, where the grid differs; those rare sums take `f32::mul_add`.
+#[inline(always)]
+fn fused(a: f32, b: f32, c: f32) -> f32 {
+    let r = f64::from(a) * f64::from(b) + f64::from(c);
+    let halfway = r.to_bits() & 0x1fff_ffff == 0x1000_0000;
+    let subnormal = r != 0.0 && r.abs() < f64::from(f32::MIN_POSITIVE);
+    if halfway || subnormal { a.mul_add(b, c) } else { r as f32 }
 }
 
 /// Eight u32 lanes in an array: [`Portable`]'s u32 lanes ([`SampleLanes::U32`]), each method
@@ -190,7 +213,7 @@ impl PortableU32 {
     /// `f` of each pair of lanes.
     #[inline(always)]
     fn zip(self, b: Self, f: impl Fn(u32, u32) -> u32) -> Self {
-        PortableU32(std::array::from_fn(|k| f(self.0[k], b.0[k])))
+        PortableU32(lanes(|k| f(self.0[k], b.0[k])))
     }
 }
 
@@ -211,7 +234,7 @@ impl U32Lanes for PortableU32 {
     }
     #[inline(always)]
     fn consecutive(_: Plain, first: u32) -> Self {
-        PortableU32(std::array::from_fn(|k| first.wrapping_add(k as u32)))
+        PortableU32(lanes(|k| first.wrapping_add(k as u32)))
     }
     #[inline(always)]
     fn xor(self, b: Self) -> Self {
@@ -243,7 +266,7 @@ impl U32Lanes for PortableU32 {
     }
     #[inline(always)]
     fn load(_: Plain, x: &[u32]) -> Self {
-        PortableU32(std::array::from_fn(|k| x[k]))
+        PortableU32(lanes(|k| x[k]))
     }
     #[inline(always)]
     fn store(self, out: &mut [u32]) {
@@ -255,7 +278,7 @@ impl U32Lanes for PortableU32 {
     }
     #[inline(always)]
     fn lookup16(self, table: [u32; 16]) -> Self {
-        PortableU32(self.0.map(|i| table[(i & 15) as usize]))
+        PortableU32(lanes(|k| table[(self.0[k] & 15) as usize]))
     }
     #[inline(always)]
     fn test(self, b: Self) -> u32 {
@@ -269,11 +292,11 @@ impl SampleLanes for Portable {
 
     #[inline(always)]
     fn from_u32(i: PortableU32) -> Self {
-        Portable(i.0.map(|i| i as f32))
+        Portable(lanes(|k| i.0[k] as f32))
     }
     #[inline(always)]
     fn from_small_u32(i: PortableU32) -> Self {
-        Portable(i.0.map(|i| i as f32))
+        Portable(lanes(|k| i.0[k] as f32))
     }
     #[inline(always)]
     fn store_points(x: Self, y: Self, out: &mut [Vec2]) {
@@ -356,6 +379,33 @@ mod tests {
             Avx::add_to(xa, xb, xc, &mut want);
             let lanes = |v: &[Vec3A; 8]| v.map(|v| glam::Vec4::from(std::arch::x86_64::__m128::from(v)).to_array());
             assert_eq!(format!("{:?}", lanes(&sums)), format!("{:?}", lanes(&want)));
+        }
+    }
+}
+
+#[cfg(test)]
+mod fused_tests {
+    use super::fused;
+    use crate::random::SplitMix64;
+
+    /// The fused multiply-add rounds once, as `f32::mul_add` (the correctly rounded one):
+    /// where the f64 sum lands on an f32 halfway point it does not round to even again, and
+    /// it is right for subnormal results, random ones and products far from the sum.
+    #[test]
+    fn fused_rounds_once() {
+        let up = 1.0 + 2f32.powi(-11) + 2f32.powi(-23);
+        let a = 1.0 + 2f32.powi(-12);
+        // a² = 1 + 2⁻¹¹ + 2⁻²⁴, a halfway point; 2⁻⁶⁰ lifts it above, below f64's spacing.
+        assert_eq!(fused(a, a, 2f32.powi(-60)), up);
+        assert_eq!(fused(a, a, -2f32.powi(-60)), 1.0 + 2f32.powi(-11));
+        let tiny = 2f32.powi(-70);
+        assert_eq!(fused(tiny, tiny * 1.5, 2f32.powi(-149)), tiny.mul_add(tiny * 1.5, 2f32.powi(-149)));
+        let mut rng = SplitMix64::new(5);
+        for i in 0..100_000 {
+            let x = |rng: &mut SplitMix64| f32::from_bits(rng.next_u64() as u32);
+            let (a, b, c) = (x(&mut rng), x(&mut rng), x(&mut rng));
+            let (got, want) = (fused(a, b, c), a.mul_add(b, c));
+            assert!(got.to_bits() == want.to_bits() || (got.is_nan() && want.is_nan()), "{i}: {a} {b} {c}");
         }
     }
 }
