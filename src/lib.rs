@@ -27,7 +27,6 @@ pub mod error;
 pub mod film;
 pub mod frame;
 pub mod geometry;
-mod huge_pages;
 pub mod integrator;
 pub mod layers;
 pub mod light;

@@ -154,7 +154,7 @@ where
     I: IntoIterator<Item = T>,
     T: Into<std::ffi::OsString> + Clone,
 {
-    crate::huge_pages::unmap_large_blocks_when_freed();
+    crate::geometry::huge_pages::unmap_large_blocks_when_freed();
     let cli = match Cli::try_parse_from(args) {
         Ok(cli) => cli,
         Err(e) if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) => {

@@ -5,8 +5,8 @@ use std::arch::x86_64::*;
 
 use glam::{DVec3, Vec3A};
 
-use super::ray::Ray;
-use crate::simd::{Avx, Avx512, Lanes, avx::transpose8, avx512::transpose16};
+use super::{ray::Ray, wide_bvh::NodeTest};
+use crate::simd::{Avx, Avx512, HasAvx2, HasAvx512, Lanes, Plain, Portable, avx::transpose8, avx512::transpose16};
 
 /// A packet's rays in lanes, one ray per lane: origin, direction and reciprocal direction per
 /// axis, and the far end of the segment.
@@ -28,44 +28,39 @@ impl<L: Lanes> RayLanes<L> {
     /// coordinate (as split triangles' boxes are): far more than the rounding of its corners
     /// and of any hit a triangle test finds before `tmax`. `None` where a segment is unbounded
     /// and leaves no finite `bounds`.
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
     #[inline(always)]
-    pub(crate) unsafe fn segments_box(&self, live: u32, bounds: &obvhs::aabb::Aabb) -> Option<(Vec3A, Vec3A)> {
+    pub(crate) fn segments_box(&self, live: u32, bounds: &obvhs::aabb::Aabb) -> Option<(Vec3A, Vec3A)> {
         let (mut lo, mut hi) = ([0.0f32; 3], [0.0f32; 3]);
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        unsafe {
-            let inf = L::splat(f32::INFINITY);
-            let mut length = self.tmax;
-            if L::bits(length.lt(inf)) & live != live {
-                // Unbounded segments cut where they leave `bounds`, past which nothing lies
-                // (bounded ones are left whole: cutting them seldom pays for its cost): at the
-                // least of the distances to the far plane on each axis (a NaN one, from a
-                // zero direction component on one of the box's planes, counts as unbounded),
-                // and no less than 0.
-                // (Loops, not closures: a closure is compiled without the caller's instruction set.)
-                for a in 0..3 {
-                    let mut exit = L::splat(f32::NEG_INFINITY);
-                    for p in [bounds.min[a], bounds.max[a]] {
-                        let t = L::splat(p).sub(self.origin[a]).mul(self.inv_dir[a]);
-                        exit = t.select(t.ne(t), inf).max_keep(exit);
-                    }
-                    length = exit.min_keep(length);
-                }
-                length = length.max_keep(L::splat(0.0));
-                if L::bits(length.lt(inf)) & live != live {
-                    return None;
-                }
-            }
-            let dead = L::mask(!live);
+        let isa = self.tmax.isa();
+        let inf = L::splat(isa, f32::INFINITY);
+        let mut length = self.tmax;
+        if L::bits(length.lt(inf)) & live != live {
+            // Unbounded segments cut where they leave `bounds`, past which nothing lies
+            // (bounded ones are left whole: cutting them seldom pays for its cost): at the
+            // least of the distances to the far plane on each axis (a NaN one, from a
+            // zero direction component on one of the box's planes, counts as unbounded),
+            // and no less than 0.
+            // (Loops, not closures: a closure is compiled without the caller's instruction set.)
             for a in 0..3 {
-                // Finite origins, directions and lengths: each end is a number, or an
-                // infinity on overflow, which the check below rejects.
-                let (o, end) = (self.origin[a], self.origin[a].add(self.dir[a].mul(length)));
-                lo[a] = o.min_keep(end).select(dead, inf).least();
-                hi[a] = o.max_keep(end).select(dead, L::splat(f32::NEG_INFINITY)).greatest();
+                let mut exit = L::splat(isa, f32::NEG_INFINITY);
+                for p in [bounds.min[a], bounds.max[a]] {
+                    let t = L::splat(isa, p).sub(self.origin[a]).mul(self.inv_dir[a]);
+                    exit = t.select(t.ne(t), inf).max_keep(exit);
+                }
+                length = exit.min_keep(length);
             }
+            length = length.max_keep(L::splat(isa, 0.0));
+            if L::bits(length.lt(inf)) & live != live {
+                return None;
+            }
+        }
+        let dead = L::mask(isa, !live);
+        for a in 0..3 {
+            // Finite origins, directions and lengths: each end is a number, or an
+            // infinity on overflow, which the check below rejects.
+            let (o, end) = (self.origin[a], self.origin[a].add(self.dir[a].mul(length)));
+            lo[a] = o.min_keep(end).select(dead, inf).least();
+            hi[a] = o.max_keep(end).select(dead, L::splat(isa, f32::NEG_INFINITY)).greatest();
         }
         let (lo, hi) = (Vec3A::from_array(lo), Vec3A::from_array(hi));
         if !(lo.is_finite() && hi.is_finite()) {
@@ -85,59 +80,72 @@ const _: () = assert!(size_of::<Ray>() == 64);
 
 /// Lanes that rays can be gathered into and written back from.
 pub(crate) trait PacketLanes: Lanes {
+    /// The eight-wide node test these lanes imply: what a packet traversal's single-ray work
+    /// (its front-to-back order, its entry node, rays that go on alone) runs in.
+    type NodeTest8: NodeTest<8>;
+    /// That node test's token.
+    fn node_test8(isa: Self::Isa) -> Self::NodeTest8;
     /// `rays` (one to `WIDTH`) in lanes 0, 1, …, lanes past the last repeating it: each field
     /// gathered by register shuffles, with no round trip through memory.
-    unsafe fn rays(rays: &[Ray]) -> RayLanes<Self>;
+    fn rays(isa: Self::Isa, rays: &[Ray]) -> RayLanes<Self>;
     /// The inverse of [`PacketLanes::rays`]: lane k's ray written to `out[at[k]]`, for every lane
     /// (`at` holds at least `WIDTH` indices; lanes may share one); the fourth lane of each
     /// vector is 0.
-    unsafe fn write_rays(lanes: &RayLanes<Self>, out: &mut [Ray], at: &[u32]);
+    fn write_rays(lanes: &RayLanes<Self>, out: &mut [Ray], at: &[u32]);
     /// The lanes whose ray (origin `o`, direction `d`) meets the plane through `a` with normal
     /// `n` at a `t` in (0, `tmax`): `t = (n·(a − o)) / (n·d)` in f64, rounded to f32, no hit
     /// where `n·d = 0`, each lane with exactly the operations of [`Triangle::finish`].
     ///
     /// [`Triangle::finish`]: super::shapes::Triangle::finish
-    unsafe fn plane_hits(n: DVec3, a: DVec3, o: &[Self; 3], d: &[Self; 3], tmax: Self) -> u32;
+    fn plane_hits(n: DVec3, a: DVec3, o: &[Self; 3], d: &[Self; 3], tmax: Self) -> u32;
 }
 
 impl PacketLanes for Avx {
+    type NodeTest8 = HasAvx2;
+    #[inline(always)]
+    fn node_test8(isa: HasAvx2) -> HasAvx2 {
+        isa
+    }
     /// Each ray as two rows of eight (origin and direction; reciprocal direction and `tmax`),
     /// transposed eight by eight.
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn rays(rays: &[Ray]) -> RayLanes<Self> {
+    #[inline(always)]
+    fn rays(isa: HasAvx2, rays: &[Ray]) -> RayLanes<Self> {
         let last = rays.len() - 1;
-        let tail = _mm256_setr_epi32(-1, -1, -1, -1, -1, 0, 0, 0);
-        let (mut front, mut back) = ([_mm256_setzero_ps(); 8], [_mm256_setzero_ps(); 8]);
-        for k in 0..8 {
-            let p = (&rays[k.min(last)] as *const Ray).cast::<f32>();
-            // SAFETY: a `Ray` is `repr(C)` with these floats first; the masked load reads only
-            // the first RAY_FLOATS - 8 floats of the back row.
-            unsafe {
+        // SAFETY: the token proves x86-64-v3; a `Ray` is `repr(C)` with these floats first,
+        // and the masked load reads only the first RAY_FLOATS - 8 floats of the back row.
+        let (front, back) = unsafe {
+            let tail = _mm256_setr_epi32(-1, -1, -1, -1, -1, 0, 0, 0);
+            let (mut front, mut back) = ([_mm256_setzero_ps(); 8], [_mm256_setzero_ps(); 8]);
+            for k in 0..8 {
+                let p = (&rays[k.min(last)] as *const Ray).cast::<f32>();
                 front[k] = _mm256_loadu_ps(p);
                 back[k] = _mm256_maskload_ps(p.add(8), tail);
             }
-        }
-        // Indexed, not `.map(Avx)`: `map` is generic std code, compiled without AVX, and out
-        // of line it passes the rows through memory.
-        let (f, b) = (transpose8(&front), transpose8(&back));
+            (front, back)
+        };
+        // Indexed, not `.map(..)`: `map` is generic std code, and out of line it passes the
+        // rows through memory.
+        let (f, b) = (transpose8(isa, &front), transpose8(isa, &back));
+        let v = |x| Avx::from_raw(isa, x);
         RayLanes {
-            origin: [Avx(f[0]), Avx(f[1]), Avx(f[2])],
-            dir: [Avx(f[4]), Avx(f[5]), Avx(f[6])],
-            inv_dir: [Avx(b[0]), Avx(b[1]), Avx(b[2])],
-            tmax: Avx(b[4]),
+            origin: [v(f[0]), v(f[1]), v(f[2])],
+            dir: [v(f[4]), v(f[5]), v(f[6])],
+            inv_dir: [v(b[0]), v(b[1]), v(b[2])],
+            tmax: v(b[4]),
         }
     }
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn write_rays(lanes: &RayLanes<Self>, out: &mut [Ray], at: &[u32]) {
-        let zero = _mm256_setzero_ps();
+    #[inline(always)]
+    fn write_rays(lanes: &RayLanes<Self>, out: &mut [Ray], at: &[u32]) {
+        let isa = lanes.tmax.isa();
+        // SAFETY: the lanes prove x86-64-v3.
+        let zero = unsafe { _mm256_setzero_ps() };
         let ([ox, oy, oz], [dx, dy, dz], [ix, iy, iz]) = (lanes.origin, lanes.dir, lanes.inv_dir);
-        let front = transpose8(&[ox.0, oy.0, oz.0, zero, dx.0, dy.0, dz.0, zero]);
-        let back = transpose8(&[ix.0, iy.0, iz.0, zero, lanes.tmax.0, zero, zero, zero]);
+        let front = transpose8(isa, &[ox.raw(), oy.raw(), oz.raw(), zero, dx.raw(), dy.raw(), dz.raw(), zero]);
+        let back = transpose8(isa, &[ix.raw(), iy.raw(), iz.raw(), zero, lanes.tmax.raw(), zero, zero, zero]);
         for (k, &at) in at[..8].iter().enumerate() {
             let p = (&mut out[at as usize] as *mut Ray).cast::<f32>();
-            // SAFETY: a `Ray` is `repr(C)`, 64 bytes: sixteen floats' room.
+            // SAFETY: the lanes prove x86-64-v3; a `Ray` is `repr(C)`, 64 bytes: sixteen
+            // floats' room.
             unsafe {
                 _mm256_storeu_ps(p, front[k]);
                 _mm256_storeu_ps(p.add(8), back[k]);
@@ -145,118 +153,185 @@ impl PacketLanes for Avx {
         }
     }
     /// In two halves of four f64 lanes.
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    #[inline]
-    unsafe fn plane_hits(n: DVec3, a: DVec3, o: &[Self; 3], d: &[Self; 3], tmax: Self) -> u32 {
-        let half = |v: &Avx, h: usize| {
-            let q = if h == 0 { _mm256_castps256_ps128(v.0) } else { _mm256_extractf128_ps::<1>(v.0) };
-            _mm256_cvtps_pd(q)
-        };
-        let dot = |x: __m256d, y: __m256d, z: __m256d| {
-            let xy = _mm256_add_pd(_mm256_mul_pd(_mm256_set1_pd(n.x), x), _mm256_mul_pd(_mm256_set1_pd(n.y), y));
-            _mm256_add_pd(xy, _mm256_mul_pd(_mm256_set1_pd(n.z), z))
-        };
-        let mut t = [_mm_setzero_ps(); 2];
-        let mut meets = 0;
-        for (h, t) in t.iter_mut().enumerate() {
-            let denom = dot(half(&d[0], h), half(&d[1], h), half(&d[2], h));
-            let to = |k: usize, c: f64| _mm256_sub_pd(_mm256_set1_pd(c), half(&o[k], h));
-            let num = dot(to(0, a.x), to(1, a.y), to(2, a.z));
-            *t = _mm256_cvtpd_ps(_mm256_div_pd(num, denom));
-            let nonzero = _mm256_cmp_pd::<_CMP_NEQ_UQ>(denom, _mm256_setzero_pd());
-            meets |= (_mm256_movemask_pd(nonzero) as u32) << (4 * h);
+    #[inline(always)]
+    fn plane_hits(n: DVec3, a: DVec3, o: &[Self; 3], d: &[Self; 3], tmax: Self) -> u32 {
+        // SAFETY: the lanes prove x86-64-v3.
+        unsafe {
+            let half = |v: &Avx, h: usize| {
+                let q = if h == 0 { _mm256_castps256_ps128(v.raw()) } else { _mm256_extractf128_ps::<1>(v.raw()) };
+                _mm256_cvtps_pd(q)
+            };
+            let dot = |x: __m256d, y: __m256d, z: __m256d| {
+                let xy = _mm256_add_pd(_mm256_mul_pd(_mm256_set1_pd(n.x), x), _mm256_mul_pd(_mm256_set1_pd(n.y), y));
+                _mm256_add_pd(xy, _mm256_mul_pd(_mm256_set1_pd(n.z), z))
+            };
+            let mut t = [_mm_setzero_ps(); 2];
+            let mut meets = 0;
+            for (h, t) in t.iter_mut().enumerate() {
+                let denom = dot(half(&d[0], h), half(&d[1], h), half(&d[2], h));
+                let to = |k: usize, c: f64| _mm256_sub_pd(_mm256_set1_pd(c), half(&o[k], h));
+                let num = dot(to(0, a.x), to(1, a.y), to(2, a.z));
+                *t = _mm256_cvtpd_ps(_mm256_div_pd(num, denom));
+                let nonzero = _mm256_cmp_pd::<_CMP_NEQ_UQ>(denom, _mm256_setzero_pd());
+                meets |= (_mm256_movemask_pd(nonzero) as u32) << (4 * h);
+            }
+            let t = _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(t[0]), t[1]);
+            let ahead = _mm256_cmp_ps::<_CMP_GT_OQ>(t, _mm256_setzero_ps());
+            let short = _mm256_cmp_ps::<_CMP_LT_OQ>(t, tmax.raw());
+            meets & _mm256_movemask_ps(_mm256_and_ps(ahead, short)) as u32
         }
-        let t = _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(t[0]), t[1]);
-        let ahead = _mm256_cmp_ps::<_CMP_GT_OQ>(t, _mm256_setzero_ps());
-        let short = _mm256_cmp_ps::<_CMP_LT_OQ>(t, tmax.0);
-        meets & _mm256_movemask_ps(_mm256_and_ps(ahead, short)) as u32
     }
 }
 
 impl PacketLanes for Avx512 {
+    type NodeTest8 = HasAvx2;
+    #[inline(always)]
+    fn node_test8(isa: HasAvx512) -> HasAvx2 {
+        isa.into()
+    }
     /// Each ray as one row of sixteen, transposed sixteen by sixteen.
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn rays(rays: &[Ray]) -> RayLanes<Self> {
+    #[inline(always)]
+    fn rays(isa: HasAvx512, rays: &[Ray]) -> RayLanes<Self> {
         let last = rays.len() - 1;
-        let mut row = [_mm512_setzero_ps(); 16];
-        for (k, row) in row.iter_mut().enumerate() {
-            let p = (&rays[k.min(last)] as *const Ray).cast::<f32>();
-            // SAFETY: a `Ray` is `repr(C)` with these floats first; the masked load reads only
-            // the first RAY_FLOATS.
-            *row = unsafe { _mm512_maskz_loadu_ps((1 << RAY_FLOATS) - 1, p) };
-        }
-        // Indexed, not `.map(Avx512)`: `map` is generic std code, compiled without AVX-512, and
-        // out of line it passes the rows through memory.
-        let t = transpose16(&row);
+        // SAFETY: the token proves AVX-512F; a `Ray` is `repr(C)` with these floats first, and
+        // the masked load reads only the first RAY_FLOATS.
+        let row = unsafe {
+            let mut row = [_mm512_setzero_ps(); 16];
+            for (k, row) in row.iter_mut().enumerate() {
+                let p = (&rays[k.min(last)] as *const Ray).cast::<f32>();
+                *row = _mm512_maskz_loadu_ps((1 << RAY_FLOATS) - 1, p);
+            }
+            row
+        };
+        // Indexed, not `.map(..)`: `map` is generic std code, and out of line it passes the
+        // rows through memory.
+        let t = transpose16(isa, &row);
+        let v = |x| Avx512::from_raw(isa, x);
         RayLanes {
-            origin: [Avx512(t[0]), Avx512(t[1]), Avx512(t[2])],
-            dir: [Avx512(t[4]), Avx512(t[5]), Avx512(t[6])],
-            inv_dir: [Avx512(t[8]), Avx512(t[9]), Avx512(t[10])],
-            tmax: Avx512(t[12]),
+            origin: [v(t[0]), v(t[1]), v(t[2])],
+            dir: [v(t[4]), v(t[5]), v(t[6])],
+            inv_dir: [v(t[8]), v(t[9]), v(t[10])],
+            tmax: v(t[12]),
         }
     }
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn write_rays(lanes: &RayLanes<Self>, out: &mut [Ray], at: &[u32]) {
-        let zero = _mm512_setzero_ps();
+    #[inline(always)]
+    fn write_rays(lanes: &RayLanes<Self>, out: &mut [Ray], at: &[u32]) {
+        let isa = lanes.tmax.isa();
+        // SAFETY: the lanes prove AVX-512F.
+        let zero = unsafe { _mm512_setzero_ps() };
         let ([ox, oy, oz], [dx, dy, dz], [ix, iy, iz]) = (lanes.origin, lanes.dir, lanes.inv_dir);
-        let rows = transpose16(&[
-            ox.0,
-            oy.0,
-            oz.0,
-            zero,
-            dx.0,
-            dy.0,
-            dz.0,
-            zero,
-            ix.0,
-            iy.0,
-            iz.0,
-            zero,
-            lanes.tmax.0,
-            zero,
-            zero,
-            zero,
-        ]);
+        let rows = transpose16(
+            isa,
+            &[
+                ox.raw(),
+                oy.raw(),
+                oz.raw(),
+                zero,
+                dx.raw(),
+                dy.raw(),
+                dz.raw(),
+                zero,
+                ix.raw(),
+                iy.raw(),
+                iz.raw(),
+                zero,
+                lanes.tmax.raw(),
+                zero,
+                zero,
+                zero,
+            ],
+        );
         for (&at, row) in at[..16].iter().zip(rows) {
-            // SAFETY: a `Ray` is `repr(C)`, 64 bytes: sixteen floats' room.
+            // SAFETY: the lanes prove AVX-512F; a `Ray` is `repr(C)`, 64 bytes: sixteen floats'
+            // room.
             unsafe { _mm512_storeu_ps((&mut out[at as usize] as *mut Ray).cast::<f32>(), row) };
         }
     }
     /// In two halves of eight f64 lanes.
-    #[target_feature(enable = "avx512f")]
-    #[inline]
-    unsafe fn plane_hits(n: DVec3, a: DVec3, o: &[Self; 3], d: &[Self; 3], tmax: Self) -> u32 {
-        let half = |v: &Avx512, h: usize| {
-            let q = if h == 0 {
-                _mm512_castps512_ps256(v.0)
-            } else {
-                _mm256_castpd_ps(_mm512_extractf64x4_pd::<1>(_mm512_castps_pd(v.0)))
+    #[inline(always)]
+    fn plane_hits(n: DVec3, a: DVec3, o: &[Self; 3], d: &[Self; 3], tmax: Self) -> u32 {
+        // SAFETY: the lanes prove AVX-512F.
+        unsafe {
+            let half = |v: &Avx512, h: usize| {
+                let q = if h == 0 {
+                    _mm512_castps512_ps256(v.raw())
+                } else {
+                    _mm256_castpd_ps(_mm512_extractf64x4_pd::<1>(_mm512_castps_pd(v.raw())))
+                };
+                _mm512_cvtps_pd(q)
             };
-            _mm512_cvtps_pd(q)
-        };
-        let dot = |x: __m512d, y: __m512d, z: __m512d| {
-            let xy = _mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(n.x), x), _mm512_mul_pd(_mm512_set1_pd(n.y), y));
-            _mm512_add_pd(xy, _mm512_mul_pd(_mm512_set1_pd(n.z), z))
-        };
-        let mut t = [_mm256_setzero_ps(); 2];
-        let mut meets = 0;
-        for (h, t) in t.iter_mut().enumerate() {
-            let denom = dot(half(&d[0], h), half(&d[1], h), half(&d[2], h));
-            let to = |k: usize, c: f64| _mm512_sub_pd(_mm512_set1_pd(c), half(&o[k], h));
-            let num = dot(to(0, a.x), to(1, a.y), to(2, a.z));
-            *t = _mm512_cvtpd_ps(_mm512_div_pd(num, denom));
-            let nonzero = _mm512_cmp_pd_mask::<_CMP_NEQ_UQ>(denom, _mm512_setzero_pd());
-            meets |= (nonzero as u32) << (8 * h);
+            let dot = |x: __m512d, y: __m512d, z: __m512d| {
+                let xy = _mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(n.x), x), _mm512_mul_pd(_mm512_set1_pd(n.y), y));
+                _mm512_add_pd(xy, _mm512_mul_pd(_mm512_set1_pd(n.z), z))
+            };
+            let mut t = [_mm256_setzero_ps(); 2];
+            let mut meets = 0;
+            for (h, t) in t.iter_mut().enumerate() {
+                let denom = dot(half(&d[0], h), half(&d[1], h), half(&d[2], h));
+                let to = |k: usize, c: f64| _mm512_sub_pd(_mm512_set1_pd(c), half(&o[k], h));
+                let num = dot(to(0, a.x), to(1, a.y), to(2, a.z));
+                *t = _mm512_cvtpd_ps(_mm512_div_pd(num, denom));
+                let nonzero = _mm512_cmp_pd_mask::<_CMP_NEQ_UQ>(denom, _mm512_setzero_pd());
+                meets |= (nonzero as u32) << (8 * h);
+            }
+            let t = _mm512_castpd_ps(_mm512_insertf64x4::<1>(
+                _mm512_castps_pd(_mm512_castps256_ps512(t[0])),
+                _mm256_castps_pd(t[1]),
+            ));
+            let ahead = _mm512_cmp_ps_mask::<_CMP_GT_OQ>(t, _mm512_setzero_ps());
+            let short = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(t, tmax.raw());
+            meets & (ahead & short) as u32
         }
-        let t = _mm512_castpd_ps(_mm512_insertf64x4::<1>(
-            _mm512_castps_pd(_mm512_castps256_ps512(t[0])),
-            _mm256_castps_pd(t[1]),
-        ));
-        let ahead = _mm512_cmp_ps_mask::<_CMP_GT_OQ>(t, _mm512_setzero_ps());
-        let short = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(t, tmax.0);
-        meets & (ahead & short) as u32
+    }
+}
+
+/// Lane by lane: each field copied from its ray, each plane distance computed as
+/// [`Triangle::finish`] computes it.
+///
+/// [`Triangle::finish`]: super::shapes::Triangle::finish
+impl PacketLanes for Portable {
+    type NodeTest8 = Plain;
+    #[inline(always)]
+    fn node_test8(isa: Plain) -> Plain {
+        isa
+    }
+    #[inline(always)]
+    fn rays(_: Plain, rays: &[Ray]) -> RayLanes<Self> {
+        let last = rays.len() - 1;
+        let field = |f: &dyn Fn(&Ray) -> f32| Portable(std::array::from_fn(|k| f(&rays[k.min(last)])));
+        RayLanes {
+            origin: [field(&|r| r.origin.x), field(&|r| r.origin.y), field(&|r| r.origin.z)],
+            dir: [field(&|r| r.dir.x), field(&|r| r.dir.y), field(&|r| r.dir.z)],
+            inv_dir: [field(&|r| r.inv_dir.x), field(&|r| r.inv_dir.y), field(&|r| r.inv_dir.z)],
+            tmax: field(&|r| r.tmax),
+        }
+    }
+    #[inline(always)]
+    fn write_rays(lanes: &RayLanes<Self>, out: &mut [Ray], at: &[u32]) {
+        // The fourth lane 0, as the vector types write it.
+        let vector =
+            |v: &[Portable; 3], k: usize| Vec3A::from_vec4(glam::Vec4::new(v[0].0[k], v[1].0[k], v[2].0[k], 0.0));
+        for (k, &at) in at[..8].iter().enumerate() {
+            out[at as usize] = Ray {
+                origin: vector(&lanes.origin, k),
+                dir: vector(&lanes.dir, k),
+                inv_dir: vector(&lanes.inv_dir, k),
+                tmax: lanes.tmax.0[k],
+            };
+        }
+    }
+    #[inline(always)]
+    fn plane_hits(n: DVec3, a: DVec3, o: &[Self; 3], d: &[Self; 3], tmax: Self) -> u32 {
+        let dot = |x: f64, y: f64, z: f64| n.x * x + n.y * y + n.z * z;
+        let mut meets = 0;
+        for k in 0..8 {
+            let lane = |v: &[Self; 3], i: usize| f64::from(v[i].0[k]);
+            let denom = dot(lane(d, 0), lane(d, 1), lane(d, 2));
+            let num = dot(a.x - lane(o, 0), a.y - lane(o, 1), a.z - lane(o, 2));
+            let t = (num / denom) as f32;
+            meets |= u32::from(denom != 0.0 && t > 0.0 && t < tmax.0[k]) << k;
+        }
+        meets
     }
 }
 
@@ -274,6 +349,7 @@ mod tests {
     /// own lane.
     #[test]
     fn rays_are_transposed_into_their_lanes() {
+        rays_into_lanes::<Portable>(Plain);
         both_widths(rays_into_lanes::<Avx>, rays_into_lanes::<Avx512>);
     }
 
@@ -281,7 +357,56 @@ mod tests {
     /// in lane order within a group, and lanes in none get the given index.
     #[test]
     fn grouped_lanes_get_their_places_in_order() {
+        places_in_order::<Portable>(Plain);
         both_widths(places_in_order::<Avx>, places_in_order::<Avx512>);
+    }
+
+    /// The portable lanes gather, write back and plane-test rays with the vector lanes' bits,
+    /// rays with zero, infinite and NaN components and planes parallel to them included.
+    #[test]
+    fn portable_packets_give_the_vector_lanes_bits() {
+        both_widths(same_packets_as::<Avx>, same_packets_as::<Avx512>);
+    }
+
+    /// [`portable_packets_give_the_vector_lanes_bits`] for `L` (eight or sixteen lanes).
+    fn same_packets_as<L: PacketLanes>(isa: L::Isa) {
+        use glam::DVec3;
+        let mut rng = SplitMix64::new(17);
+        let special = [0.0, -0.0, 1.0, f32::INFINITY, f32::NEG_INFINITY, f32::NAN];
+        let mut x = || {
+            let r = rng.next_f32();
+            if r < 0.15 { special[(r * 40.0) as usize % 6] } else { (r - 0.5) * 8.0 }
+        };
+        let mut hits = 0;
+        for p in 0..1_000 {
+            let rays: Vec<Ray> = (0..L::WIDTH)
+                .map(|_| Ray::new(Vec3A::new(x(), x(), x()), Vec3A::new(x(), x(), x()), x().abs()))
+                .collect();
+            // The plane's normal along the rays' first direction now and then (no hit).
+            let n = if p % 7 == 0 { DVec3::new(0.0, 0.0, 1.0) } else { DVec3::new(x().into(), x().into(), 1.5) };
+            let a = DVec3::new(x().into(), 0.5, -0.25);
+            let (v, q) = (L::rays(isa, &rays), Portable::rays(Plain, &rays[..8]));
+            let mut back = vec![Ray::new(Vec3A::ZERO, Vec3A::X, 0.0); 8];
+            Portable::write_rays(&q, &mut back, &[7, 6, 5, 4, 3, 2, 1, 0]);
+            let want = L::plane_hits(n, a, &v.origin, &v.dir, v.tmax) & 0xff;
+            let got = Portable::plane_hits(n, a, &q.origin, &q.dir, q.tmax);
+            assert_eq!(got, want, "packet {p}: plane hits");
+            hits += got.count_ones();
+            let bits = |v: Vec3A| glam::Vec4::from(__m128::from(v)).to_array().map(f32::to_bits);
+            for (k, ray) in rays[..8].iter().enumerate() {
+                let b = &back[7 - k];
+                let zero_w = |v: Vec3A| {
+                    let mut w = bits(v);
+                    w[3] = 0;
+                    w
+                };
+                assert_eq!(bits(b.origin), zero_w(ray.origin), "packet {p}: origin {k} written back");
+                assert_eq!(bits(b.dir), zero_w(ray.dir), "packet {p}: dir {k} written back");
+                assert_eq!(bits(b.inv_dir), zero_w(ray.inv_dir), "packet {p}: inv_dir {k} written back");
+                assert_eq!(b.tmax.to_bits(), ray.tmax.to_bits(), "packet {p}: tmax {k} written back");
+            }
+        }
+        assert!(hits > 500 && hits < 7_000, "{hits} plane hits in 8000 lanes");
     }
 
     /// The segments' box holds, in exact arithmetic, every live lane's origin and every point
@@ -291,14 +416,12 @@ mod tests {
     /// and so are the bounds.
     #[test]
     fn the_segments_box_holds_every_live_segment() {
+        segments_in_the_box::<Portable>(Plain);
         both_widths(segments_in_the_box::<Avx>, segments_in_the_box::<Avx512>);
     }
 
     /// [`the_segments_box_holds_every_live_segment`] for `L`.
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
-    unsafe fn segments_in_the_box<L: PacketLanes>() {
+    fn segments_in_the_box<L: PacketLanes>(isa: L::Isa) {
         use glam::DVec3;
         let mut rng = SplitMix64::new(9);
         let (mut cut, mut whole) = (0, 0);
@@ -326,8 +449,7 @@ mod tests {
                     Ray::new(origin + away + v() * 1e-4, dir.normalize_or(Vec3A::X), tmax)
                 })
                 .collect();
-            // SAFETY: the caller's CPU has `L`'s instruction set.
-            let found = unsafe { L::rays(&rays).segments_box(live, &bounds) };
+            let found = L::rays(isa, &rays).segments_box(live, &bounds);
             let live_rays: Vec<&Ray> =
                 rays.iter().enumerate().filter(|(k, _)| live & (1 << k) != 0).map(|(_, r)| r).collect();
             let unbounded = live_rays.iter().any(|r| r.tmax.is_infinite());
@@ -372,10 +494,7 @@ mod tests {
     }
 
     /// [`grouped_lanes_get_their_places_in_order`] for `L`.
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
-    unsafe fn places_in_order<L: Lanes>() {
+    fn places_in_order<L: Lanes>(isa: L::Isa) {
         let mut rng = SplitMix64::new(8);
         for _ in 0..200 {
             // Lane k in group g[k] (4: none).
@@ -387,8 +506,7 @@ mod tests {
                 }
             }
             let start = [3, 40, 41, 90].map(|s| s + (rng.next_f32() * 4.0) as u32);
-            // SAFETY: the caller's CPU has `L`'s instruction set.
-            let at = unsafe { L::places(&groups, &start, 999) };
+            let at = L::places(isa, &groups, &start, 999);
             let mut next = start;
             for (k, &g) in g.iter().enumerate() {
                 let want = if g < 4 {
@@ -403,16 +521,12 @@ mod tests {
     }
 
     /// [`rays_are_transposed_into_their_lanes`] for `L`.
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
-    unsafe fn rays_into_lanes<L: PacketLanes>() {
+    fn rays_into_lanes<L: PacketLanes>(isa: L::Isa) {
         let mut rng = SplitMix64::new(7);
         let mut v = || Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 8.0 - 4.0;
         for n in 1..=L::WIDTH {
             let rays: Vec<Ray> = (0..n).map(|k| Ray::new(v(), v(), k as f32 + 0.5)).collect();
-            // SAFETY: the caller's CPU has `L`'s instruction set.
-            let lanes = unsafe { L::rays(&rays) };
+            let lanes = L::rays(isa, &rays);
             for a in 0..3 {
                 let fields = [(lanes.origin[a], "origin"), (lanes.dir[a], "dir"), (lanes.inv_dir[a], "inv_dir")];
                 for (got, name) in fields {
@@ -433,8 +547,7 @@ mod tests {
             // And back: lane k to out[at[k]], in reverse order, the lanes past n all to one.
             let at: Vec<u32> = (0..L::WIDTH).map(|k| if k < n { (n - 1 - k) as u32 } else { n as u32 }).collect();
             let mut out = vec![Ray::new(Vec3A::ZERO, Vec3A::X, 0.0); n + 1];
-            // SAFETY: the caller's CPU has `L`'s instruction set.
-            unsafe { L::write_rays(&lanes, &mut out, &at) };
+            L::write_rays(&lanes, &mut out, &at);
             for (k, ray) in rays.iter().enumerate() {
                 let back = &out[n - 1 - k];
                 let same = |a: Vec3A, b: Vec3A| a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits);
@@ -445,11 +558,9 @@ mod tests {
         // Lanes added to whole vectors of elements: each gets its lane, the fourth its z.
         let sums: Vec<Vec3A> = (0..L::WIDTH).map(|_| v()).collect();
         let rays: Vec<Ray> = (0..L::WIDTH).map(|_| Ray::new(v(), v(), 1.0)).collect();
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        let [x, y, z] = unsafe { L::rays(&rays) }.origin;
+        let [x, y, z] = L::rays(isa, &rays).origin;
         let mut out = sums.clone();
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        unsafe { L::add_to(x, y, z, &mut out) };
+        L::add_to(x, y, z, &mut out);
         for (k, (out, sum)) in out.iter().zip(&sums).enumerate() {
             let o = rays[k].origin;
             // All four lanes, the fourth included.

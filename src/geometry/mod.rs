@@ -4,6 +4,7 @@ pub mod accel;
 pub mod binned_sah;
 pub mod counters;
 pub mod hit;
+pub(crate) mod huge_pages;
 #[cfg(target_arch = "x86_64")]
 pub(crate) mod lanes;
 pub mod ray;

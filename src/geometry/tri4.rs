@@ -132,29 +132,16 @@ pub(crate) struct RayTriPacket<L: Lanes> {
 impl<L: Lanes> RayTriPacket<L> {
     /// The edge-test constants of a packet's rays. Each lane's axes and shear are
     /// [`Shear::new`]'s for its ray, bit for bit.
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
     #[inline(always)]
-    pub(crate) unsafe fn new(rays: &RayLanes<L>) -> Self {
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        unsafe {
-            let d = rays.dir;
-            let abs = [d[0].abs(), d[1].abs(), d[2].abs()];
-            let x_over_y = abs[0].gt(abs[1]);
-            let x_wins = L::and(x_over_y, abs[0].gt(abs[2]));
-            let y_wins = L::andnot(x_over_y, abs[1].gt(abs[2]));
-            let axes = Axes { x_wins, y_wins };
-            let [dx, dy, dz] = axes.permute(d);
-            RayTriPacket {
-                origin: rays.origin,
-                dir: d,
-                tmax: rays.tmax,
-                sx: dx.neg().div(dz),
-                sy: dy.neg().div(dz),
-                axes,
-            }
-        }
+    pub(crate) fn new(rays: &RayLanes<L>) -> Self {
+        let d = rays.dir;
+        let abs = [d[0].abs(), d[1].abs(), d[2].abs()];
+        let x_over_y = abs[0].gt(abs[1]);
+        let x_wins = L::and(x_over_y, abs[0].gt(abs[2]));
+        let y_wins = L::andnot(x_over_y, abs[1].gt(abs[2]));
+        let axes = Axes { x_wins, y_wins };
+        let [dx, dy, dz] = axes.permute(d);
+        RayTriPacket { origin: rays.origin, dir: d, tmax: rays.tmax, sx: dx.neg().div(dz), sy: dy.neg().div(dz), axes }
     }
 }
 
@@ -163,14 +150,10 @@ impl<L: PacketLanes> RayTriPacket<L> {
     /// The lanes whose ray meets `tri`'s plane in (0, tmax): for lanes whose edge functions
     /// passed, exactly the lanes where [`Triangle::finish`] finds a hit (their determinant, a
     /// sum of three non-zero values of one sign, is never zero).
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
     #[inline(always)]
-    pub(crate) unsafe fn plane_hits(&self, tri: &Triangle) -> u32 {
+    pub(crate) fn plane_hits(&self, tri: &Triangle) -> u32 {
         let [a, b, c] = tri.p.map(|p| p.as_dvec3());
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        unsafe { L::plane_hits((b - a).cross(c - a), a, &self.origin, &self.dir, self.tmax) }
+        L::plane_hits((b - a).cross(c - a), a, &self.origin, &self.dir, self.tmax)
     }
 }
 
@@ -188,23 +171,15 @@ struct Axes<L: Lanes> {
 impl<L: Lanes> Axes<L> {
     /// Lanes of `v` (x, y, z) in each lane's (kx, ky, kz) order: (y, z, x) where kz is x,
     /// (z, x, y) where it is y, (x, y, z) elsewhere.
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
     #[inline(always)]
-    unsafe fn permute(&self, v: [L; 3]) -> [L; 3] {
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        unsafe { [self.pick(&v, 1, 2, 0), self.pick(&v, 2, 0, 1), self.pick(&v, 0, 1, 2)] }
+    fn permute(&self, v: [L; 3]) -> [L; 3] {
+        [self.pick(&v, 1, 2, 0), self.pick(&v, 2, 0, 1), self.pick(&v, 0, 1, 2)]
     }
 
     /// `v[if_x]` where kz is x, `v[if_y]` where it is y, `v[otherwise]` elsewhere.
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
     #[inline(always)]
-    unsafe fn pick(&self, v: &[L; 3], if_x: usize, if_y: usize, otherwise: usize) -> L {
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        unsafe { v[otherwise].select(self.y_wins, v[if_y]).select(self.x_wins, v[if_x]) }
+    fn pick(&self, v: &[L; 3], if_x: usize, if_y: usize, otherwise: usize) -> L {
+        v[otherwise].select(self.y_wins, v[if_y]).select(self.x_wins, v[if_x])
     }
 }
 
@@ -223,57 +198,41 @@ impl Tri4 {
     /// The edge tests of triangle `lane` against every ray of `r`: per ray, the operations of
     /// [`Tri4::edges`] in the same order, so each ray's edge functions, and so its class, are
     /// bit-identical to it.
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
     #[inline(always)]
-    pub(crate) unsafe fn edges_packet<L: Lanes>(&self, lane: usize, r: &RayTriPacket<L>) -> PacketEdges {
+    pub(crate) fn edges_packet<L: Lanes>(&self, lane: usize, r: &RayTriPacket<L>) -> PacketEdges {
         count(Event::PacketTriangleTest);
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        unsafe {
-            let (v0, v1, v2) = (self.sheared(0, lane, r), self.sheared(1, lane, r), self.sheared(2, lane, r));
-            let cross = cross_2d::<L>;
-            let e = [cross(v1, v2), cross(v2, v0), cross(v0, v1)];
-            let zero = L::splat(0.0);
-            // Zero or NaN, then all of one sign.
-            let exact = L::or(L::or(e[0].eq_or_nan(zero), e[1].eq_or_nan(zero)), e[2].eq_or_nan(zero));
-            let pos = L::and(L::and(e[0].gt(zero), e[1].gt(zero)), e[2].gt(zero));
-            let neg = L::and(L::and(e[0].lt(zero), e[1].lt(zero)), e[2].lt(zero));
-            let exact = L::bits(exact);
-            PacketEdges { pass: L::bits(L::or(pos, neg)) & !exact, exact }
-        }
+        let (v0, v1, v2) = (self.sheared(0, lane, r), self.sheared(1, lane, r), self.sheared(2, lane, r));
+        let cross = cross_2d::<L>;
+        let e = [cross(v1, v2), cross(v2, v0), cross(v0, v1)];
+        let zero = L::splat(r.sx.isa(), 0.0);
+        // Zero or NaN, then all of one sign.
+        let exact = L::or(L::or(e[0].eq_or_nan(zero), e[1].eq_or_nan(zero)), e[2].eq_or_nan(zero));
+        let pos = L::and(L::and(e[0].gt(zero), e[1].gt(zero)), e[2].gt(zero));
+        let neg = L::and(L::and(e[0].lt(zero), e[1].lt(zero)), e[2].lt(zero));
+        let exact = L::bits(exact);
+        PacketEdges { pass: L::bits(L::or(pos, neg)) & !exact, exact }
     }
 
     /// Vertex `v` of triangle `lane` in each ray's frame: translated to its origin, permuted so
     /// that the ray runs along +z, sheared; (x, y).
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
     #[inline(always)]
-    unsafe fn sheared<L: Lanes>(&self, v: usize, lane: usize, r: &RayTriPacket<L>) -> (L, L) {
-        let p = &self.p[v];
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        unsafe {
-            let q = [
-                L::splat(p[0].as_ref()[lane]).sub(r.origin[0]),
-                L::splat(p[1].as_ref()[lane]).sub(r.origin[1]),
-                L::splat(p[2].as_ref()[lane]).sub(r.origin[2]),
-            ];
-            let [x, y, z] = r.axes.permute(q);
-            (x.add(r.sx.mul(z)), y.add(r.sy.mul(z)))
-        }
+    fn sheared<L: Lanes>(&self, v: usize, lane: usize, r: &RayTriPacket<L>) -> (L, L) {
+        let (p, isa) = (&self.p[v], r.sx.isa());
+        let q = [
+            L::splat(isa, p[0].as_ref()[lane]).sub(r.origin[0]),
+            L::splat(isa, p[1].as_ref()[lane]).sub(r.origin[1]),
+            L::splat(isa, p[2].as_ref()[lane]).sub(r.origin[2]),
+        ];
+        let [x, y, z] = r.axes.permute(q);
+        (x.add(r.sx.mul(z)), y.add(r.sy.mul(z)))
     }
 }
 
 /// `a.x·b.y − a.y·b.x` per lane.
-///
-/// # Safety
-/// The CPU must have `L`'s instruction set.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-unsafe fn cross_2d<L: Lanes>(a: (L, L), b: (L, L)) -> L {
-    // SAFETY: the caller's CPU has `L`'s instruction set.
-    unsafe { a.0.mul(b.1).sub(a.1.mul(b.0)) }
+fn cross_2d<L: Lanes>(a: (L, L), b: (L, L)) -> L {
+    a.0.mul(b.1).sub(a.1.mul(b.0))
 }
 
 #[cfg(all(test, target_arch = "x86_64"))]
@@ -287,14 +246,12 @@ mod tests {
     #[test]
     fn packet_edges_are_the_single_ray_edges_bit_for_bit() {
         use crate::simd::{Avx, Avx512, both_widths};
+        packet_edges_are_single_ray_edges::<crate::simd::Portable>(crate::simd::Plain);
         both_widths(packet_edges_are_single_ray_edges::<Avx>, packet_edges_are_single_ray_edges::<Avx512>);
     }
 
     /// [`packet_edges_are_the_single_ray_edges_bit_for_bit`] for packets of `L::WIDTH` rays.
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
-    unsafe fn packet_edges_are_single_ray_edges<L: PacketLanes>() {
+    fn packet_edges_are_single_ray_edges<L: PacketLanes>(isa: L::Isa) {
         let mut rng = SplitMix64::new(23);
         let mut v = |s: f32| Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * s - s * 0.5;
         let tris: Vec<(u32, Triangle)> = (0..4)
@@ -322,14 +279,11 @@ mod tests {
                     Ray::new(origin, dir.normalize_or(Vec3A::Y), tmax)
                 })
                 .collect();
-            // SAFETY: the caller's CPU has `L`'s instruction set.
-            let r = unsafe { RayTriPacket::<L>::new(&L::rays(&rays)) };
+            let r = RayTriPacket::<L>::new(&L::rays(isa, &rays));
             for packet in &packets {
                 for lane in 0..4 {
-                    // SAFETY: the caller's CPU has `L`'s instruction set.
-                    let lanes = unsafe { packet.edges_packet(lane, &r) };
-                    // SAFETY: the caller's CPU has `L`'s instruction set.
-                    let planes = unsafe { r.plane_hits(&packet.triangle(lane)) };
+                    let lanes = packet.edges_packet(lane, &r);
+                    let planes = r.plane_hits(&packet.triangle(lane));
                     for (k, ray) in rays.iter().enumerate() {
                         let one = packet.edges(&RayTri4::new(ray));
                         let bit = |mask: u32, i: usize| (mask >> i) & 1;
@@ -363,6 +317,7 @@ mod tests {
     #[test]
     fn a_packet_leaving_a_triangle_gets_exactly_finish_s_plane_hits() {
         use crate::simd::{Avx, Avx512, both_widths};
+        packet_leaving_a_triangle::<crate::simd::Portable>(crate::simd::Plain);
         both_widths(packet_leaving_a_triangle::<Avx>, packet_leaving_a_triangle::<Avx512>);
     }
 
@@ -382,10 +337,7 @@ mod tests {
     }
 
     /// [`a_packet_leaving_a_triangle_gets_exactly_finish_s_plane_hits`] for `L::WIDTH` rays.
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
-    unsafe fn packet_leaving_a_triangle<L: PacketLanes>() {
+    fn packet_leaving_a_triangle<L: PacketLanes>(isa: L::Isa) {
         let tri = Triangle { p: [Vec3A::new(-1.0, 0.0, -1.0), Vec3A::new(2.0, 0.0, -1.0), Vec3A::new(-1.0, 0.0, 2.0)] };
         let packet = Tri4::pack([(0, tri)].into_iter());
         let origin = Vec3A::new(0.1, 1e-3, 0.1);
@@ -397,9 +349,8 @@ mod tests {
                     Ray::new(origin, Vec3A::new(tilt, up, 0.3 * tilt).normalize(), f32::INFINITY)
                 })
                 .collect();
-            // SAFETY: the caller's CPU has `L`'s instruction set.
-            let (edges, planes) = unsafe {
-                let r = RayTriPacket::<L>::new(&L::rays(&rays));
+            let (edges, planes) = {
+                let r = RayTriPacket::<L>::new(&L::rays(isa, &rays));
                 let edges = packet.edges_packet(0, &r);
                 (edges.pass, r.plane_hits(&tri) & edges.pass)
             };

@@ -34,13 +34,13 @@ pub(crate) struct CosineTable {
 #[cfg(target_arch = "x86_64")]
 impl CosineTable {
     /// The table of `count` patterns from `first` for packets `lanes` wide: `None` where
-    /// `cmj` has no quadrants or the CPU lacks those lanes' instruction set (sixteen: AVX-512,
-    /// eight: AVX2). Patterns are filled in parallel, each on its own, so the table does not
+    /// `cmj` has no quadrants, or for sixteen lanes where [`crate::simd::isa`] does not allow
+    /// AVX-512 (eight lanes run anywhere, AVX2's or the portable ones). Patterns are filled in parallel, each on its own, so the table does not
     /// depend on the thread count.
     pub(crate) fn build(cmj: &Cmj, n: u32, first: u32, count: u32, lanes: usize) -> Option<Self> {
         let lanes_allowed = match lanes {
             16 => crate::simd::avx512(),
-            8 => crate::simd::avx2(),
+            8 => true,
             _ => false,
         };
         if !lanes_allowed {
@@ -53,8 +53,7 @@ impl CosineTable {
         let mut dirs = vec![0.0; per_pattern * count as usize];
         dirs.par_chunks_mut(per_pattern).enumerate().for_each(|(i, out)| {
             let fill = FillPattern { cmj, p: first.wrapping_add(i as u32), out };
-            // SAFETY: the CPU was just found to have these lanes' instruction set.
-            unsafe { crate::simd::run_in(lanes, fill) };
+            crate::simd::run_in(lanes, fill);
         });
         Some(CosineTable { lanes, first, count, per_pattern, dirs })
     }
@@ -91,18 +90,15 @@ struct FillPattern<'a> {
 impl<L: SampleLanes> Kernel<L> for FillPattern<'_> {
     type Output = ();
     #[inline(always)]
-    unsafe fn run(self) {
+    fn run(self, isa: L::Isa) {
         let FillPattern { cmj, p, out } = self;
         let width = L::WIDTH;
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        unsafe {
-            let pattern = QuadrantPattern::<L>::new(cmj, p);
-            for (packet, out) in out.chunks_exact_mut(3 * width).enumerate() {
-                let (x, y) = pattern.points(packet);
-                let dirs = cosine_hemisphere_lanes(x, y);
-                for (axis, v) in dirs.into_iter().enumerate() {
-                    v.store(&mut out[axis * width..]);
-                }
+        let pattern = QuadrantPattern::<L>::new(isa, cmj, p);
+        for (packet, out) in out.chunks_exact_mut(3 * width).enumerate() {
+            let (x, y) = pattern.points(packet);
+            let dirs = cosine_hemisphere_lanes(x, y);
+            for (axis, v) in dirs.into_iter().enumerate() {
+                v.store(&mut out[axis * width..]);
             }
         }
     }
@@ -124,7 +120,7 @@ mod tests {
             let cmj = Cmj::new(n);
             for lanes in [8, 16] {
                 let Some(table) = CosineTable::build(&cmj, n, u32::MAX - 1, 4, lanes) else {
-                    let has = if lanes == 16 { crate::simd::avx512() } else { crate::simd::avx2() };
+                    let has = lanes == 8 || crate::simd::avx512();
                     assert!(!has, "n {n}: no table for {lanes} lanes");
                     continue;
                 };

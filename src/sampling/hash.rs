@@ -127,37 +127,32 @@ fn permute_round(mut i: u32, w: u32, p: u32) -> u32 {
 
 /// [`permute_pow2`] of each lane, with the scalar function's operations, so each lane gets its
 /// value.
-///
-/// # Safety
-/// The CPU must have `V`'s instruction set.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-pub(super) unsafe fn permute_pow2_lanes<V: U32Lanes>(i: V, mask: u32, seed: u32) -> V {
-    // SAFETY: the caller's CPU has `V`'s instruction set.
-    unsafe {
-        let u = |x: u32| V::splat(x);
-        let w = u(mask);
-        let masked_shift = |i: V, n: u32| i.and(w).shr(u(n));
-        let mut i = i.xor(u(seed));
-        i = i.mul(u(0xe170_893d));
-        i = i.xor(u(seed >> 16));
-        i = i.xor(masked_shift(i, 4));
-        i = i.xor(u(seed >> 8));
-        i = i.mul(u(0x0929_eb3f));
-        i = i.xor(u(seed >> 23));
-        i = i.xor(masked_shift(i, 1));
-        i = i.mul(u(1 | seed >> 27));
-        i = i.mul(u(0x6935_fa69));
-        i = i.xor(masked_shift(i, 11));
-        i = i.mul(u(0x74dc_b303));
-        i = i.xor(masked_shift(i, 2));
-        i = i.mul(u(0x9e50_1cc3));
-        i = i.xor(masked_shift(i, 2));
-        i = i.mul(u(0xc860_a3df));
-        i = i.and(w);
-        i = i.xor(i.shr(u(5)));
-        i.add(u(seed)).and(w)
-    }
+pub(super) fn permute_pow2_lanes<V: U32Lanes>(i: V, mask: u32, seed: u32) -> V {
+    let isa = i.isa();
+    let u = |x: u32| V::splat(isa, x);
+    let w = u(mask);
+    let masked_shift = |i: V, n: u32| i.and(w).shr(u(n));
+    let mut i = i.xor(u(seed));
+    i = i.mul(u(0xe170_893d));
+    i = i.xor(u(seed >> 16));
+    i = i.xor(masked_shift(i, 4));
+    i = i.xor(u(seed >> 8));
+    i = i.mul(u(0x0929_eb3f));
+    i = i.xor(u(seed >> 23));
+    i = i.xor(masked_shift(i, 1));
+    i = i.mul(u(1 | seed >> 27));
+    i = i.mul(u(0x6935_fa69));
+    i = i.xor(masked_shift(i, 11));
+    i = i.mul(u(0x74dc_b303));
+    i = i.xor(masked_shift(i, 2));
+    i = i.mul(u(0x9e50_1cc3));
+    i = i.xor(masked_shift(i, 2));
+    i = i.mul(u(0xc860_a3df));
+    i = i.and(w);
+    i = i.xor(i.shr(u(5)));
+    i.add(u(seed)).and(w)
 }
 
 #[cfg(test)]

@@ -78,31 +78,26 @@ pub fn cosine_power_hemisphere4(u0: Vec4, u1: Vec4, e: f32) -> HemisphereSamples
 /// The directions of [`cosine_power_hemisphere`] with e = 1 for a vector of sample points
 /// (u₀, u₁) in lanes `L`: x, y and z lanes, each lane the scalar code's bits (same operations
 /// in the same order, [`sin_cos_2pi_one`]'s quarter turns by lane masks).
-///
-/// # Safety
-/// The CPU must have `L`'s instruction set.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-pub(crate) unsafe fn cosine_hemisphere_lanes<L: crate::simd::Lanes>(u0: L, u1: L) -> [L; 3] {
-    // SAFETY: the caller's CPU has `L`'s instruction set.
-    unsafe {
-        let k = |x: f32| L::splat(x);
-        let round = |x: L| x.add(k(ROUNDER)).sub(k(ROUNDER));
-        let q = round(u0.mul(k(4.0)));
-        let x = u0.sub(q.mul(k(0.25))).mul(k(TAU));
-        let z = x.mul(x);
-        let sin = k(SIN[0]).mul(z).add(k(SIN[1])).mul(z).add(k(SIN[2])).mul(z).mul(x).add(x);
-        let cos = k(COS[0]).mul(z).add(k(COS[1])).mul(z).add(k(COS[2])).mul(z).mul(z).sub(z.mul(k(0.5))).add(k(1.0));
-        let half = q.mul(k(0.5));
-        let odd = half.ne(round(half));
-        let (s, c) = (sin.select(odd, cos), cos.select(odd, sin));
-        let within = |lo: f32, hi: f32| L::and(k(lo).le(q), q.lt(k(hi)));
-        let flip = |v: L, m: L::Mask| v.select(m, v.neg());
-        let (sin_phi, cos_phi) = (flip(s, within(2.0, 4.0)), flip(c, within(1.0, 3.0)));
-        let cos_theta = k(1.0).sub(u1).sqrt();
-        let sin_theta = k(1.0).sub(cos_theta.mul(cos_theta)).max_keep(k(0.0)).sqrt();
-        [sin_theta.mul(cos_phi), sin_theta.mul(sin_phi), cos_theta]
-    }
+pub(crate) fn cosine_hemisphere_lanes<L: crate::simd::Lanes>(u0: L, u1: L) -> [L; 3] {
+    let isa = u0.isa();
+    let k = |x: f32| L::splat(isa, x);
+    let round = |x: L| x.add(k(ROUNDER)).sub(k(ROUNDER));
+    let q = round(u0.mul(k(4.0)));
+    let x = u0.sub(q.mul(k(0.25))).mul(k(TAU));
+    let z = x.mul(x);
+    let sin = k(SIN[0]).mul(z).add(k(SIN[1])).mul(z).add(k(SIN[2])).mul(z).mul(x).add(x);
+    let cos = k(COS[0]).mul(z).add(k(COS[1])).mul(z).add(k(COS[2])).mul(z).mul(z).sub(z.mul(k(0.5))).add(k(1.0));
+    let half = q.mul(k(0.5));
+    let odd = half.ne(round(half));
+    let (s, c) = (sin.select(odd, cos), cos.select(odd, sin));
+    let within = |lo: f32, hi: f32| L::and(k(lo).le(q), q.lt(k(hi)));
+    let flip = |v: L, m: L::Mask| v.select(m, v.neg());
+    let (sin_phi, cos_phi) = (flip(s, within(2.0, 4.0)), flip(c, within(1.0, 3.0)));
+    let cos_theta = k(1.0).sub(u1).sqrt();
+    let sin_theta = k(1.0).sub(cos_theta.mul(cos_theta)).max_keep(k(0.0)).sqrt();
+    [sin_theta.mul(cos_phi), sin_theta.mul(sin_phi), cos_theta]
 }
 
 /// Adding and removing 2²³ rounds to the nearest integer (exactly, below 2²²).
@@ -214,33 +209,25 @@ mod tests {
         let edges = [0.0, 0.125, 0.25, 0.375, 0.5, 0.625, 0.75, 0.875, below_one, 1e-8, 0.2499999, 0.7500001];
         let mut points: Vec<Vec2> = edges.iter().flat_map(|&x| edges.iter().map(move |&y| Vec2::new(x, y))).collect();
         points.extend(uniform_points(4000, 8));
-        type Copy = fn(&[[f32; 16]; 2]) -> [[f32; 16]; 3];
+        type Copy = Box<dyn Fn(&[[f32; 16]; 2]) -> [[f32; 16]; 3]>;
         /// The directions of sixteen points in lanes `L`, a vector at a time.
-        ///
-        /// # Safety
-        /// The CPU must have `L`'s instruction set.
-        unsafe fn in_lanes<L: Lanes>(u: &[[f32; 16]; 2]) -> [[f32; 16]; 3] {
+        fn in_lanes<L: Lanes>(isa: L::Isa, u: &[[f32; 16]; 2]) -> [[f32; 16]; 3] {
             let mut out = [[0.0f32; 16]; 3];
             for h in (0..16).step_by(L::WIDTH) {
-                // SAFETY: the caller's CPU has `L`'s instruction set.
-                unsafe {
-                    let d = cosine_hemisphere_lanes(L::load(&u[0][h..]), L::load(&u[1][h..]));
-                    for (o, d) in out.iter_mut().zip(d) {
-                        d.store(&mut o[h..]);
-                    }
+                let d = cosine_hemisphere_lanes(L::load(isa, &u[0][h..]), L::load(isa, &u[1][h..]));
+                for (o, d) in out.iter_mut().zip(d) {
+                    d.store(&mut o[h..]);
                 }
             }
             out
         }
-        // SAFETY: portable lanes need no instruction set.
-        let mut copies: Vec<(&str, Copy)> = vec![("portable", |u| unsafe { in_lanes::<crate::simd::Portable>(u) })];
-        if crate::simd::cpu_isa() >= crate::simd::Isa::Avx2 {
-            // SAFETY: the CPU has AVX2 and the rest of x86-64-v3, checked above.
-            copies.push(("avx2", |u| unsafe { in_lanes::<crate::simd::Avx>(u) }));
+        let mut copies: Vec<(&str, Copy)> =
+            vec![("portable", Box::new(|u| in_lanes::<crate::simd::Portable>(crate::simd::Plain, u)))];
+        if let Some(isa) = crate::simd::HasAvx2::on_cpu() {
+            copies.push(("avx2", Box::new(move |u| in_lanes::<crate::simd::Avx>(isa, u))));
         }
-        if crate::simd::cpu_isa() >= crate::simd::Isa::Avx512 {
-            // SAFETY: the CPU has AVX-512F, checked above.
-            copies.push(("avx512", |u| unsafe { in_lanes::<crate::simd::Avx512>(u) }));
+        if let Some(isa) = crate::simd::HasAvx512::on_cpu() {
+            copies.push(("avx512", Box::new(move |u| in_lanes::<crate::simd::Avx512>(isa, u))));
         }
         if copies.len() < 3 {
             eprintln!("no AVX2 or no AVX-512 on this CPU: its copy is not used and not tested");

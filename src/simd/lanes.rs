@@ -3,9 +3,11 @@
 //! IEEE operation of the scalar code (no fused multiply-adds unless asked for), so a lane computes
 //! bit for bit what the scalar code does.
 //!
-//! Every method is `unsafe` and compiled for its type's instruction set, which the CPU must
-//! have; callers are generic code inlined into functions compiled for it, where the methods
-//! inline in turn.
+//! The methods are safe: a lane value proves the CPU has its type's instruction set (it is made
+//! only by constructors that take the type's token, [`Lanes::Isa`], or from other values), and
+//! constructors without a value take the token. Each is `#[inline(always)]`, so its intrinsics
+//! are compiled into the `#[target_feature]` copy of the kernel that calls it
+//! ([`Lanes::compiled`]).
 
 #[cfg(target_arch = "x86_64")]
 use glam::Vec2;
@@ -19,75 +21,79 @@ use super::U32Lanes;
 pub(crate) trait Lanes: Copy {
     /// Lanes per vector.
     const WIDTH: usize;
-    /// A lane mask.
+    /// A lane mask (itself a proof of the instruction set where it is a vector).
     type Mask: Copy;
+    /// The token that proves the CPU has this type's instruction set.
+    type Isa: Copy;
 
+    /// The token these lanes prove.
+    fn isa(self) -> Self::Isa;
     /// `x` in every lane.
-    unsafe fn splat(x: f32) -> Self;
+    fn splat(isa: Self::Isa, x: f32) -> Self;
     /// Each lane's place in a run laid out group by group: for lane k in `groups[q]` (disjoint
     /// masks), `start[q]` plus the number of lanes below k in `groups[q]`; `none` for a lane
     /// in no group.
-    unsafe fn places(groups: &[u32; 4], start: &[u32; 4], none: u32) -> [u32; 16];
+    fn places(isa: Self::Isa, groups: &[u32; 4], start: &[u32; 4], none: u32) -> [u32; 16];
     /// `x[0..WIDTH]`.
-    unsafe fn load(x: &[f32]) -> Self;
+    fn load(isa: Self::Isa, x: &[f32]) -> Self;
     /// Writes the lanes to `out[0..WIDTH]`.
-    unsafe fn store(self, out: &mut [f32]);
+    fn store(self, out: &mut [f32]);
     /// Lane `j` (below `WIDTH`), read from where `self` lies in memory.
     fn lane(&self, j: usize) -> f32;
     /// Adds lane k of `x`, `y` and `z` to `out[k]`, for a full vector of `out` (`WIDTH`
     /// elements); the fourth lane of each element gets z's lane, as [`Vec3A::new`] gives it.
-    unsafe fn add_to(x: Self, y: Self, z: Self, out: &mut [Vec3A]);
+    fn add_to(x: Self, y: Self, z: Self, out: &mut [Vec3A]);
     /// `self + b`.
-    unsafe fn add(self, b: Self) -> Self;
+    fn add(self, b: Self) -> Self;
     /// `self − b`.
-    unsafe fn sub(self, b: Self) -> Self;
+    fn sub(self, b: Self) -> Self;
     /// `self · b`.
-    unsafe fn mul(self, b: Self) -> Self;
+    fn mul(self, b: Self) -> Self;
     /// `self / b`.
-    unsafe fn div(self, b: Self) -> Self;
+    fn div(self, b: Self) -> Self;
     /// `−self`.
-    unsafe fn neg(self) -> Self;
+    fn neg(self) -> Self;
     /// `√self`, correctly rounded.
-    unsafe fn sqrt(self) -> Self;
+    fn sqrt(self) -> Self;
     /// `|self|`.
-    unsafe fn abs(self) -> Self;
+    fn abs(self) -> Self;
     /// `max(self, b)`, `b` where either is NaN (`maxps`).
-    unsafe fn max_keep(self, b: Self) -> Self;
+    fn max_keep(self, b: Self) -> Self;
     /// `min(self, b)`, `b` where either is NaN (`minps`).
-    unsafe fn min_keep(self, b: Self) -> Self;
+    fn min_keep(self, b: Self) -> Self;
     /// `self < b` (false for NaN).
-    unsafe fn lt(self, b: Self) -> Self::Mask;
+    fn lt(self, b: Self) -> Self::Mask;
     /// `self > b` (false for NaN).
-    unsafe fn gt(self, b: Self) -> Self::Mask;
+    fn gt(self, b: Self) -> Self::Mask;
     /// `self ≤ b` (false for NaN).
-    unsafe fn le(self, b: Self) -> Self::Mask;
+    fn le(self, b: Self) -> Self::Mask;
     /// `self != b`, or either is NaN.
-    unsafe fn ne(self, b: Self) -> Self::Mask;
+    fn ne(self, b: Self) -> Self::Mask;
     /// `self == b`, or either is NaN.
-    unsafe fn eq_or_nan(self, b: Self) -> Self::Mask;
+    fn eq_or_nan(self, b: Self) -> Self::Mask;
     /// `if_set` in the lanes of `m`, `self` elsewhere.
-    unsafe fn select(self, m: Self::Mask, if_set: Self) -> Self;
+    fn select(self, m: Self::Mask, if_set: Self) -> Self;
     /// Lanes in both masks.
-    unsafe fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask;
+    fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask;
     /// Lanes in either mask.
-    unsafe fn or(a: Self::Mask, b: Self::Mask) -> Self::Mask;
+    fn or(a: Self::Mask, b: Self::Mask) -> Self::Mask;
     /// Lanes in `b` and not in `a`.
-    unsafe fn andnot(a: Self::Mask, b: Self::Mask) -> Self::Mask;
+    fn andnot(a: Self::Mask, b: Self::Mask) -> Self::Mask;
     /// The least lane (of numbers, none NaN).
-    unsafe fn least(self) -> f32;
+    fn least(self) -> f32;
     /// The greatest lane (of numbers, none NaN).
-    unsafe fn greatest(self) -> f32;
+    fn greatest(self) -> f32;
     /// Bit `i` set for lane `i` in the mask.
-    unsafe fn bits(m: Self::Mask) -> u32;
+    fn bits(m: Self::Mask) -> u32;
     /// The mask with lane `i` set for bit `i` of `bits`.
-    unsafe fn mask(bits: u32) -> Self::Mask;
+    fn mask(isa: Self::Isa, bits: u32) -> Self::Mask;
     /// Runs `kernel` compiled for this type's instruction set: the one place a kernel gets its
     /// `#[target_feature]` copy, out of line unless the compiler inlines it into a caller
     /// compiled for the same set.
-    unsafe fn compiled<K: Kernel<Self>>(kernel: K) -> K::Output;
+    fn compiled<K: Kernel<Self>>(isa: Self::Isa, kernel: K) -> K::Output;
     /// [`Lanes::compiled`], never inlined: for a kernel whose set-up must run where it is
     /// called, not be hoisted into its caller's loops.
-    unsafe fn compiled_apart<K: Kernel<Self>>(kernel: K) -> K::Output;
+    fn compiled_apart<K: Kernel<Self>>(isa: Self::Isa, kernel: K) -> K::Output;
 }
 
 /// Lanes that pack the lanes of a mask together (AVX-512's compress), for sorting a vector of
@@ -95,16 +101,16 @@ pub(crate) trait Lanes: Copy {
 pub(crate) trait CompressLanes: Lanes {
     /// `x[..n]` in the first `n` lanes and 0 in the rest, for `n` the lesser of `x.len()` and
     /// `WIDTH`; reads nothing past `x`.
-    unsafe fn load_partial(x: &[f32]) -> Self;
+    fn load_partial(isa: Self::Isa, x: &[f32]) -> Self;
     /// Writes the lanes of `m` (bit k for lane k), in lane order, to `out[..m.count_ones()]`,
     /// and nothing else.
-    unsafe fn compress_store(self, m: u32, out: &mut [f32]);
+    fn compress_store(self, m: u32, out: &mut [f32]);
     /// Writes `base + k` for each lane k of `m`, in lane order, to `out[..m.count_ones()]`, and
     /// nothing else.
-    unsafe fn compress_indices(base: u32, m: u32, out: &mut [u32]);
+    fn compress_indices(isa: Self::Isa, base: u32, m: u32, out: &mut [u32]);
     /// Writes the first `n` lanes to `out[..n]`, for `n` the lesser of `out.len()` and `WIDTH`,
     /// and nothing else.
-    unsafe fn store_partial(self, out: &mut [f32]);
+    fn store_partial(self, out: &mut [f32]);
 }
 
 /// Lanes with u32 lanes of the same width ([`U32Lanes`]), for the samplers: their integer
@@ -112,14 +118,14 @@ pub(crate) trait CompressLanes: Lanes {
 #[cfg(target_arch = "x86_64")]
 pub(crate) trait SampleLanes: Lanes {
     /// u32 lanes of this width.
-    type U32: U32Lanes;
+    type U32: U32Lanes<Isa = Self::Isa>;
     /// Each lane of `i` rounded to the nearest f32, as `i as f32` rounds it.
-    unsafe fn from_u32(i: Self::U32) -> Self;
+    fn from_u32(i: Self::U32) -> Self;
     /// [`SampleLanes::from_u32`] of lanes below 2³¹, which a signed conversion gives exactly.
-    unsafe fn from_small_u32(i: Self::U32) -> Self;
+    fn from_small_u32(i: Self::U32) -> Self;
     /// Writes lane k of `x` and of `y` as `out[k]`, for each k below `out.len()` and `WIDTH`,
     /// and nothing else.
-    unsafe fn store_points(x: Self, y: Self, out: &mut [Vec2]);
+    fn store_points(x: Self, y: Self, out: &mut [Vec2]);
 }
 
 /// Lanes with a fused multiply-add (one rounding), for [`FusedPacket`]'s node test.
@@ -127,7 +133,7 @@ pub(crate) trait SampleLanes: Lanes {
 /// [`FusedPacket`]: crate::geometry::wide_bvh::FusedPacket
 pub(crate) trait FusedLanes: Lanes {
     /// `self · b + c`, rounded once.
-    unsafe fn mul_add(self, b: Self, c: Self) -> Self;
+    fn mul_add(self, b: Self, c: Self) -> Self;
 }
 
 /// [`Lanes::places`] for eight lanes, one lane at a time: what the eight-lane types share (with
@@ -145,3 +151,25 @@ pub(crate) fn places8(groups: &[u32; 4], start: &[u32; 4], none: u32) -> [u32; 1
     }
     at
 }
+
+/// Trait methods of a lane type whose bodies call its instruction set's intrinsics: each made
+/// safe and `#[inline(always)]`, its body one `unsafe` block.
+macro_rules! isa_methods {
+    ($($(#[$m:meta])* fn $name:ident($($arg:tt)*) $(-> $ret:ty)? $body:block)*) => {
+        $(
+            $(#[$m])*
+            #[inline(always)]
+            fn $name($($arg)*) $(-> $ret)? {
+                // SAFETY: every such method takes a lane value or a token of its type, which
+                // proves the CPU has the type's instruction set (`simd::token`); inlined, the
+                // intrinsics compile into the `#[target_feature]` copy of the kernel calling it.
+                // Memory accesses carry their own notes.
+                #[allow(unused_unsafe)]
+                unsafe {
+                    $body
+                }
+            }
+        )*
+    };
+}
+pub(crate) use isa_methods;

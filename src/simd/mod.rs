@@ -1,26 +1,24 @@
-//! hemi's SIMD layer: which instruction sets the vector copies may use, and the lane types
-//! they are written over.
+//! hemi's SIMD layer: which instruction sets the vector copies may use, the tokens that prove
+//! it, and the lane types they are written over.
 //!
 //! The instruction set is detected here and nowhere else: what the CPU has, less AVX-512 when
 //! the environment variable `HEMI_NO_AVX512` is `1` (so that the copies an AVX2-only CPU runs
 //! can be run, tested and timed on a CPU with both), and none at all when `HEMI_SIMD` is
-//! `portable` (every query then takes the code that needs no vector instruction set, as on
-//! other architectures).
+//! `portable` (the eight-lane kernels then run in the portable lanes). Only this module makes
+//! the tokens ([`HasAvx2`], [`HasAvx512`], [`Plain`]) that let code run a set's instructions.
 //!
-//! Lane types of f32 ([`Lanes`]) are eight lanes in an AVX register ([`Avx`]), sixteen in an AVX-512
-//! one ([`Avx512`]), or eight in plain arrays (`Portable`, no intrinsics, any target; the
-//! reference the other two are tested against); of u32, `U32Lanes` for the samplers' hashes,
-//! paired with the f32 lanes of the same width by `SampleLanes`.
+//! Lane types of f32 ([`Lanes`]) are eight lanes in an AVX register ([`Avx`]), sixteen in an
+//! AVX-512 one ([`Avx512`]), or eight in plain arrays ([`Portable`], no intrinsics; the reference
+//! the other two are tested against); of u32, `U32Lanes` for the samplers' hashes, paired with
+//! the f32 lanes of the same width by `SampleLanes`.
 //! Kernels are written once, generic over the lane type, and compiled per instruction set in
 //! functions marked `#[target_feature]`: a closure or generic function only inlines into code
 //! compiled for the same instruction set. [`multiversion!`] generates such copies and their
 //! dispatch for plain loops the compiler vectorises.
 
 mod lanes;
-// Not yet instantiated by the kernels (under `HEMI_SIMD=portable` they take the scalar
-// paths); today it is the tested reference the vector lane types are checked against.
-#[allow(dead_code)]
 mod portable;
+mod token;
 
 #[cfg(target_arch = "x86_64")]
 pub(crate) mod avx;
@@ -36,8 +34,10 @@ pub(crate) use avx512::Avx512;
 #[cfg(target_arch = "x86_64")]
 pub(crate) use lanes::SampleLanes;
 pub(crate) use lanes::{CompressLanes, FusedLanes, Lanes};
-#[allow(unused_imports)]
 pub(crate) use portable::Portable;
+pub(crate) use token::Plain;
+#[cfg(target_arch = "x86_64")]
+pub(crate) use token::{Eight, HasAvx2, HasAvx512};
 #[cfg(target_arch = "x86_64")]
 pub(crate) use u32_lanes::U32Lanes;
 
@@ -106,14 +106,8 @@ pub fn isa() -> Isa {
     })
 }
 
-/// Whether the eight-lane copies may run: [`isa`] is at least [`Isa::Avx2`], which they are
-/// compiled for.
-pub(crate) fn avx2() -> bool {
-    isa() >= Isa::Avx2
-}
-
-/// Whether the AVX-512 copies may run: [`isa`] is [`Isa::Avx512`] (which includes everything
-/// [`avx2()`] asks for; the copies are compiled with it too).
+/// Whether the AVX-512 copies may run: [`isa`] is [`Isa::Avx512`] (which includes x86-64-v3;
+/// the copies are compiled with it too).
 pub(crate) fn avx512() -> bool {
     isa() >= Isa::Avx512
 }
@@ -128,35 +122,29 @@ pub(crate) fn packet_lanes() -> usize {
 /// instruction set: the entry points marked `#[target_feature]` are generated there, once per
 /// lane type, and `run` (`#[inline(always)]` in each implementation) is inlined into them with
 /// everything it inlines in turn.
-pub(crate) trait Kernel<L> {
+pub(crate) trait Kernel<L: Lanes> {
     /// What the kernel returns.
     type Output;
-    /// Runs the kernel.
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
-    unsafe fn run(self) -> Self::Output;
+    /// Runs the kernel; `isa` proves the CPU has `L`'s instruction set.
+    fn run(self, isa: L::Isa) -> Self::Output;
 }
 
 /// Runs `kernel` in `lanes` lanes, compiled for that lane type's instruction set: [`Avx512`]
-/// for sixteen, [`Avx`] for eight; `None`, having done nothing, for other widths.
-///
-/// # Safety
-/// The CPU must have the instruction set of the lane type of that width ([`avx512()`],
-/// [`avx2()`]).
+/// for sixteen (where [`isa`] allows it), [`Avx`] for eight where it allows AVX2, else
+/// [`Portable`]; `None`, having done nothing, for other widths.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-pub(crate) unsafe fn run_in<K, O>(lanes: usize, kernel: K) -> Option<O>
+pub(crate) fn run_in<K, O>(lanes: usize, kernel: K) -> Option<O>
 where
-    K: Kernel<Avx, Output = O> + Kernel<Avx512, Output = O>,
+    K: Kernel<Avx, Output = O> + Kernel<Avx512, Output = O> + Kernel<Portable, Output = O>,
 {
-    // SAFETY: the caller's CPU has the instruction set of the lane type of this width.
-    unsafe {
-        match lanes {
-            16 => Some(Avx512::compiled(kernel)),
-            8 => Some(Avx::compiled(kernel)),
-            _ => None,
-        }
+    match lanes {
+        16 => HasAvx512::allowed().map(|isa| Avx512::compiled(isa, kernel)),
+        8 => Some(match Eight::allowed() {
+            Eight::Avx(isa) => Avx::compiled(isa, kernel),
+            Eight::Portable(isa) => Portable::compiled(isa, kernel),
+        }),
+        _ => None,
     }
 }
 
@@ -164,18 +152,15 @@ where
 /// it has AVX-512 as well (whatever the environment caps [`isa`] at: the copies are tested
 /// wherever they can run), saying which it skips.
 #[cfg(all(test, target_arch = "x86_64"))]
-pub(crate) fn both_widths(eight: unsafe fn(), sixteen: unsafe fn()) {
-    if cpu_isa() < Isa::Avx2 {
+pub(crate) fn both_widths(eight: impl FnOnce(HasAvx2), sixteen: impl FnOnce(HasAvx512)) {
+    let Some(v3) = HasAvx2::on_cpu() else {
         eprintln!("no AVX2 on this CPU: packets are not used and not tested");
         return;
-    }
-    // SAFETY: AVX2 and the rest of x86-64-v3 were detected.
-    unsafe { eight() };
-    if cpu_isa() >= Isa::Avx512 {
-        // SAFETY: AVX-512 was detected.
-        unsafe { sixteen() };
-    } else {
-        eprintln!("no AVX-512 on this CPU: sixteen-lane packets are not used and not tested");
+    };
+    eight(v3);
+    match HasAvx512::on_cpu() {
+        Some(v4) => sixteen(v4),
+        None => eprintln!("no AVX-512 on this CPU: sixteen-lane packets are not used and not tested"),
     }
 }
 

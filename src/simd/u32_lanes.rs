@@ -1,54 +1,77 @@
-//! Vectors of u32 lanes: sixteen in an AVX-512 register (`__m512i`), eight in an AVX2 one
-//! (`__m256i`), for the integer hashes and shuffle tables of the samplers.
+//! Vectors of u32 lanes: sixteen in an AVX-512 register ([`U32x16`]), eight in an AVX2 one
+//! ([`U32x8`]), for the integer hashes and shuffle tables of the samplers.
 
 use std::arch::x86_64::*;
 
+use super::{HasAvx2, HasAvx512, lanes::isa_methods};
+
 /// Vectors of u32 lanes with the operations Kensler's hashes and the CMJ shuffle tables need
-/// (wrapping like the scalar code): sixteen lanes with AVX-512F (`__m512i`), eight with AVX2
-/// (`__m256i`). Every method is compiled for its type's instruction set, which the CPU must
-/// have; callers are generic code inlined into functions compiled for it.
+/// (wrapping like the scalar code). As with the f32 lanes, a value proves the CPU has its
+/// type's instruction set, and constructors without one take the token.
 pub(crate) trait U32Lanes: Copy {
     /// Lanes per vector.
     const WIDTH: usize;
     /// Sixteen u32 entries held in registers, looked up by [`U32Lanes::lookup16`].
     type Table16: Copy;
+    /// The token that proves the CPU has this type's instruction set.
+    type Isa: Copy;
 
+    /// The token these lanes prove.
+    fn isa(self) -> Self::Isa;
     /// `x` in every lane.
-    unsafe fn splat(x: u32) -> Self;
+    fn splat(isa: Self::Isa, x: u32) -> Self;
     /// `first, first + 1, …` (wrapping), lane by lane.
-    unsafe fn consecutive(first: u32) -> Self;
+    fn consecutive(isa: Self::Isa, first: u32) -> Self;
     /// `self ^ b`.
-    unsafe fn xor(self, b: Self) -> Self;
+    fn xor(self, b: Self) -> Self;
     /// `self & b`.
-    unsafe fn and(self, b: Self) -> Self;
+    fn and(self, b: Self) -> Self;
     /// `self + b` (wrapping).
-    unsafe fn add(self, b: Self) -> Self;
+    fn add(self, b: Self) -> Self;
     /// `self · b` (wrapping: the low 32 bits).
-    unsafe fn mul(self, b: Self) -> Self;
+    fn mul(self, b: Self) -> Self;
     /// `self >> n`, lane by lane.
-    unsafe fn shr(self, n: Self) -> Self;
+    fn shr(self, n: Self) -> Self;
     /// `self << n`, lane by lane.
-    unsafe fn shl(self, n: Self) -> Self;
+    fn shl(self, n: Self) -> Self;
     /// `self | b`.
-    unsafe fn or(self, b: Self) -> Self;
+    fn or(self, b: Self) -> Self;
     /// The first lanes' worth of `x` (which must hold that many).
-    unsafe fn load(x: &[u32]) -> Self;
+    fn load(isa: Self::Isa, x: &[u32]) -> Self;
     /// Writes the lanes to the first lanes' worth of `out` (which must hold that many).
-    unsafe fn store(self, out: &mut [u32]);
+    fn store(self, out: &mut [u32]);
     /// `entries` as a table for [`U32Lanes::lookup16`].
-    unsafe fn table16(entries: &[u32; 16]) -> Self::Table16;
+    fn table16(isa: Self::Isa, entries: &[u32; 16]) -> Self::Table16;
     /// Entry `self` of `table` in each lane (every lane below 16): lane permutes, no memory.
-    unsafe fn lookup16(self, table: Self::Table16) -> Self;
+    fn lookup16(self, table: Self::Table16) -> Self;
     /// Bit k set where lane k of `self & b` is not zero.
-    unsafe fn test(self, b: Self) -> u32;
+    fn test(self, b: Self) -> u32;
 }
+
+/// Sixteen u32 lanes in an AVX-512 register; the private field makes a value a proof of
+/// AVX-512F, as an [`super::Avx512`] is.
+#[derive(Clone, Copy)]
+pub(crate) struct U32x16(pub(super) __m512i);
+
+/// Eight u32 lanes in an AVX2 register; a value proves x86-64-v3, as an [`super::Avx`] does.
+#[derive(Clone, Copy)]
+pub(crate) struct U32x8(pub(super) __m256i);
+
+/// Sixteen entries in one register ([`U32x16`]'s lookup table).
+#[derive(Clone, Copy)]
+pub(crate) struct Table16x16(__m512i);
+
+/// Entries 0–7 and 8–15 in two registers ([`U32x8`]'s lookup table).
+#[derive(Clone, Copy)]
+pub(crate) struct Table16x8([__m256i; 2]);
 
 /// The methods both vector types implement with one intrinsic each; the rest follow in the
 /// invocation.
 macro_rules! u32_lanes {
     (
-        $ty:ty,
-        $feature:literal,
+        $ty:ident,
+        $raw:ty,
+        $isa:ident,
         $set1:ident,
         $xor:ident,
         $and:ident,
@@ -61,68 +84,56 @@ macro_rules! u32_lanes {
     ) => {
         impl U32Lanes for $ty {
             const WIDTH: usize = size_of::<Self>() / 4;
+            type Isa = $isa;
             $($rest)*
-            #[target_feature(enable = $feature)]
-            #[inline]
-            unsafe fn splat(x: u32) -> Self {
-                $set1(x as i32)
+            #[inline(always)]
+            fn isa(self) -> $isa {
+                $isa(())
             }
-            #[target_feature(enable = $feature)]
-            #[inline]
-            unsafe fn xor(self, b: Self) -> Self {
-                $xor(self, b)
-            }
-            #[target_feature(enable = $feature)]
-            #[inline]
-            unsafe fn and(self, b: Self) -> Self {
-                $and(self, b)
-            }
-            #[target_feature(enable = $feature)]
-            #[inline]
-            unsafe fn add(self, b: Self) -> Self {
-                $add(self, b)
-            }
-            #[target_feature(enable = $feature)]
-            #[inline]
-            unsafe fn mul(self, b: Self) -> Self {
-                $mul(self, b)
-            }
-            #[target_feature(enable = $feature)]
-            #[inline]
-            unsafe fn shr(self, n: Self) -> Self {
-                $shr(self, n)
-            }
-            #[target_feature(enable = $feature)]
-            #[inline]
-            unsafe fn shl(self, n: Self) -> Self {
-                $shl(self, n)
-            }
-            #[target_feature(enable = $feature)]
-            #[inline]
-            unsafe fn or(self, b: Self) -> Self {
-                $or(self, b)
-            }
-            #[target_feature(enable = $feature)]
-            #[inline]
-            unsafe fn load(x: &[u32]) -> Self {
-                let x = &x[..Self::WIDTH];
-                // SAFETY: `x` holds a whole vector of u32, checked above.
-                unsafe { std::ptr::read_unaligned(x.as_ptr().cast::<Self>()) }
-            }
-            #[target_feature(enable = $feature)]
-            #[inline]
-            unsafe fn store(self, out: &mut [u32]) {
-                let out = &mut out[..Self::WIDTH];
-                // SAFETY: `out` holds a whole vector of u32, checked above.
-                unsafe { std::ptr::write_unaligned(out.as_mut_ptr().cast::<Self>(), self) }
+            isa_methods! {
+                fn splat(_: $isa, x: u32) -> Self {
+                    $ty($set1(x as i32))
+                }
+                fn xor(self, b: Self) -> Self {
+                    $ty($xor(self.0, b.0))
+                }
+                fn and(self, b: Self) -> Self {
+                    $ty($and(self.0, b.0))
+                }
+                fn add(self, b: Self) -> Self {
+                    $ty($add(self.0, b.0))
+                }
+                fn mul(self, b: Self) -> Self {
+                    $ty($mul(self.0, b.0))
+                }
+                fn shr(self, n: Self) -> Self {
+                    $ty($shr(self.0, n.0))
+                }
+                fn shl(self, n: Self) -> Self {
+                    $ty($shl(self.0, n.0))
+                }
+                fn or(self, b: Self) -> Self {
+                    $ty($or(self.0, b.0))
+                }
+                fn load(_: $isa, x: &[u32]) -> Self {
+                    let x = &x[..Self::WIDTH];
+                    // `x` holds a whole vector of u32, checked above.
+                    $ty(std::ptr::read_unaligned(x.as_ptr().cast::<$raw>()))
+                }
+                fn store(self, out: &mut [u32]) {
+                    let out = &mut out[..Self::WIDTH];
+                    // `out` holds a whole vector of u32, checked above.
+                    std::ptr::write_unaligned(out.as_mut_ptr().cast::<$raw>(), self.0)
+                }
             }
         }
     };
 }
 
 u32_lanes!(
+    U32x16,
     __m512i,
-    "avx512f",
+    HasAvx512,
     _mm512_set1_epi32,
     _mm512_xor_si512,
     _mm512_and_si512,
@@ -132,37 +143,31 @@ u32_lanes!(
     _mm512_sllv_epi32,
     _mm512_or_si512,
     {
-        /// One register.
-        type Table16 = __m512i;
+        type Table16 = Table16x16;
 
-        #[target_feature(enable = "avx512f")]
-        #[inline]
-        unsafe fn consecutive(first: u32) -> Self {
-            let iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
-            _mm512_add_epi32(_mm512_set1_epi32(first as i32), iota)
-        }
-        #[target_feature(enable = "avx512f")]
-        #[inline]
-        unsafe fn table16(entries: &[u32; 16]) -> __m512i {
-            // SAFETY: the load reads the sixteen entries.
-            unsafe { _mm512_loadu_si512(entries.as_ptr().cast()) }
-        }
-        /// One permute (it reads the low four bits of each index).
-        #[target_feature(enable = "avx512f")]
-        #[inline]
-        unsafe fn lookup16(self, table: __m512i) -> Self {
-            _mm512_permutexvar_epi32(self, table)
-        }
-        #[target_feature(enable = "avx512f")]
-        #[inline]
-        unsafe fn test(self, b: Self) -> u32 {
-            _mm512_test_epi32_mask(self, b).into()
+        isa_methods! {
+            fn consecutive(_: HasAvx512, first: u32) -> Self {
+                let iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+                U32x16(_mm512_add_epi32(_mm512_set1_epi32(first as i32), iota))
+            }
+            fn table16(_: HasAvx512, entries: &[u32; 16]) -> Table16x16 {
+                // The load reads the sixteen entries.
+                Table16x16(_mm512_loadu_si512(entries.as_ptr().cast()))
+            }
+            /// One permute (it reads the low four bits of each index).
+            fn lookup16(self, table: Table16x16) -> Self {
+                U32x16(_mm512_permutexvar_epi32(self.0, table.0))
+            }
+            fn test(self, b: Self) -> u32 {
+                _mm512_test_epi32_mask(self.0, b.0).into()
+            }
         }
     }
 );
 u32_lanes!(
+    U32x8,
     __m256i,
-    "avx2",
+    HasAvx2,
     _mm256_set1_epi32,
     _mm256_xor_si256,
     _mm256_and_si256,
@@ -172,34 +177,27 @@ u32_lanes!(
     _mm256_sllv_epi32,
     _mm256_or_si256,
     {
-        /// Entries 0–7 and 8–15 in two registers.
-        type Table16 = [__m256i; 2];
+        type Table16 = Table16x8;
 
-        #[target_feature(enable = "avx2")]
-        #[inline]
-        unsafe fn consecutive(first: u32) -> Self {
-            _mm256_add_epi32(_mm256_set1_epi32(first as i32), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7))
-        }
-        #[target_feature(enable = "avx2")]
-        #[inline]
-        unsafe fn table16(entries: &[u32; 16]) -> [__m256i; 2] {
-            let words = entries.as_ptr().cast::<__m256i>();
-            // SAFETY: the loads read the sixteen entries.
-            unsafe { [_mm256_loadu_si256(words), _mm256_loadu_si256(words.add(1))] }
-        }
-        /// Two lane permutes (each reads the low three bits of each index) and a blend.
-        #[target_feature(enable = "avx2")]
-        #[inline]
-        unsafe fn lookup16(self, table: [__m256i; 2]) -> Self {
-            let (low, high) =
-                (_mm256_permutevar8x32_epi32(table[0], self), _mm256_permutevar8x32_epi32(table[1], self));
-            _mm256_blendv_epi8(low, high, _mm256_cmpgt_epi32(self, _mm256_set1_epi32(7)))
-        }
-        #[target_feature(enable = "avx2")]
-        #[inline]
-        unsafe fn test(self, b: Self) -> u32 {
-            let zero = _mm256_cmpeq_epi32(_mm256_and_si256(self, b), _mm256_setzero_si256());
-            !(_mm256_movemask_ps(_mm256_castsi256_ps(zero)) as u32) & 0xff
+        isa_methods! {
+            fn consecutive(_: HasAvx2, first: u32) -> Self {
+                U32x8(_mm256_add_epi32(_mm256_set1_epi32(first as i32), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7)))
+            }
+            fn table16(_: HasAvx2, entries: &[u32; 16]) -> Table16x8 {
+                let words = entries.as_ptr().cast::<__m256i>();
+                // The loads read the sixteen entries.
+                Table16x8([_mm256_loadu_si256(words), _mm256_loadu_si256(words.add(1))])
+            }
+            /// Two lane permutes (each reads the low three bits of each index) and a blend.
+            fn lookup16(self, table: Table16x8) -> Self {
+                let (low, high) =
+                    (_mm256_permutevar8x32_epi32(table.0[0], self.0), _mm256_permutevar8x32_epi32(table.0[1], self.0));
+                U32x8(_mm256_blendv_epi8(low, high, _mm256_cmpgt_epi32(self.0, _mm256_set1_epi32(7))))
+            }
+            fn test(self, b: Self) -> u32 {
+                let zero = _mm256_cmpeq_epi32(_mm256_and_si256(self.0, b.0), _mm256_setzero_si256());
+                !(_mm256_movemask_ps(_mm256_castsi256_ps(zero)) as u32) & 0xff
+            }
         }
     }
 );
@@ -211,36 +209,29 @@ mod tests {
     use super::*;
     use crate::{
         random::SplitMix64,
-        simd::{Avx, Avx512, CompressLanes, Lanes, SampleLanes},
+        simd::{Avx, Avx512, CompressLanes, Lanes, Plain, Portable, SampleLanes},
     };
 
     /// The u32 lanes' tables, lookups, tests and runs, the conversions to f32 lanes (rounded as
     /// `as f32` rounds, halfway cases and the top of the range included) and the stores of
     /// points give the scalar values lane by lane and write nothing past their lanes: for
-    /// eight lanes (AVX2) and sixteen (AVX-512), where the CPU has them.
+    /// the portable lanes, eight lanes (AVX2) and sixteen (AVX-512), where the CPU has them.
     #[test]
     fn u32_lanes_give_the_scalar_values() {
-        crate::simd::both_widths(
-            // SAFETY (both): `both_widths` runs each where the CPU has its instruction set.
-            || unsafe { same_as_scalar::<Avx>() },
-            || unsafe {
-                same_as_scalar::<Avx512>();
-                partial_stores_keep_to_their_lanes();
-            },
-        );
+        same_as_scalar::<Portable>(Plain);
+        crate::simd::both_widths(same_as_scalar::<Avx>, |isa| {
+            same_as_scalar::<Avx512>(isa);
+            partial_stores_keep_to_their_lanes(isa);
+        });
     }
 
     /// [`u32_lanes_give_the_scalar_values`] for `L`.
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
-    unsafe fn same_as_scalar<L: SampleLanes>() {
+    fn same_as_scalar<L: SampleLanes>(isa: L::Isa) {
         let w = L::WIDTH;
         assert_eq!(<L::U32 as U32Lanes>::WIDTH, w);
         let lanes = |v: L::U32| {
             let mut out = vec![0u32; w];
-            // SAFETY: the caller's CPU has `L`'s instruction set.
-            unsafe { v.store(&mut out) };
+            v.store(&mut out);
             out
         };
         let floats = |v: L| (0..w).map(|k| v.lane(k).to_bits()).collect::<Vec<_>>();
@@ -258,29 +249,25 @@ mod tests {
             let b: Vec<u32> = (0..w).map(|_| rng.next_u64() as u32 >> (rng.next_u64() % 32)).collect();
             let entries: [u32; 16] = std::array::from_fn(|_| rng.next_u64() as u32);
             let first = rng.next_u64() as u32;
-            // SAFETY: the caller's CPU has `L`'s instruction set.
-            unsafe {
-                let (va, vb) = (L::U32::load(&a), L::U32::load(&b));
-                assert_eq!(lanes(va), a);
-                let run: Vec<u32> = (0..w as u32).map(|k| first.wrapping_add(k)).collect();
-                assert_eq!(lanes(L::U32::consecutive(first)), run, "{w} lanes from {first}");
-                let index = va.and(L::U32::splat(15));
-                let want: Vec<u32> = a.iter().map(|&i| entries[(i & 15) as usize]).collect();
-                assert_eq!(lanes(index.lookup16(L::U32::table16(&entries))), want, "lookup of {a:?}");
-                let set = (0..w).fold(0, |m, k| m | u32::from(a[k] & b[k] != 0) << k);
-                assert_eq!(va.test(vb), set, "test of {a:?}, {b:?}");
-                let want: Vec<u32> = a.iter().map(|&i| (i as f32).to_bits()).collect();
-                assert_eq!(floats(L::from_u32(va)), want, "conversion of {a:?}");
-                let small = va.shr(L::U32::splat(1));
-                let want: Vec<u32> = a.iter().map(|&i| ((i >> 1) as f32).to_bits()).collect();
-                assert_eq!(floats(L::from_small_u32(small)), want, "conversion of {a:?} / 2");
-            }
+            let (va, vb) = (L::U32::load(isa, &a), L::U32::load(isa, &b));
+            assert_eq!(lanes(va), a);
+            let run: Vec<u32> = (0..w as u32).map(|k| first.wrapping_add(k)).collect();
+            assert_eq!(lanes(L::U32::consecutive(isa, first)), run, "{w} lanes from {first}");
+            let index = va.and(L::U32::splat(isa, 15));
+            let want: Vec<u32> = a.iter().map(|&i| entries[(i & 15) as usize]).collect();
+            assert_eq!(lanes(index.lookup16(L::U32::table16(isa, &entries))), want, "lookup of {a:?}");
+            let set = (0..w).fold(0, |m, k| m | u32::from(a[k] & b[k] != 0) << k);
+            assert_eq!(va.test(vb), set, "test of {a:?}, {b:?}");
+            let want: Vec<u32> = a.iter().map(|&i| (i as f32).to_bits()).collect();
+            assert_eq!(floats(L::from_u32(va)), want, "conversion of {a:?}");
+            let small = va.shr(L::U32::splat(isa, 1));
+            let want: Vec<u32> = a.iter().map(|&i| ((i >> 1) as f32).to_bits()).collect();
+            assert_eq!(floats(L::from_small_u32(small)), want, "conversion of {a:?} / 2");
         }
         let (x, y): (Vec<f32>, Vec<f32>) = (0..w).map(|k| (k as f32 + 0.25, -(k as f32))).unzip();
         for len in 0..=w {
             let mut out = vec![Vec2::NAN; w + 1];
-            // SAFETY: the caller's CPU has `L`'s instruction set.
-            unsafe { L::store_points(L::load(&x), L::load(&y), &mut out[..len]) };
+            L::store_points(L::load(isa, &x), L::load(isa, &y), &mut out[..len]);
             for (k, v) in out.iter().enumerate() {
                 let want = if k < len { [x[k], y[k]] } else { [f32::NAN; 2] };
                 assert_eq!(v.to_array().map(f32::to_bits), want.map(f32::to_bits), "{w} lanes, {len} points: {k}");
@@ -289,15 +276,11 @@ mod tests {
     }
 
     /// A partial store writes the first lanes and nothing past `out`.
-    ///
-    /// # Safety
-    /// The CPU must have AVX-512.
-    unsafe fn partial_stores_keep_to_their_lanes() {
+    fn partial_stores_keep_to_their_lanes(isa: HasAvx512) {
         let x: [f32; 16] = std::array::from_fn(|k| k as f32 + 0.5);
         for len in 0..=17 {
             let mut out = [-1.0f32; 18];
-            // SAFETY: the caller's CPU has AVX-512.
-            unsafe { Avx512::load(&x).store_partial(&mut out[..len]) };
+            Avx512::load(isa, &x).store_partial(&mut out[..len]);
             let want: [f32; 18] = std::array::from_fn(|k| if k < len.min(16) { x[k] } else { -1.0 });
             assert_eq!(out, want, "{len} floats");
         }

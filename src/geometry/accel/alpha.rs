@@ -23,7 +23,7 @@ use crate::{
         hit::SurfaceHit,
         ray::Ray,
         tri4::RayTri4,
-        wide_bvh::{Node, NodeTest, WideBvh},
+        wide_bvh::{NodeTest, WideBvh},
     },
     material::PlacedSurface,
     random::mix64,
@@ -165,13 +165,10 @@ struct LayerClosest<'a> {
 impl TreeQuery for LayerClosest<'_> {
     type Output = Option<AlphaHit>;
     #[inline(always)]
-    fn run<const W: usize>(self, top: &WideBvh<W>) -> Self::Output
-    where
-        Node<W>: NodeTest<W>,
-    {
+    fn run<const W: usize>(self, top: &WideBvh<W>, node_test: impl NodeTest<W>) -> Self::Output {
         let LayerClosest { layer, ray, stack, key, counts } = self;
         let mut best = None;
-        top.closest(ray, stack, |first, n, ray, stack| {
+        top.closest(node_test, ray, stack, |first, n, ray, stack| {
             for k in first..first + n {
                 let (inst, blas, _) = &layer.meshes[k as usize];
                 counts.reached = true;
@@ -205,12 +202,9 @@ struct LayerOccluded<'a> {
 impl TreeQuery for LayerOccluded<'_> {
     type Output = bool;
     #[inline(always)]
-    fn run<const W: usize>(self, top: &WideBvh<W>) -> bool
-    where
-        Node<W>: NodeTest<W>,
-    {
+    fn run<const W: usize>(self, top: &WideBvh<W>, node_test: impl NodeTest<W>) -> bool {
         let LayerOccluded { layer, ray, stack, key, counts } = self;
-        top.occluded(ray, stack, |first, n, stack| {
+        top.occluded(node_test, ray, stack, |first, n, stack| {
             (first..first + n).any(|k| {
                 let (inst, blas, _) = &layer.meshes[k as usize];
                 counts.reached = true;
@@ -233,14 +227,11 @@ struct MeshClosest<'a, F> {
 impl<F: FnMut(u32, (f32, f32)) -> bool> TreeQuery for MeshClosest<'_, F> {
     type Output = Option<(u32, f32, f32)>;
     #[inline(always)]
-    fn run<const W: usize>(self, tree: &WideBvh<W>) -> Self::Output
-    where
-        Node<W>: NodeTest<W>,
-    {
+    fn run<const W: usize>(self, tree: &WideBvh<W>, node_test: impl NodeTest<W>) -> Self::Output {
         let MeshClosest { blas, ray, stack, keep } = self;
         let r = RayTri4::new(ray);
         let mut best = None;
-        tree.closest(ray, stack, |first, count, ray, _| {
+        tree.closest(node_test, ray, stack, |first, count, ray, _| {
             for packet in &blas.packets[first as usize..(first + count) as usize] {
                 blas.packet_hits(packet, &r, ray, |slot, (t, b1, b2), ray| {
                     if keep(slot, (b1, b2)) {
@@ -266,13 +257,10 @@ struct MeshOccluded<'a, F> {
 impl<F: FnMut(u32, (f32, f32)) -> bool> TreeQuery for MeshOccluded<'_, F> {
     type Output = bool;
     #[inline(always)]
-    fn run<const W: usize>(self, tree: &WideBvh<W>) -> bool
-    where
-        Node<W>: NodeTest<W>,
-    {
+    fn run<const W: usize>(self, tree: &WideBvh<W>, node_test: impl NodeTest<W>) -> bool {
         let MeshOccluded { blas, ray, stack, keep } = self;
         let r = RayTri4::new(ray);
-        tree.occluded(ray, stack, |first, count, _| {
+        tree.occluded(node_test, ray, stack, |first, count, _| {
             let mut local = *ray;
             blas.packets[first as usize..(first + count) as usize]
                 .iter()

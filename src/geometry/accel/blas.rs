@@ -28,11 +28,11 @@ use crate::geometry::{
     ray::{Ray, Shear},
     shapes::Triangle,
     tri4::{RayTri4, Tri4},
-    wide_bvh::{Node, NodeTest, WideBvh, prefetch},
+    wide_bvh::{NodeTest, WideBvh, prefetch},
 };
+use crate::simd::{Kernel, Lanes};
 #[cfg(target_arch = "x86_64")]
-use crate::simd::{Avx, packet_lanes, run_in};
-use crate::simd::{Kernel, Lanes, Portable};
+use crate::simd::{packet_lanes, run_in};
 
 /// The BVH2 build settings for small sets (under [`SMALL_SET`] primitives): obvhs's medium
 /// preset with leaves of at most one packet, collapsed less eagerly (traversal cost 1.5 instead
@@ -172,7 +172,7 @@ impl Blas {
             (start, lanes.len() as u32 - start)
         });
         // Written straight into an allocation of the right size, advised onto huge pages.
-        self.packets = crate::huge_pages::vec_on_huge_pages(lanes.len());
+        self.packets = crate::geometry::huge_pages::vec_on_huge_pages(lanes.len());
         self.packets.par_extend(lanes.par_iter().enumerate().with_min_len(PAR_CHUNK / 4).map(|(p, &(first, end))| {
             Tri4::pack((first..end).enumerate().map(|(l, k)| ((4 * p + l) as u32, triangle(order[k as usize]))))
         }));
@@ -327,17 +327,15 @@ impl Blas {
     pub(super) fn closest_in<const W: usize>(
         &self,
         tree: &WideBvh<W>,
+        node_test: impl NodeTest<W>,
         ray: &mut Ray,
         stack: &mut Vec<(u32, f32)>,
-    ) -> Option<(u32, f32, f32)>
-    where
-        Node<W>: NodeTest<W>,
-    {
+    ) -> Option<(u32, f32, f32)> {
         let prims = &self.prims;
         let mut best = None;
         if !self.packets.is_empty() {
             let r = RayTri4::new(ray);
-            tree.closest(ray, stack, |first, count, ray, _| {
+            tree.closest(node_test, ray, stack, |first, count, ray, _| {
                 for packet in &self.packets[first as usize..(first + count) as usize] {
                     self.packet_hits(packet, &r, ray, |slot, (t, b1, b2), ray| {
                         ray.tmax = t;
@@ -349,7 +347,7 @@ impl Blas {
             return best;
         }
         let shear = Shear::new(ray.dir);
-        tree.closest(ray, stack, |first, count, ray, _| {
+        tree.closest(node_test, ray, stack, |first, count, ray, _| {
             for k in first..first + count {
                 if let Some((t, b1, b2)) = hit_prim(&prims[k as usize], ray, &shear) {
                     ray.tmax = t;
@@ -379,14 +377,13 @@ impl Blas {
         blocked: &mut [bool],
     ) {
         #[cfg(target_arch = "x86_64")]
-        if let Tree::Eight(tree) = &self.tree
+        if let Tree::Eight(tree, _) = &self.tree
             && !self.packets.is_empty()
             && rays.len() >= PACKET_RUN
         {
             let kernel = BlasPackets { blas: self, tree, rays, order, stack, blocked };
-            // SAFETY: an eight-wide tree is built only where AVX2 was detected, and sixteen-lane
-            // packets are chosen only where AVX-512 was.
-            return unsafe { run_in(packet_lanes(), kernel) }.expect("eight or sixteen lanes");
+            // Packets are eight or sixteen wide where `simd::isa` allows them.
+            return run_in(packet_lanes(), kernel).expect("eight or sixteen lanes");
         }
         // Without packets the order does not matter.
         let _ = order;
@@ -395,12 +392,9 @@ impl Blas {
 
     /// The lanes of `lanes` whose ray (`ray(k)` for lane k) a triangle in packets
     /// `first..first + count` blocks, each triangle tested against all those rays at once.
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
-    pub(super) unsafe fn packets_block_lanes<L: PacketLanes>(
+    pub(super) fn packets_block_lanes<L: PacketLanes>(
         &self,
         first: u32,
         count: u32,
@@ -414,16 +408,14 @@ impl Blas {
                 if slot == u32::MAX {
                     continue;
                 }
-                // SAFETY: the caller's CPU has `L`'s instruction set.
-                let edges = unsafe { packet.edges_packet(lane, r) };
+                let edges = packet.edges_packet(lane, r);
                 let (pass, mut exact) = (edges.pass & open, edges.exact & open);
                 if pass | exact == 0 {
                     continue;
                 }
                 let tri = packet.triangle(lane);
                 if pass != 0 {
-                    // SAFETY: the caller's CPU has `L`'s instruction set.
-                    open &= !(unsafe { r.plane_hits(&tri) } & pass);
+                    open &= !(r.plane_hits(&tri) & pass);
                 }
                 // Lanes with a zero or NaN edge function: the scalar test with its f64 edges.
                 while exact != 0 {
@@ -456,15 +448,14 @@ impl Blas {
     /// out of line, so the packet test's set-up runs per leaf reached, not per ray (most AO
     /// rays reach none).
     #[inline(always)]
-    pub(super) fn packets_block<const W: usize>(&self, first: u32, count: u32, ray: &Ray) -> bool {
-        let kernel = PacketsBlock { blas: self, first, count, ray };
-        #[cfg(target_arch = "x86_64")]
-        if W == 8 {
-            // SAFETY: eight-wide trees are built only where AVX2 was detected.
-            return unsafe { Avx::compiled_apart(kernel) };
-        }
-        // SAFETY: the portable code needs no instruction set.
-        unsafe { Portable::compiled_apart(kernel) }
+    pub(super) fn packets_block<const W: usize, T: NodeTest<W>>(
+        &self,
+        test: T,
+        first: u32,
+        count: u32,
+        ray: &Ray,
+    ) -> bool {
+        T::Lanes::compiled_apart(test, PacketsBlock { blas: self, first, count, ray })
     }
 
     /// Tests the triangles of `packet` in lane order, calling `hit(slot, (t, b1, b2), ray)` for
@@ -523,10 +514,10 @@ struct PacketsBlock<'a> {
     ray: &'a Ray,
 }
 
-impl<L> Kernel<L> for PacketsBlock<'_> {
+impl<L: Lanes> Kernel<L> for PacketsBlock<'_> {
     type Output = bool;
     #[inline(always)]
-    unsafe fn run(self) -> bool {
+    fn run(self, _: L::Isa) -> bool {
         let PacketsBlock { blas, first, count, ray } = self;
         let r = RayTri4::new(ray);
         let mut local = *ray;
@@ -541,16 +532,20 @@ impl<L> Kernel<L> for PacketsBlock<'_> {
 
 impl Occluder for Blas {
     #[inline(always)]
-    fn occluded_in<const W: usize>(&self, tree: &WideBvh<W>, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool
-    where
-        Node<W>: NodeTest<W>,
-    {
+    fn occluded_in<const W: usize>(
+        &self,
+        tree: &WideBvh<W>,
+        node_test: impl NodeTest<W>,
+        ray: &Ray,
+        stack: &mut Vec<(u32, f32)>,
+    ) -> bool {
         let prims = &self.prims;
         if !self.packets.is_empty() {
-            return tree.occluded(ray, stack, |first, count, _| self.packets_block::<W>(first, count, ray));
+            return tree
+                .occluded(node_test, ray, stack, |first, count, _| self.packets_block(node_test, first, count, ray));
         }
         let shear = Shear::new(ray.dir);
-        tree.occluded(ray, stack, |first, count, _| {
+        tree.occluded(node_test, ray, stack, |first, count, _| {
             prims[first as usize..(first + count) as usize].iter().any(|p| hit_prim(p, ray, &shear).is_some())
         })
     }
@@ -667,10 +662,7 @@ pub(super) struct BlasClosest<'a> {
 impl TreeQuery for BlasClosest<'_> {
     type Output = Option<(u32, f32, f32)>;
     #[inline(always)]
-    fn run<const W: usize>(self, tree: &WideBvh<W>) -> Self::Output
-    where
-        Node<W>: NodeTest<W>,
-    {
-        self.blas.closest_in(tree, self.ray, self.stack)
+    fn run<const W: usize>(self, tree: &WideBvh<W>, node_test: impl NodeTest<W>) -> Self::Output {
+        self.blas.closest_in(tree, node_test, self.ray, self.stack)
     }
 }

@@ -1,10 +1,9 @@
 //! The packet kernels: occlusion and closest hits of ray packets, written once over the lane
-//! type and compiled per instruction set by [`Lanes::compiled`].
+//! type and compiled per instruction set by [`Lanes::compiled`](crate::simd::Lanes::compiled).
 //!
 //! Each kernel below is one out-of-line copy per lane type (as a call between them was before
 //! they were generic), and the closures they hand to the generic traversal are written inside
-//! their `run`, which is inlined into that copy. Callers must make sure the CPU has the lane
-//! type's instruction set.
+//! their `run`, which is inlined into that copy, with the token (`isa`) that lets it run.
 
 use super::{
     blas::Blas,
@@ -51,19 +50,18 @@ pub(super) struct BlasClosestLanes<'a> {
 impl<L: KernelLanes> Kernel<L> for BlasClosestLanes<'_> {
     type Output = u32;
     #[inline(always)]
-    unsafe fn run(self) -> u32 {
+    fn run(self, isa: L::Isa) -> u32 {
         let BlasClosestLanes { blas, tree, rays, live, instance, hits } = self;
-        // SAFETY (all blocks below): the caller's CPU has `L`'s instruction set.
-        let in_lanes = unsafe { L::rays(rays) };
-        let packet = unsafe { RayPacket::new(&in_lanes) };
-        let edges = unsafe { RayTriPacket::new(&in_lanes) };
+        let in_lanes = L::rays(isa, rays);
+        let packet = RayPacket::new(&in_lanes);
+        let edges = RayTriPacket::new(&in_lanes);
         let leaf = |first: u32, count: u32, lanes: u32, hits: &mut LaneHits<ClosestHit>| {
             for packet in &blas.packets[first as usize..(first + count) as usize] {
                 for (lane, &slot) in packet.slot.iter().enumerate() {
                     if slot == u32::MAX {
                         continue;
                     }
-                    let e = unsafe { packet.edges_packet(lane, &edges) };
+                    let e = packet.edges_packet(lane, &edges);
                     let mut crossing = (e.pass | e.exact) & lanes;
                     if crossing == 0 {
                         continue;
@@ -82,7 +80,7 @@ impl<L: KernelLanes> Kernel<L> for BlasClosestLanes<'_> {
             }
         };
         let first = &rays[live.trailing_zeros() as usize];
-        unsafe { tree.closest_packet(&packet, first, live, hits, leaf) }
+        tree.closest_packet(L::node_test8(isa), &packet, first, live, hits, leaf)
     }
 }
 
@@ -103,11 +101,10 @@ pub(super) struct BlasPackets<'a> {
 impl<L: KernelLanes> Kernel<L> for BlasPackets<'_> {
     type Output = ();
     #[inline(always)]
-    unsafe fn run(self) {
+    fn run(self, isa: L::Isa) {
         let BlasPackets { blas, tree, rays, order, stack, blocked } = self;
         in_packets::<L>(rays, order, blocked, |rays, live| {
-            // SAFETY: the caller's CPU has `L`'s instruction set.
-            unsafe { L::compiled(BlasLanes { blas, tree, rays, live, stack }) }
+            L::compiled(isa, BlasLanes { blas, tree, rays, live, stack })
         });
     }
 }
@@ -127,16 +124,13 @@ struct BlasLanes<'a> {
 impl<L: KernelLanes> Kernel<L> for BlasLanes<'_> {
     type Output = u32;
     #[inline(always)]
-    unsafe fn run(self) -> u32 {
+    fn run(self, isa: L::Isa) -> u32 {
         let BlasLanes { blas, tree, rays, live, stack } = self;
         if live == 0 {
             return 0;
         }
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        unsafe {
-            let in_lanes = L::rays(rays);
-            L::compiled(BlasLanesOf { blas, tree, in_lanes: &in_lanes, ray: |k| rays[k], live, stack })
-        }
+        let in_lanes = L::rays(isa, rays);
+        L::compiled(isa, BlasLanesOf { blas, tree, in_lanes: &in_lanes, ray: |k| rays[k], live, stack })
     }
 }
 
@@ -157,32 +151,30 @@ struct BlasLanesOf<'a, L, F> {
 impl<L: KernelLanes, F: Fn(usize) -> Ray> Kernel<L> for BlasLanesOf<'_, L, F> {
     type Output = u32;
     #[inline(always)]
-    unsafe fn run(self) -> u32 {
+    fn run(self, isa: L::Isa) -> u32 {
         let BlasLanesOf { blas, tree, in_lanes, ray, live, stack } = self;
-        // SAFETY (all blocks below): the caller's CPU has `L`'s instruction set.
         // The packet starts at its entry node; where its segments' box overlaps no leaf,
         // nothing can block its rays, and nothing more is made.
-        let Some(start) = (unsafe { tree.entry_node_of(in_lanes, live) }) else { return 0 };
+        let Some(start) = tree.entry_node_of(L::node_test8(isa), in_lanes, live) else { return 0 };
         // Nodes are tested by fused multiply-adds at both widths ([`FusedPacket`]).
-        let packet = unsafe { FusedPacket::new(in_lanes, live) };
+        let packet = FusedPacket::new(in_lanes, live);
         // The edge tests' constants, made when the packet first reaches a leaf.
         let mut edges = None;
         let leaf = |first, count, lanes: u32, _: &mut Vec<(u32, f32)>| {
             if lanes.count_ones() == 1 {
                 let lane = lanes.trailing_zeros() as usize;
-                return if blas.packets_block::<8>(first, count, &ray(lane)) { lanes } else { 0 };
+                return if blas.packets_block(L::node_test8(isa), first, count, &ray(lane)) { lanes } else { 0 };
             }
             if edges.is_none() {
-                edges = Some(unsafe { RayTriPacket::new(in_lanes) });
+                edges = Some(RayTriPacket::new(in_lanes));
             }
             let r = edges.as_ref().expect("made above");
-            unsafe { blas.packets_block_lanes(first, count, &ray, r, lanes) }
+            blas.packets_block_lanes(first, count, &ray, r, lanes)
         };
         let single = |node, lane: usize, stack: &mut Vec<(u32, f32)>| {
-            // SAFETY: the caller's CPU has `L`'s instruction set.
-            unsafe { L::compiled(BlasLoneRay { blas, tree, node, ray: ray(lane), stack }) }
+            L::compiled(isa, BlasLoneRay { blas, tree, node, ray: ray(lane), stack })
         };
-        unsafe { tree.occluded_packet(&packet, start, live, stack, leaf, single) }
+        tree.occluded_packet(&packet, start, live, stack, leaf, single)
     }
 }
 
@@ -199,13 +191,15 @@ struct BlasLoneRay<'a> {
 }
 
 #[cfg(target_arch = "x86_64")]
-impl<L> Kernel<L> for BlasLoneRay<'_> {
+impl<L: PacketLanes> Kernel<L> for BlasLoneRay<'_> {
     type Output = bool;
     #[inline(always)]
-    unsafe fn run(self) -> bool {
+    fn run(self, isa: L::Isa) -> bool {
         let BlasLoneRay { blas, tree, node, ray, stack } = self;
-        let leaf = |first, count, _: &mut Vec<(u32, f32)>| blas.packets_block::<8>(first, count, &ray);
-        tree.occluded_from_touch(node, &ray, stack, leaf, |first, count| blas.prefetch_packets(first, count))
+        let leaf = |first, count, _: &mut Vec<(u32, f32)>| blas.packets_block(L::node_test8(isa), first, count, &ray);
+        tree.occluded_from_touch(L::node_test8(isa), node, &ray, stack, leaf, |first, count| {
+            blas.prefetch_packets(first, count)
+        })
     }
 }
 
@@ -230,17 +224,16 @@ pub(super) struct TopClosestLanes<'a> {
 impl<L: KernelLanes> Kernel<L> for TopClosestLanes<'_> {
     type Output = u32;
     #[inline(always)]
-    unsafe fn run(self) -> u32 {
+    fn run(self, isa: L::Isa) -> u32 {
         let TopClosestLanes { scene, top, rays, live, hits, stack } = self;
         let mut overflow = 0u32;
         let leaf = |first: u32, count: u32, lanes: u32, hits: &mut LaneHits<ClosestHit>| {
             for i in first..first + count {
                 let blas = &scene.blases[scene.instances[i as usize].blas as usize];
                 match &blas.tree {
-                    Tree::Eight(tree) if !blas.packets.is_empty() && lanes.count_ones() >= 2 => {
+                    Tree::Eight(tree, _) if !blas.packets.is_empty() && lanes.count_ones() >= 2 => {
                         let kernel = BlasClosestLanes { blas, tree, rays, live: lanes, instance: i, hits };
-                        // SAFETY: the caller's CPU has `L`'s instruction set.
-                        overflow |= unsafe { L::compiled(kernel) };
+                        overflow |= L::compiled(isa, kernel);
                     }
                     _ => {
                         let mut each = lanes;
@@ -256,10 +249,9 @@ impl<L: KernelLanes> Kernel<L> for TopClosestLanes<'_> {
                 }
             }
         };
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        let top_overflow = unsafe {
-            let packet = RayPacket::new(&L::rays(rays));
-            top.closest_packet(&packet, &rays[live.trailing_zeros() as usize], live, hits, leaf)
+        let top_overflow = {
+            let packet = RayPacket::new(&L::rays(isa, rays));
+            top.closest_packet(L::node_test8(isa), &packet, &rays[live.trailing_zeros() as usize], live, hits, leaf)
         };
         overflow | top_overflow
     }
@@ -282,15 +274,31 @@ pub(super) struct TopPackets<'a> {
 impl<L: KernelLanes> Kernel<L> for TopPackets<'_> {
     type Output = ();
     #[inline(always)]
-    unsafe fn run(self) {
+    fn run(self, isa: L::Isa) {
         let TopPackets { scene, top, rays, order, stack, blocked } = self;
-        in_packets::<L>(rays, order, blocked, |chunk, live| {
-            // SAFETY: the caller's CPU has `L`'s instruction set.
-            unsafe {
-                let lanes = L::rays(chunk);
-                L::compiled(TopPacket { scene, top, lanes: &lanes, ray: |k| chunk[k], live, stack })
-            }
-        });
+        in_packets::<L>(rays, order, blocked, |rays, live| L::compiled(isa, TopRays { scene, top, rays, live, stack }));
+    }
+}
+
+/// [`TopPacket`] of one packet of `rays` (lanes of `live`), gathered into lanes here: a kernel
+/// of its own, as the gather's intrinsics inline only into code compiled for their set.
+#[cfg(target_arch = "x86_64")]
+struct TopRays<'a> {
+    scene: &'a SceneGeometry,
+    top: &'a Bvh8,
+    rays: &'a [Ray],
+    live: u32,
+    stack: &'a mut Vec<(u32, f32)>,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl<L: KernelLanes> Kernel<L> for TopRays<'_> {
+    type Output = u32;
+    #[inline(always)]
+    fn run(self, isa: L::Isa) -> u32 {
+        let TopRays { scene, top, rays, live, stack } = self;
+        let lanes = L::rays(isa, rays);
+        L::compiled(isa, TopPacket { scene, top, lanes: &lanes, ray: |k| rays[k], live, stack })
     }
 }
 
@@ -311,7 +319,7 @@ pub(crate) struct SceneLanes<'a, L, F> {
 impl<L: KernelLanes, F: Fn(usize) -> Ray> Kernel<L> for SceneLanes<'_, L, F> {
     type Output = u32;
     #[inline(always)]
-    unsafe fn run(self) -> u32 {
+    fn run(self, isa: L::Isa) -> u32 {
         let SceneLanes { scene, lanes, ray, live, stack } = self;
         let on_planes = if scene.planes.is_empty() {
             0
@@ -322,16 +330,15 @@ impl<L: KernelLanes, F: Fn(usize) -> Ray> Kernel<L> for SceneLanes<'_, L, F> {
         if live == 0 {
             return on_planes;
         }
-        // SAFETY (both blocks): the caller's CPU has `L`'s instruction set.
         let traced = if let Some(blas) = &scene.world_blas {
             match &blas.tree {
-                Tree::Eight(tree) if !blas.packets.is_empty() => unsafe {
-                    L::compiled(BlasLanesOf { blas, tree, in_lanes: lanes, ray: &ray, live, stack })
-                },
+                Tree::Eight(tree, _) if !blas.packets.is_empty() => {
+                    L::compiled(isa, BlasLanesOf { blas, tree, in_lanes: lanes, ray: &ray, live, stack })
+                }
                 _ => lanes_where(live, &ray, |r| blas.occluded(r, stack)),
             }
-        } else if let Tree::Eight(top) = &scene.top {
-            unsafe { L::compiled(TopPacket { scene, top, lanes, ray: &ray, live, stack }) }
+        } else if let Tree::Eight(top, _) = &scene.top {
+            L::compiled(isa, TopPacket { scene, top, lanes, ray: &ray, live, stack })
         } else {
             lanes_where(live, &ray, |r| scene.occluded(r, stack))
         };
@@ -356,14 +363,13 @@ struct TopPacket<'a, L, F> {
 impl<L: KernelLanes, F: Fn(usize) -> Ray> Kernel<L> for TopPacket<'_, L, F> {
     type Output = u32;
     #[inline(always)]
-    unsafe fn run(self) -> u32 {
+    fn run(self, isa: L::Isa) -> u32 {
         let TopPacket { scene, top, lanes, ray, live, stack } = self;
         let leaf = |first: u32, count: u32, entered: u32, stack: &mut Vec<(u32, f32)>| {
             let mut open = entered;
             for inst in &scene.instances[first as usize..(first + count) as usize] {
                 let kernel = InstanceLanes { scene, inst, lanes, ray: &ray, entered: open, stack };
-                // SAFETY: the caller's CPU has `L`'s instruction set.
-                open &= !unsafe { L::compiled(kernel) };
+                open &= !L::compiled(isa, kernel);
                 if open == 0 {
                     break;
                 }
@@ -371,16 +377,12 @@ impl<L: KernelLanes, F: Fn(usize) -> Ray> Kernel<L> for TopPacket<'_, L, F> {
             entered & !open
         };
         let single = |node, lane: usize, stack: &mut Vec<(u32, f32)>| {
-            // SAFETY: the caller's CPU has `L`'s instruction set.
-            unsafe { L::compiled(TopLoneRay { scene, top, node, ray: ray(lane), stack }) }
+            L::compiled(isa, TopLoneRay { scene, top, node, ray: ray(lane), stack })
         };
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        unsafe {
-            let Some(start) = top.entry_node_of(lanes, live) else { return 0 };
-            // The fused node test, as in a BLAS: cheaper than the plain one here, with the same
-            // answers (the leaves decide).
-            top.occluded_packet(&FusedPacket::new(lanes, live), start, live, stack, leaf, single)
-        }
+        let Some(start) = top.entry_node_of(L::node_test8(isa), lanes, live) else { return 0 };
+        // The fused node test, as in a BLAS: cheaper than the plain one here, with the same
+        // answers (the leaves decide).
+        top.occluded_packet(&FusedPacket::new(lanes, live), start, live, stack, leaf, single)
     }
 }
 
@@ -396,12 +398,14 @@ struct TopLoneRay<'a> {
 }
 
 #[cfg(target_arch = "x86_64")]
-impl<L> Kernel<L> for TopLoneRay<'_> {
+impl<L: PacketLanes> Kernel<L> for TopLoneRay<'_> {
     type Output = bool;
     #[inline(always)]
-    unsafe fn run(self) -> bool {
+    fn run(self, isa: L::Isa) -> bool {
         let TopLoneRay { scene, top, node, ray, stack } = self;
-        top.occluded_from(node, &ray, stack, |first, count, stack| scene.instances_block(first, count, &ray, stack))
+        top.occluded_from(L::node_test8(isa), node, &ray, stack, |first, count, stack| {
+            scene.instances_block(first, count, &ray, stack)
+        })
     }
 }
 
@@ -424,24 +428,22 @@ struct InstanceLanes<'a, L, F> {
 impl<L: KernelLanes, F: Fn(usize) -> Ray> Kernel<L> for InstanceLanes<'_, L, F> {
     type Output = u32;
     #[inline(always)]
-    unsafe fn run(self) -> u32 {
+    fn run(self, isa: L::Isa) -> u32 {
         let InstanceLanes { scene, inst, lanes, ray, entered, stack } = self;
         let blas = &scene.blases[inst.blas as usize];
         let tree = match &blas.tree {
-            Tree::Eight(tree) if !blas.packets.is_empty() && entered.count_ones() >= PACKET_MIN_LANES => tree,
+            Tree::Eight(tree, _) if !blas.packets.is_empty() && entered.count_ones() >= PACKET_MIN_LANES => tree,
             _ => return lanes_where(entered, ray, |r| scene.instance_blocks(inst, r, stack)),
         };
         if inst.identity {
-            // SAFETY: the caller's CPU has `L`'s instruction set.
-            return unsafe { L::compiled(BlasLanesOf { blas, tree, in_lanes: lanes, ray, live: entered, stack }) };
+            return L::compiled(isa, BlasLanesOf { blas, tree, in_lanes: lanes, ray, live: entered, stack });
         }
-        // SAFETY (both): the caller's CPU has `L`'s instruction set.
         if L::WIDTH == 8 {
             let (local, live) = local_rays::<8>(inst, ray, entered);
-            unsafe { L::compiled(BlasLanes { blas, tree, rays: &local, live, stack }) }
+            L::compiled(isa, BlasLanes { blas, tree, rays: &local, live, stack })
         } else {
             let (local, live) = local_rays::<16>(inst, ray, entered);
-            unsafe { L::compiled(BlasLanes { blas, tree, rays: &local, live, stack }) }
+            L::compiled(isa, BlasLanes { blas, tree, rays: &local, live, stack })
         }
     }
 }

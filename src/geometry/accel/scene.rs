@@ -29,7 +29,7 @@ use crate::geometry::{
     hit::SurfaceHit,
     ray::Ray,
     shapes::{PlanePrim, SpherePrim, Triangle},
-    wide_bvh::{Node, NodeTest, WideBvh},
+    wide_bvh::{NodeTest, WideBvh},
 };
 use crate::material::PlacedSurface;
 #[cfg(target_arch = "x86_64")]
@@ -316,13 +316,13 @@ impl SceneGeometry {
     #[cfg(target_arch = "x86_64")]
     fn camera_packets(&self) -> Option<CameraPackets<'_>> {
         if let Some(blas) = &self.world_blas
-            && let Tree::Eight(tree) = &blas.tree
+            && let Tree::Eight(tree, _) = &blas.tree
             && !blas.packets.is_empty()
         {
             return Some(CameraPackets::World(blas, tree));
         }
         match &self.top {
-            Tree::Eight(top) if self.top_packets => Some(CameraPackets::Top(top)),
+            Tree::Eight(top, _) if self.top_packets => Some(CameraPackets::Top(top)),
             _ => None,
         }
     }
@@ -338,17 +338,14 @@ impl SceneGeometry {
         hits: &mut LaneHits<ClosestHit>,
         stack: &mut Vec<(u32, f32)>,
     ) -> u32 {
-        // SAFETY: eight-wide trees are built only where AVX2 was detected, and sixteen-lane
-        // packets are chosen only where AVX-512 was.
-        unsafe {
-            match into {
-                CameraPackets::World(blas, tree) => {
-                    let kernel = BlasClosestLanes { blas, tree, rays, live, instance: 0, hits };
-                    run_in(crate::simd::packet_lanes(), kernel)
-                }
-                CameraPackets::Top(top) => {
-                    run_in(crate::simd::packet_lanes(), TopClosestLanes { scene: self, top, rays, live, hits, stack })
-                }
+        // Packets are eight or sixteen wide where `simd::isa` allows them.
+        match into {
+            CameraPackets::World(blas, tree) => {
+                let kernel = BlasClosestLanes { blas, tree, rays, live, instance: 0, hits };
+                run_in(crate::simd::packet_lanes(), kernel)
+            }
+            CameraPackets::Top(top) => {
+                run_in(crate::simd::packet_lanes(), TopClosestLanes { scene: self, top, rays, live, hits, stack })
             }
         }
         .expect("eight or sixteen lanes")
@@ -418,14 +415,12 @@ impl SceneGeometry {
     pub(super) fn closest_through<const W: usize>(
         &self,
         top: &WideBvh<W>,
+        node_test: impl NodeTest<W>,
         ray: &mut Ray,
         stack: &mut Vec<(u32, f32)>,
-    ) -> Option<ClosestHit>
-    where
-        Node<W>: NodeTest<W>,
-    {
+    ) -> Option<ClosestHit> {
         let mut best = None;
-        top.closest(ray, stack, |first, count, ray, stack| {
+        top.closest(node_test, ray, stack, |first, count, ray, stack| {
             for k in first..first + count {
                 let inst = &self.instances[k as usize];
                 let blas = &self.blases[inst.blas as usize];
@@ -483,13 +478,12 @@ impl SceneGeometry {
             blas.occluded_many(rays, order, stack, blocked);
         } else {
             #[cfg(target_arch = "x86_64")]
-            if let Tree::Eight(top) = &self.top
+            if let Tree::Eight(top, _) = &self.top
                 && rays.len() >= PACKET_RUN
             {
                 let kernel = TopPackets { scene: self, top, rays, order, stack, blocked };
-                // SAFETY: an eight-wide tree is built only where AVX2 was detected, and
-                // sixteen-lane packets are chosen only where AVX-512 was.
-                return unsafe { run_in(crate::simd::packet_lanes(), kernel) }.expect("eight or sixteen lanes");
+                // Packets are eight or sixteen wide where `simd::isa` allows them.
+                return run_in(crate::simd::packet_lanes(), kernel).expect("eight or sixteen lanes");
             }
             let _ = order;
             self.top.query(OccludedEach { target: self, rays, stack, blocked });
@@ -518,11 +512,14 @@ impl SceneGeometry {
 /// Occlusion through the top-level tree.
 impl Occluder for SceneGeometry {
     #[inline(always)]
-    fn occluded_in<const W: usize>(&self, top: &WideBvh<W>, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool
-    where
-        Node<W>: NodeTest<W>,
-    {
-        top.occluded(ray, stack, |first, count, stack| self.instances_block(first, count, ray, stack))
+    fn occluded_in<const W: usize>(
+        &self,
+        top: &WideBvh<W>,
+        node_test: impl NodeTest<W>,
+        ray: &Ray,
+        stack: &mut Vec<(u32, f32)>,
+    ) -> bool {
+        top.occluded(node_test, ray, stack, |first, count, stack| self.instances_block(first, count, ray, stack))
     }
 }
 
@@ -546,10 +543,7 @@ pub(super) struct TopClosest<'a> {
 impl TreeQuery for TopClosest<'_> {
     type Output = Option<ClosestHit>;
     #[inline(always)]
-    fn run<const W: usize>(self, tree: &WideBvh<W>) -> Self::Output
-    where
-        Node<W>: NodeTest<W>,
-    {
-        self.scene.closest_through(tree, self.ray, self.stack)
+    fn run<const W: usize>(self, tree: &WideBvh<W>, node_test: impl NodeTest<W>) -> Self::Output {
+        self.scene.closest_through(tree, node_test, self.ray, self.stack)
     }
 }

@@ -5,17 +5,19 @@ use obvhs::bvh2::node::Bvh2Node;
 
 use crate::geometry::{
     ray::Ray,
-    wide_bvh::{Bvh4, Node, NodeTest, WideBvh},
+    wide_bvh::{Bvh4, NodeTest, WideBvh},
 };
+use crate::simd::Plain;
 #[cfg(target_arch = "x86_64")]
-use crate::simd::{Avx, Kernel, Lanes};
+use crate::simd::{Avx, Eight, Kernel, Lanes, Portable};
 
-/// The wide tree traversal uses: eight children per node where the CPU has AVX, else four.
+/// The wide tree traversal uses: eight children per node (with the token of the eight lanes
+/// that test them, AVX2's or the portable ones'), or four where `HEMI_BVH_WIDTH` asks for it.
 #[derive(Clone, Debug)]
 pub(super) enum Tree {
     Four(Bvh4),
     #[cfg(target_arch = "x86_64")]
-    Eight(crate::geometry::wide_bvh::Bvh8),
+    Eight(crate::geometry::wide_bvh::Bvh8, Eight),
 }
 
 impl Default for Tree {
@@ -25,14 +27,13 @@ impl Default for Tree {
 }
 
 impl Tree {
-    /// Collapses `bvh2` to eight children per node where the CPU has AVX and `HEMI_BVH_WIDTH`
-    /// is not 4, else to four.
+    /// Collapses `bvh2` to eight children per node unless `HEMI_BVH_WIDTH` is 4, else to four.
     pub(super) fn from_bvh2(bvh2: &[Bvh2Node]) -> Self {
         #[cfg(target_arch = "x86_64")]
         if bvh_width() == 8
             && let Some(tree) = crate::geometry::wide_bvh::Bvh8::from_bvh2(bvh2)
         {
-            return Tree::Eight(tree);
+            return Tree::Eight(tree, Eight::allowed());
         }
         Tree::Four(Bvh4::from_bvh2(bvh2))
     }
@@ -41,7 +42,7 @@ impl Tree {
         match self {
             Tree::Four(t) => t.map_leaves(f),
             #[cfg(target_arch = "x86_64")]
-            Tree::Eight(t) => t.map_leaves(f),
+            Tree::Eight(t, _) => t.map_leaves(f),
         }
     }
 
@@ -49,7 +50,7 @@ impl Tree {
         match self {
             Tree::Four(t) => t.memory_bytes(),
             #[cfg(target_arch = "x86_64")]
-            Tree::Eight(t) => t.memory_bytes(),
+            Tree::Eight(t, _) => t.memory_bytes(),
         }
     }
 
@@ -57,7 +58,7 @@ impl Tree {
         match self {
             Tree::Four(t) => t.len(),
             #[cfg(target_arch = "x86_64")]
-            Tree::Eight(t) => t.len(),
+            Tree::Eight(t, _) => t.len(),
         }
     }
 
@@ -65,28 +66,28 @@ impl Tree {
         match self {
             Tree::Four(_) => 4,
             #[cfg(target_arch = "x86_64")]
-            Tree::Eight(_) => 8,
+            Tree::Eight(..) => 8,
         }
     }
 
-    /// Runs `query` over this tree; an eight-wide tree is traversed by code compiled for AVX2.
+    /// Runs `query` over this tree; an eight-wide tree is traversed by code compiled for its
+    /// eight lanes.
     #[inline(always)]
     pub(super) fn query<Q: TreeQuery>(&self, query: Q) -> Q::Output {
         match self {
-            Tree::Four(tree) => query.run(tree),
-            // SAFETY: an eight-wide tree is built only where AVX2 was detected.
+            Tree::Four(tree) => query.run(tree, Plain),
             #[cfg(target_arch = "x86_64")]
-            Tree::Eight(tree) => unsafe { Avx::compiled(OnTree { tree, query }) },
+            Tree::Eight(tree, Eight::Avx(isa)) => Avx::compiled(*isa, OnTree { tree, query }),
+            #[cfg(target_arch = "x86_64")]
+            Tree::Eight(tree, Eight::Portable(isa)) => Portable::compiled(*isa, OnTree { tree, query }),
         }
     }
 }
 
-/// A traversal written once for either node width.
+/// A traversal written once for either node width, given the token of its node test.
 pub(super) trait TreeQuery {
     type Output;
-    fn run<const W: usize>(self, tree: &WideBvh<W>) -> Self::Output
-    where
-        Node<W>: NodeTest<W>;
+    fn run<const W: usize>(self, tree: &WideBvh<W>, test: impl NodeTest<W>) -> Self::Output;
 }
 
 /// A [`TreeQuery`] over an eight-wide tree as a kernel, so that it is compiled for the
@@ -98,11 +99,11 @@ struct OnTree<'a, Q> {
 }
 
 #[cfg(target_arch = "x86_64")]
-impl<L, Q: TreeQuery> Kernel<L> for OnTree<'_, Q> {
+impl<L: Lanes<Isa: NodeTest<8>>, Q: TreeQuery> Kernel<L> for OnTree<'_, Q> {
     type Output = Q::Output;
     #[inline(always)]
-    unsafe fn run(self) -> Q::Output {
-        self.query.run(self.tree)
+    fn run(self, isa: L::Isa) -> Q::Output {
+        self.query.run(self.tree, isa)
     }
 }
 
@@ -117,27 +118,29 @@ pub(super) struct OccludedEach<'a, T> {
 
 /// What an [`OccludedEach`] query traverses: a BLAS, or the scene through its top level.
 pub(super) trait Occluder {
-    /// Whether anything reached through `tree` blocks `ray`. Uses `stack` above its length.
-    fn occluded_in<const W: usize>(&self, tree: &WideBvh<W>, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool
-    where
-        Node<W>: NodeTest<W>;
+    /// Whether anything reached through `tree` (nodes tested by `test`) blocks `ray`. Uses
+    /// `stack` above its length.
+    fn occluded_in<const W: usize>(
+        &self,
+        tree: &WideBvh<W>,
+        test: impl NodeTest<W>,
+        ray: &Ray,
+        stack: &mut Vec<(u32, f32)>,
+    ) -> bool;
 }
 
 impl<T: Occluder> TreeQuery for OccludedEach<'_, T> {
     type Output = ();
     #[inline(always)]
-    fn run<const W: usize>(self, tree: &WideBvh<W>)
-    where
-        Node<W>: NodeTest<W>,
-    {
+    fn run<const W: usize>(self, tree: &WideBvh<W>, test: impl NodeTest<W>) {
         for (ray, b) in self.rays.iter().zip(self.blocked.iter_mut()) {
-            *b = *b || self.target.occluded_in(tree, ray, self.stack);
+            *b = *b || self.target.occluded_in(tree, test, ray, self.stack);
         }
     }
 }
 
 /// The node width asked for: 4 when the environment variable `HEMI_BVH_WIDTH` is `4`,
-/// else 8 (which falls back to 4 without AVX). Read once per process.
+/// else 8. Read once per process.
 #[cfg(target_arch = "x86_64")]
 pub(super) fn bvh_width() -> usize {
     static WIDTH: std::sync::OnceLock<usize> = std::sync::OnceLock::new();

@@ -116,15 +116,16 @@ impl Bvh4 {
 }
 
 impl Bvh8 {
-    /// Collapses a BVH2 as [`Bvh4::from_bvh2`] does, or `None` where the CPU lacks the
-    /// eight-lane copies' instruction sets (x86-64-v3: AVX2, FMA, BMI1/2, LZCNT, POPCNT).
+    /// Collapses a BVH2 as [`Bvh4::from_bvh2`] does, or `None` on architectures whose
+    /// traversal has no eight-lane kernels.
     pub fn from_bvh2(bvh2: &[Bvh2Node]) -> Option<Self> {
         #[cfg(target_arch = "x86_64")]
-        if crate::simd::avx2() {
-            return Some(Self::collapse(bvh2));
+        return Some(Self::collapse(bvh2));
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            let _ = bvh2;
+            None
         }
-        let _ = bvh2;
-        None
     }
 }
 
@@ -145,7 +146,7 @@ impl<const W: usize> WideBvh<W> {
             return WideBvh { nodes: vec![node], bounds: *root.aabb() };
         }
         // One wide node per BVH2 inner node at most, so the pushes below never reallocate.
-        let mut nodes = crate::huge_pages::vec_on_huge_pages(bvh2.len() / 2 + 1);
+        let mut nodes = crate::geometry::huge_pages::vec_on_huge_pages(bvh2.len() / 2 + 1);
         nodes.push(Node::EMPTY);
         let plan = SlotPlan::new(bvh2, W);
         // (BVH2 node whose subtree fills the wide node, wide node)

@@ -25,7 +25,7 @@ pub(crate) use packet::{FusedPacket, LaneHits, PACKET_MIN_LANES, RayPacket};
 use obvhs::aabb::Aabb;
 
 use super::ray::Ray;
-use crate::math::gamma;
+use crate::{math::gamma, simd::Lanes};
 
 /// Asks the CPU to start loading `x`'s cache lines (a hint; no effect on results).
 #[inline(always)]
@@ -85,10 +85,15 @@ fn plane_rows(negative: u32) -> ([usize; 3], [usize; 3]) {
     (std::array::from_fn(|a| a + 3 * neg(a)), std::array::from_fn(|a| a + 3 - 3 * neg(a)))
 }
 
-/// The ray–children test of a node of width `W`.
-pub trait NodeTest<const W: usize> {
-    /// Which children the ray enters before `tmax` (bit i for child i) and their entry distances.
-    fn test(&self, r: &RayBox, tmax: f32) -> (u32, [f32; W]);
+/// The ray–children test of nodes of width `W`, run by the token of the lanes it is compiled
+/// for ([`Lanes::Isa`]): the traversals take it as their proof that the CPU may run the test,
+/// and the lone-ray kernels they call run in its lanes.
+pub(crate) trait NodeTest<const W: usize>: Copy {
+    /// The lanes whose token this is.
+    type Lanes: Lanes<Isa = Self>;
+    /// Which children of `n` the ray enters before `tmax` (bit i for child i) and their entry
+    /// distances.
+    fn test(self, n: &Node<W>, r: &RayBox, tmax: f32) -> (u32, [f32; W]);
 }
 
 /// Where the entry distance starts: the smallest positive f32, so a child whose exit distance

@@ -5,12 +5,15 @@ use glam::Vec4;
 
 use super::{NEAR_START, Node, NodeTest, RayBox, far_scale};
 #[cfg(target_arch = "x86_64")]
-use crate::simd::Lanes;
+use crate::simd::{Avx, HasAvx2};
+use crate::simd::{Lanes, Plain, Portable};
 
-impl NodeTest<4> for Node<4> {
+/// Four-wide nodes need no instruction set beyond the baseline.
+impl NodeTest<4> for Plain {
+    type Lanes = Portable;
     #[inline(always)]
-    fn test(&self, r: &RayBox, tmax: f32) -> (u32, [f32; 4]) {
-        let p = &self.planes;
+    fn test(self, n: &Node<4>, r: &RayBox, tmax: f32) -> (u32, [f32; 4]) {
+        let p = &n.planes;
         let mut near = Vec4::splat(NEAR_START);
         let mut far = Vec4::INFINITY;
         for a in 0..3 {
@@ -54,36 +57,36 @@ pub(super) fn min_keep(a: Vec4, b: Vec4) -> Vec4 {
 }
 
 #[cfg(target_arch = "x86_64")]
-impl NodeTest<8> for Node<8> {
+impl NodeTest<8> for HasAvx2 {
+    type Lanes = Avx;
     #[inline(always)]
-    fn test(&self, r: &RayBox, tmax: f32) -> (u32, [f32; 8]) {
-        // SAFETY: a `Node<8>` exists only inside a `WideBvh<8>`, which `WideBvh::<8>::from_bvh2`
-        // builds only after detecting AVX2 ([`crate::simd::avx2`]).
-        unsafe { test8::<crate::simd::Avx>(self, r, tmax) }
+    fn test(self, n: &Node<8>, r: &RayBox, tmax: f32) -> (u32, [f32; 8]) {
+        test8::<Avx>(self, n, r, tmax)
+    }
+}
+
+/// The eight-child test in the portable lanes.
+impl NodeTest<8> for Plain {
+    type Lanes = Portable;
+    #[inline(always)]
+    fn test(self, n: &Node<8>, r: &RayBox, tmax: f32) -> (u32, [f32; 8]) {
+        test8::<Portable>(self, n, r, tmax)
     }
 }
 
 /// The eight-child node test: the four-child one's operations in eight lanes (`L::WIDTH` is 8).
-///
-/// # Safety
-/// The CPU must have `L`'s instruction set.
-#[cfg(target_arch = "x86_64")]
 #[inline(always)]
-unsafe fn test8<L: Lanes>(n: &Node<8>, r: &RayBox, tmax: f32) -> (u32, [f32; 8]) {
+fn test8<L: Lanes>(isa: L::Isa, n: &Node<8>, r: &RayBox, tmax: f32) -> (u32, [f32; 8]) {
     let mut entry = [0.0; 8];
-    // SAFETY: the caller's CPU has `L`'s instruction set.
-    let mask = unsafe {
-        let mut near = L::splat(NEAR_START);
-        let mut far = L::splat(f32::INFINITY);
-        for a in 0..3 {
-            let (o, inv) = (L::splat(r.origin[a]), L::splat(r.inv_dir[a]));
-            // `max_keep` / `min_keep` return their second operand when either is NaN.
-            near = L::load(&n.planes[r.near[a]]).sub(o).mul(inv).max_keep(near);
-            far = L::load(&n.planes[r.far[a]]).sub(o).mul(inv).min_keep(far);
-        }
-        let far = far.mul(L::splat(far_scale())).min_keep(L::splat(tmax));
-        near.store(&mut entry);
-        L::bits(near.le(far))
-    };
-    (mask, entry)
+    let mut near = L::splat(isa, NEAR_START);
+    let mut far = L::splat(isa, f32::INFINITY);
+    for a in 0..3 {
+        let (o, inv) = (L::splat(isa, r.origin[a]), L::splat(isa, r.inv_dir[a]));
+        // `max_keep` / `min_keep` return their second operand when either is NaN.
+        near = L::load(isa, &n.planes[r.near[a]]).sub(o).mul(inv).max_keep(near);
+        far = L::load(isa, &n.planes[r.far[a]]).sub(o).mul(inv).min_keep(far);
+    }
+    let far = far.mul(L::splat(isa, far_scale())).min_keep(L::splat(isa, tmax));
+    near.store(&mut entry);
+    (L::bits(near.le(far)), entry)
 }

@@ -27,21 +27,15 @@ pub(crate) struct RayPacket<L: Lanes> {
 #[cfg(target_arch = "x86_64")]
 impl<L: Lanes> RayPacket<L> {
     /// The node-test constants of a packet's rays.
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
     #[inline(always)]
-    pub(crate) unsafe fn new(rays: &RayLanes<L>) -> Self {
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        unsafe {
-            let zero = L::splat(0.0);
-            let inv = rays.inv_dir;
-            RayPacket {
-                origin: rays.origin,
-                inv_dir: inv,
-                negative: [inv[0].lt(zero), inv[1].lt(zero), inv[2].lt(zero)],
-                tmax: rays.tmax,
-            }
+    pub(crate) fn new(rays: &RayLanes<L>) -> Self {
+        let zero = L::splat(rays.tmax.isa(), 0.0);
+        let inv = rays.inv_dir;
+        RayPacket {
+            origin: rays.origin,
+            inv_dir: inv,
+            negative: [inv[0].lt(zero), inv[1].lt(zero), inv[2].lt(zero)],
+            tmax: rays.tmax,
         }
     }
 }
@@ -53,23 +47,19 @@ pub(crate) trait PacketNodeTest {
     /// Writes to `entered` the lanes that enter each child of `n`. (An out-parameter: a
     /// returned array was copied to the caller's with one wide load of the eight narrow stores
     /// just made, which the CPU cannot forward from its store buffer and so waits for.)
-    ///
-    /// # Safety
-    /// The CPU must have the packet's lane instruction set.
-    unsafe fn enter(&self, n: &Node<8>, entered: &mut [u32; 8]);
+    fn enter(&self, n: &Node<8>, entered: &mut [u32; 8]);
 }
 
 #[cfg(target_arch = "x86_64")]
 impl<L: Lanes> PacketNodeTest for RayPacket<L> {
     #[inline(always)]
-    unsafe fn enter(&self, n: &Node<8>, entered: &mut [u32; 8]) {
+    fn enter(&self, n: &Node<8>, entered: &mut [u32; 8]) {
         // Every child's test first, with no branch between them: each is a chain of dependent
         // operations ending in a lane mask, and eight independent chains overlap where a branch
         // on each mask would stall on it (an empty slot is an inverted box, which no ray enters).
         // (Loops, not closures: a closure is compiled without the caller's instruction set.)
         for (c, e) in entered.iter_mut().enumerate() {
-            // SAFETY: the caller's CPU has `L`'s instruction set.
-            *e = unsafe { n.test_packet(c, self, self.tmax) };
+            *e = n.test_packet(c, self, self.tmax);
         }
     }
 }
@@ -104,79 +94,69 @@ pub(crate) struct FusedPacket<L: Lanes> {
 #[cfg(target_arch = "x86_64")]
 impl<L: FusedLanes> FusedPacket<L> {
     /// The node-test constants of the packet `rays`, whose live lanes are `live`.
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
     #[inline(always)]
-    pub(crate) unsafe fn new(rays: &RayLanes<L>, live: u32) -> Self {
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        unsafe {
-            let zero = L::splat(0.0);
-            // 4u = 2⁻²²: scaling by a power of two is exact (short of underflow, where the
-            // offsets' roundings are exact too).
-            let margin = L::splat(f32::EPSILON * 2.0);
-            let mut near_offset = [zero; 3];
-            let mut far_offset = [zero; 3];
-            let mut negative = [L::mask(0); 3];
-            let mut bits = [0u32; 3];
-            for a in 0..3 {
-                let od = rays.origin[a].mul(rays.inv_dir[a]);
-                let moved = od.abs().mul(margin);
-                near_offset[a] = od.neg().sub(moved);
-                far_offset[a] = od.neg().add(moved);
-                negative[a] = rays.inv_dir[a].lt(zero);
-                bits[a] = L::bits(negative[a]) & live;
-            }
-            let octant = bits
-                .iter()
-                .all(|&b| b == 0 || b == live)
-                .then(|| plane_rows((0..3).fold(0, |m, a| m | ((bits[a] != 0) as u32) << a)));
-            FusedPacket { inv_dir: rays.inv_dir, near_offset, far_offset, negative, octant, tmax: rays.tmax }
+    pub(crate) fn new(rays: &RayLanes<L>, live: u32) -> Self {
+        let isa = rays.tmax.isa();
+        let zero = L::splat(isa, 0.0);
+        // 4u = 2⁻²²: scaling by a power of two is exact (short of underflow, where the
+        // offsets' roundings are exact too).
+        let margin = L::splat(isa, f32::EPSILON * 2.0);
+        let mut near_offset = [zero; 3];
+        let mut far_offset = [zero; 3];
+        let mut negative = [L::mask(isa, 0); 3];
+        let mut bits = [0u32; 3];
+        for a in 0..3 {
+            let od = rays.origin[a].mul(rays.inv_dir[a]);
+            let moved = od.abs().mul(margin);
+            near_offset[a] = od.neg().sub(moved);
+            far_offset[a] = od.neg().add(moved);
+            negative[a] = rays.inv_dir[a].lt(zero);
+            bits[a] = L::bits(negative[a]) & live;
         }
+        let octant = bits
+            .iter()
+            .all(|&b| b == 0 || b == live)
+            .then(|| plane_rows((0..3).fold(0, |m, a| m | ((bits[a] != 0) as u32) << a)));
+        FusedPacket { inv_dir: rays.inv_dir, near_offset, far_offset, negative, octant, tmax: rays.tmax }
     }
 
     /// The lanes that enter a child whose (near, far) planes on each axis are `planes`, in each
     /// lane's own choice of rows.
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
     #[inline(always)]
-    unsafe fn lanes_entering(&self, planes: [(L, L); 3]) -> u32 {
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        unsafe {
-            let mut near = L::splat(NEAR_START);
-            let mut far = L::splat(f32::INFINITY);
-            for (a, (near_plane, far_plane)) in planes.into_iter().enumerate() {
-                // maxps / minps return their second operand when either is NaN.
-                near = near_plane.mul_add(self.inv_dir[a], self.near_offset[a]).max_keep(near);
-                far = far_plane.mul_add(self.inv_dir[a], self.far_offset[a]).min_keep(far);
-            }
-            let far = far.mul(L::splat(far_scale())).min_keep(self.tmax);
-            L::bits(near.le(far))
+    fn lanes_entering(&self, planes: [(L, L); 3]) -> u32 {
+        let isa = self.tmax.isa();
+        let mut near = L::splat(isa, NEAR_START);
+        let mut far = L::splat(isa, f32::INFINITY);
+        for (a, (near_plane, far_plane)) in planes.into_iter().enumerate() {
+            // maxps / minps return their second operand when either is NaN.
+            near = near_plane.mul_add(self.inv_dir[a], self.near_offset[a]).max_keep(near);
+            far = far_plane.mul_add(self.inv_dir[a], self.far_offset[a]).min_keep(far);
         }
+        let far = far.mul(L::splat(isa, far_scale())).min_keep(self.tmax);
+        L::bits(near.le(far))
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 impl<L: FusedLanes> PacketNodeTest for FusedPacket<L> {
     #[inline(always)]
-    unsafe fn enter(&self, n: &Node<8>, entered: &mut [u32; 8]) {
+    fn enter(&self, n: &Node<8>, entered: &mut [u32; 8]) {
         // (Loops, not closures: a closure is compiled without the caller's instruction set.)
-        // SAFETY (all blocks): the caller's CPU has `L`'s instruction set.
-        let mut planes = unsafe { [(L::splat(0.0), L::splat(0.0)); 3] };
+        let isa = self.tmax.isa();
+        let mut planes = [(L::splat(isa, 0.0), L::splat(isa, 0.0)); 3];
         if let Some((near_row, far_row)) = self.octant {
             for (c, e) in entered.iter_mut().enumerate() {
                 for (a, plane) in planes.iter_mut().enumerate() {
-                    *plane = unsafe { (L::splat(n.planes[near_row[a]][c]), L::splat(n.planes[far_row[a]][c])) };
+                    *plane = (L::splat(isa, n.planes[near_row[a]][c]), L::splat(isa, n.planes[far_row[a]][c]));
                 }
-                *e = unsafe { self.lanes_entering(planes) };
+                *e = self.lanes_entering(planes);
             }
         } else {
             for (c, e) in entered.iter_mut().enumerate() {
                 for (a, plane) in planes.iter_mut().enumerate() {
-                    *plane = unsafe { n.lane_planes::<L>(c, a, self.negative[a]) };
+                    *plane = n.lane_planes::<L>(isa, c, a, self.negative[a]);
                 }
-                *e = unsafe { self.lanes_entering(planes) };
+                *e = self.lanes_entering(planes);
             }
         }
     }
@@ -198,39 +178,28 @@ pub(crate) const PACKET_MIN_LANES: u32 = 4;
 impl Node<8> {
     /// Child `c`'s near and far planes on axis `a` in each lane: its maximum and minimum in the
     /// lanes of `negative` (directions negative on the axis), its minimum and maximum elsewhere.
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
     #[inline(always)]
-    unsafe fn lane_planes<L: Lanes>(&self, c: usize, a: usize, negative: L::Mask) -> (L, L) {
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        unsafe {
-            let (lo, hi) = (L::splat(self.planes[a][c]), L::splat(self.planes[a + 3][c]));
-            (lo.select(negative, hi), hi.select(negative, lo))
-        }
+    fn lane_planes<L: Lanes>(&self, isa: L::Isa, c: usize, a: usize, negative: L::Mask) -> (L, L) {
+        let (lo, hi) = (L::splat(isa, self.planes[a][c]), L::splat(isa, self.planes[a + 3][c]));
+        (lo.select(negative, hi), hi.select(negative, lo))
     }
 
     /// The lanes of `p` that enter child `c`: the eight-child test's operations per ray, each
     /// ray's near and far planes picked by its own direction's signs, so every lane decides
     /// exactly as [`NodeTest::test`] does for that ray.
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
     #[inline(always)]
-    unsafe fn test_packet<L: Lanes>(&self, c: usize, p: &RayPacket<L>, tmax: L) -> u32 {
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        unsafe {
-            let mut near = L::splat(NEAR_START);
-            let mut far = L::splat(f32::INFINITY);
-            for a in 0..3 {
-                let (near_plane, far_plane) = self.lane_planes::<L>(c, a, p.negative[a]);
-                // maxps / minps return their second operand when either is NaN.
-                near = near_plane.sub(p.origin[a]).mul(p.inv_dir[a]).max_keep(near);
-                far = far_plane.sub(p.origin[a]).mul(p.inv_dir[a]).min_keep(far);
-            }
-            let far = far.mul(L::splat(far_scale())).min_keep(tmax);
-            L::bits(near.le(far))
+    fn test_packet<L: Lanes>(&self, c: usize, p: &RayPacket<L>, tmax: L) -> u32 {
+        let isa = tmax.isa();
+        let mut near = L::splat(isa, NEAR_START);
+        let mut far = L::splat(isa, f32::INFINITY);
+        for a in 0..3 {
+            let (near_plane, far_plane) = self.lane_planes::<L>(isa, c, a, p.negative[a]);
+            // maxps / minps return their second operand when either is NaN.
+            near = near_plane.sub(p.origin[a]).mul(p.inv_dir[a]).max_keep(near);
+            far = far_plane.sub(p.origin[a]).mul(p.inv_dir[a]).min_keep(far);
         }
+        let far = far.mul(L::splat(isa, far_scale())).min_keep(tmax);
+        L::bits(near.le(far))
     }
 }
 
@@ -245,11 +214,8 @@ impl WideBvh<8> {
     /// `leaf(first, count, lanes, stack)` tests a leaf against `lanes` and returns those it
     /// blocks; `single(node, lane, stack)` answers one ray from node `node`. Both may use
     /// `stack` above its length. Returns the blocked lanes.
-    ///
-    /// # Safety
-    /// The CPU must have the packet's instruction set (and AVX, for this eight-wide tree).
     #[inline(always)]
-    pub(crate) unsafe fn occluded_packet(
+    pub(crate) fn occluded_packet(
         &self,
         p: &impl PacketNodeTest,
         start: u32,
@@ -295,8 +261,7 @@ impl WideBvh<8> {
             }
             count(Event::PacketNodeTest);
             let n = &self.nodes[node as usize];
-            // SAFETY: the caller's CPU has the packet's instruction set.
-            unsafe { p.enter(n, &mut tested) };
+            p.enter(n, &mut tested);
             for (c, &t) in tested.iter().enumerate() {
                 // Only rays that entered this node, and are not yet blocked, go on to its children.
                 let entered = t & lanes & open;
@@ -329,26 +294,19 @@ impl WideBvh<8> {
     /// block the rays. No leaf a ray's segment can meet lies outside that subtree, so every
     /// ray gets the answer it gets from the root; each packet saves the node tests of the way
     /// down, which all its rays would take.
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set and AVX2.
     #[inline(always)]
-    pub(crate) unsafe fn entry_node_of<L: Lanes>(&self, rays: &RayLanes<L>, live: u32) -> Option<u32> {
-        // SAFETY: the caller's CPU has `L`'s instruction set and AVX2.
-        match unsafe { rays.segments_box(live, &self.bounds) } {
-            Some((lo, hi)) => unsafe { self.entry_node::<crate::simd::Avx>(lo, hi) },
+    pub(crate) fn entry_node_of<L: Lanes>(&self, test: impl NodeTest<8>, rays: &RayLanes<L>, live: u32) -> Option<u32> {
+        match rays.segments_box(live, &self.bounds) {
+            Some((lo, hi)) => self.entry_node(test, lo, hi),
             None => (!self.nodes.is_empty()).then_some(0),
         }
     }
 
     /// The deepest node under which lie all leaves whose boxes overlap `lo..hi` (going down
     /// while exactly one child overlaps it and is not a leaf), or `None` where no child of a
-    /// node on that way does; the children tested in eight lanes of `N`.
-    ///
-    /// # Safety
-    /// The CPU must have `N`'s instruction set.
+    /// node on that way does; the children tested in the eight lanes of `test`.
     #[inline(always)]
-    pub(crate) unsafe fn entry_node<N: Lanes>(&self, lo: glam::Vec3A, hi: glam::Vec3A) -> Option<u32> {
+    pub(crate) fn entry_node<T: NodeTest<8>>(&self, test: T, lo: glam::Vec3A, hi: glam::Vec3A) -> Option<u32> {
         if self.nodes.is_empty() {
             return None;
         }
@@ -356,16 +314,15 @@ impl WideBvh<8> {
         loop {
             let n = &self.nodes[node as usize];
             // An empty slot's inverted box overlaps nothing.
-            // SAFETY: the caller's CPU has `N`'s instruction set.
-            // (A loop, not a closure: a closure is compiled without the caller's instruction set.)
-            let overlap = unsafe {
-                let mut overlaps = N::mask(u32::MAX);
+            let overlap = {
+                type N<T> = <T as NodeTest<8>>::Lanes;
+                let mut overlaps = N::<T>::mask(test, u32::MAX);
                 for a in 0..3 {
-                    let below = N::load(&n.planes[a]).le(N::splat(hi[a]));
-                    let above = N::splat(lo[a]).le(N::load(&n.planes[a + 3]));
-                    overlaps = N::and(overlaps, N::and(below, above));
+                    let below = N::<T>::load(test, &n.planes[a]).le(N::<T>::splat(test, hi[a]));
+                    let above = N::<T>::splat(test, lo[a]).le(N::<T>::load(test, &n.planes[a + 3]));
+                    overlaps = N::<T>::and(overlaps, N::<T>::and(below, above));
                 }
-                N::bits(overlaps)
+                N::<T>::bits(overlaps)
             };
             if overlap == 0 {
                 return None;
@@ -388,12 +345,10 @@ impl WideBvh<8> {
     /// Every ray reaches every leaf its own [`WideBvh::closest`] could find its hit in (a leaf
     /// whose box it enters before its current `tmax`), so `tmax` ends at each ray's closest hit;
     /// which of several hits at exactly that distance is found first may differ.
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set (and AVX, for this eight-wide tree).
     #[inline(always)]
-    pub(crate) unsafe fn closest_packet<L: Lanes, T>(
+    pub(crate) fn closest_packet<L: Lanes, T>(
         &self,
+        test: impl NodeTest<8>,
         p: &RayPacket<L>,
         first_ray: &Ray,
         live: u32,
@@ -408,8 +363,8 @@ impl WideBvh<8> {
         let mut todo = [std::mem::MaybeUninit::<(u32, u32)>::uninit(); PACKET_STACK];
         let mut len = 1;
         todo[0].write((0, live));
-        // SAFETY (all blocks below): the caller's CPU has `L`'s instruction set.
-        let widened = |tmax: &[f32; 16]| unsafe { L::load(&tmax[..]).mul(L::splat(far_scale())) };
+        let isa = p.tmax.isa();
+        let widened = |tmax: &[f32; 16]| L::load(isa, &tmax[..]).mul(L::splat(isa, far_scale()));
         let mut tmax_lanes = widened(&hits.tmax);
         while len > 0 {
             len -= 1;
@@ -419,11 +374,11 @@ impl WideBvh<8> {
             let n = &self.nodes[node as usize];
             let mut tested = [0u32; 8];
             for (c, t) in tested.iter_mut().enumerate() {
-                *t = unsafe { n.test_packet(c, p, tmax_lanes) } & lanes;
+                *t = n.test_packet(c, p, tmax_lanes) & lanes;
             }
             // Leaves now; inner children pushed farthest first (for the first ray), so that the
             // nearest is popped next.
-            let (_, entry) = n.test(&order, f32::INFINITY);
+            let (_, entry) = test.test(n, &order, f32::INFINITY);
             let mut inner = [(0usize, 0f32); 8];
             let mut k = 0;
             for (c, &entered) in tested.iter().enumerate() {

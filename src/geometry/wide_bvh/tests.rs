@@ -15,7 +15,17 @@ use super::{
     packet::{FusedPacket, PacketNodeTest, RayPacket},
     *,
 };
-use crate::{geometry::lanes::RayLanes, random::SplitMix64};
+use crate::{geometry::lanes::RayLanes, random::SplitMix64, simd::Plain};
+
+/// `check(test)` for each eight-wide node test this CPU can run: the portable one, and AVX2's
+/// where it has AVX2 (the two decide alike, bit for bit).
+fn each_eight_test(mut check: impl FnMut(&dyn Fn(&WideBvh<8>, &Ray) -> (Leaves, Leaves))) {
+    check(&|tree, ray| visited(tree, Plain, ray));
+    #[cfg(target_arch = "x86_64")]
+    if let Some(isa) = crate::simd::HasAvx2::on_cpu() {
+        check(&|tree, ray| visited(tree, isa, ray));
+    }
+}
 
 /// Leaves as (first, count).
 type Leaves = BTreeSet<(u32, u32)>;
@@ -41,18 +51,15 @@ fn brute_force(bvh2: &[Bvh2Node], ray: &Ray) -> Leaves {
 }
 
 /// The leaves `tree` visits with a callback that never reports a hit, by both traversals.
-fn visited<const W: usize>(tree: &WideBvh<W>, ray: &Ray) -> (Leaves, Leaves)
-where
-    Node<W>: NodeTest<W>,
-{
+fn visited<const W: usize>(tree: &WideBvh<W>, test: impl NodeTest<W>, ray: &Ray) -> (Leaves, Leaves) {
     let mut stack = Vec::new();
     let mut any = Leaves::new();
-    tree.occluded(ray, &mut stack, |first, count, _| {
+    tree.occluded(test, ray, &mut stack, |first, count, _| {
         assert!(any.insert((first, count)), "leaf ({first}, {count}) visited twice");
         false
     });
     let mut nearest = Leaves::new();
-    tree.closest(&mut ray.clone(), &mut stack, |first, count, _, _| {
+    tree.closest(test, &mut ray.clone(), &mut stack, |first, count, _, _| {
         assert!(nearest.insert((first, count)), "leaf ({first}, {count}) visited twice");
     });
     assert!(stack.is_empty());
@@ -70,12 +77,14 @@ fn a_ray_leaving_a_flat_box_it_starts_on_enters_no_leaf() {
     let up = Ray::new(Vec3A::new(3.5, 0.0, 0.5), Vec3A::new(0.0, 1.0, 0.2).normalize(), f32::INFINITY);
     let down = Ray::new(Vec3A::new(3.5, 1.0, 0.5), Vec3A::new(0.0, -1.0, 0.2).normalize(), f32::INFINITY);
     let four = Bvh4::from_bvh2(&bvh2);
-    let (up4, down4) = (visited(&four, &up).0, visited(&four, &down).0);
+    let (up4, down4) = (visited(&four, Plain, &up).0, visited(&four, Plain, &down).0);
     assert_eq!(up4.len(), 1, "only the box above, not the floor under the origin: {up4:?}");
     assert_eq!(down4.len(), 1, "the floor box the ray comes down on: {down4:?}");
     assert_ne!(up4, down4);
     if let Some(eight) = Bvh8::from_bvh2(&bvh2) {
-        assert_eq!((visited(&eight, &up).0, visited(&eight, &down).0), (up4, down4));
+        each_eight_test(|visit| {
+            assert_eq!((visit(&eight, &up).0, visit(&eight, &down).0), (up4.clone(), down4.clone()))
+        });
     }
 }
 
@@ -85,22 +94,23 @@ fn a_ray_leaving_a_flat_box_it_starts_on_enters_no_leaf() {
 #[cfg(target_arch = "x86_64")]
 #[test]
 fn a_packet_visits_exactly_the_leaves_each_ray_enters() {
-    use crate::simd::{Avx, Avx512};
+    use crate::simd::{Avx, Avx512, HasAvx2, HasAvx512, Portable};
     for (offset, size) in [(0.0, 1.0), (3.0e4, 1.0e-2)] {
         let (bvh2, tree) = packet_test_scene(offset, size);
         let Some(tree) = tree else {
-            eprintln!("no AVX on this CPU: packets are not used and not tested");
+            eprintln!("no eight-wide trees on this architecture: packets are not used and not tested");
             return;
         };
-        // SAFETY: the eight-wide tree exists, so the CPU has AVX; AVX-512 is checked.
-        unsafe {
-            packets_visit_the_leaves_rays_enter::<Avx, _>(&bvh2, &tree, offset, size, |r, _| RayPacket::new(r), true);
-        }
-        if crate::simd::cpu_isa() >= crate::simd::Isa::Avx512 {
-            unsafe {
-                let general = |r: &RayLanes<Avx512>, _| RayPacket::new(r);
-                packets_visit_the_leaves_rays_enter::<Avx512, _>(&bvh2, &tree, offset, size, general, true);
-            }
+        let general = |r: &RayLanes<Portable>, _| RayPacket::new(r);
+        packets_visit_the_leaves_rays_enter::<Portable, _>(Plain, &bvh2, &tree, offset, size, general, true);
+        let Some(isa) = HasAvx2::on_cpu() else {
+            eprintln!("no AVX2 on this CPU: eight-lane vector packets are not used and not tested");
+            return;
+        };
+        packets_visit_the_leaves_rays_enter::<Avx, _>(isa, &bvh2, &tree, offset, size, |r, _| RayPacket::new(r), true);
+        if let Some(isa) = HasAvx512::on_cpu() {
+            let general = |r: &RayLanes<Avx512>, _| RayPacket::new(r);
+            packets_visit_the_leaves_rays_enter::<Avx512, _>(isa, &bvh2, &tree, offset, size, general, true);
         } else {
             eprintln!("no AVX-512 on this CPU: sixteen-lane packets are not used and not tested");
         }
@@ -110,33 +120,33 @@ fn a_packet_visits_exactly_the_leaves_each_ray_enters() {
 #[cfg(target_arch = "x86_64")]
 #[test]
 fn a_fused_packet_visits_every_leaf_each_ray_truly_enters() {
-    use crate::simd::{Avx, Avx512};
+    use crate::simd::{Avx, Avx512, HasAvx2, HasAvx512, Portable};
     for (offset, size) in [(0.0, 1.0), (3.0e4, 1.0e-2)] {
         let (bvh2, tree) = packet_test_scene(offset, size);
         let Some(tree) = tree else {
-            eprintln!("no AVX2 on this CPU: packets are not used and not tested");
+            eprintln!("no eight-wide trees on this architecture: packets are not used and not tested");
             return;
         };
-        // SAFETY: the eight-wide tree exists, so the CPU has AVX2 and FMA.
-        unsafe {
-            let fused = |r: &RayLanes<Avx>, live| FusedPacket::new(r, live);
-            packets_visit_the_leaves_rays_enter::<Avx, _>(&bvh2, &tree, offset, size, fused, false);
-        }
-        if crate::simd::cpu_isa() < crate::simd::Isa::Avx512 {
+        let fused = |r: &RayLanes<Portable>, live| FusedPacket::new(r, live);
+        packets_visit_the_leaves_rays_enter::<Portable, _>(Plain, &bvh2, &tree, offset, size, fused, false);
+        let Some(isa) = HasAvx2::on_cpu() else {
+            eprintln!("no AVX2 on this CPU: eight-lane vector packets are not used and not tested");
+            return;
+        };
+        let fused = |r: &RayLanes<Avx>, live| FusedPacket::new(r, live);
+        packets_visit_the_leaves_rays_enter::<Avx, _>(isa, &bvh2, &tree, offset, size, fused, false);
+        let Some(isa) = HasAvx512::on_cpu() else {
             eprintln!("no AVX-512 on this CPU: sixteen-lane fused packets are not used and not tested");
             continue;
-        }
-        // SAFETY: the CPU has AVX-512F (checked above) and AVX2.
-        unsafe {
-            let fused = |r: &RayLanes<Avx512>, live| FusedPacket::new(r, live);
-            packets_visit_the_leaves_rays_enter::<Avx512, _>(&bvh2, &tree, offset, size, fused, false);
-        }
+        };
+        let fused = |r: &RayLanes<Avx512>, live| FusedPacket::new(r, live);
+        packets_visit_the_leaves_rays_enter::<Avx512, _>(isa, &bvh2, &tree, offset, size, fused, false);
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 /// 3,000 random boxes of up to 1.5·`size` in a cube of 20·`size` around (`offset`, 0, 0),
-/// plus eight flat ones on y = 0, as a BVH2 and its eight-wide tree (`None` without AVX).
+/// plus eight flat ones on y = 0, as a BVH2 and its eight-wide tree (`None` on other architectures).
 fn packet_test_scene(offset: f32, size: f32) -> (Vec<Bvh2Node>, Option<Bvh8>) {
     let mut rng = SplitMix64::new(17);
     let base = Vec3::new(offset, 0.0, 0.0);
@@ -189,11 +199,9 @@ fn truly_entered(bvh2: &[Bvh2Node], ray: &Ray) -> Leaves {
 /// own ray's node test ([`brute_force`]); else every leaf it truly enters
 /// ([`truly_entered`]) and only leaves whose box, grown by a thousandth of `size`, its own
 /// node test enters.
-///
-/// # Safety
-/// The CPU must have `L`'s instruction set and AVX.
 #[cfg(target_arch = "x86_64")]
-unsafe fn packets_visit_the_leaves_rays_enter<L: crate::geometry::lanes::PacketLanes, P: PacketNodeTest>(
+fn packets_visit_the_leaves_rays_enter<L: crate::geometry::lanes::PacketLanes, P: PacketNodeTest>(
+    isa: L::Isa,
     bvh2: &[Bvh2Node],
     tree: &Bvh8,
     offset: f32,
@@ -237,10 +245,9 @@ unsafe fn packets_visit_the_leaves_rays_enter<L: crate::geometry::lanes::PacketL
             count.set(count.get() + 1);
         };
         let mut stack = Vec::new();
-        // SAFETY: the caller's CPU has `L`'s instruction set and AVX.
-        let blocked = unsafe {
+        let blocked = {
             tree.occluded_packet(
-                &test(&L::rays(&rays), live),
+                &test(&L::rays(isa, &rays), live),
                 0,
                 live,
                 &mut stack,
@@ -251,7 +258,7 @@ unsafe fn packets_visit_the_leaves_rays_enter<L: crate::geometry::lanes::PacketL
                     0
                 },
                 |node, lane, stack| {
-                    tree.occluded_from(node, &rays[lane], stack, |first, count, _| {
+                    tree.occluded_from(L::node_test8(isa), node, &rays[lane], stack, |first, count, _| {
                         visit(lane, (first, count), &single_leaves);
                         false
                     })
@@ -305,7 +312,7 @@ fn the_entry_node_holds_every_leaf_a_box_overlaps() {
     for (offset, size) in [(0.0, 1.0), (3.0e4, 1.0e-2)] {
         let (bvh2, tree) = packet_test_scene(offset, size);
         let Some(tree) = tree else {
-            eprintln!("no AVX2 on this CPU: packets are not used and not tested");
+            eprintln!("no eight-wide trees on this architecture: packets are not used and not tested");
             return;
         };
         let mut rng = SplitMix64::new(19);
@@ -322,8 +329,11 @@ fn the_entry_node_holds_every_leaf_a_box_overlaps() {
                 .filter(|n| n.aabb().min.cmple(hi).all() && n.aabb().max.cmpge(lo).all())
                 .map(|n| (n.first_index, n.prim_count))
                 .collect();
-            // SAFETY: the eight-wide tree exists, so the CPU has AVX2.
-            match unsafe { tree.entry_node::<crate::simd::Avx>(lo, hi) } {
+            let entry = tree.entry_node(Plain, lo, hi);
+            if let Some(isa) = crate::simd::HasAvx2::on_cpu() {
+                assert_eq!(tree.entry_node(isa, lo, hi), entry, "box {q}: AVX2 and portable lanes differ");
+            }
+            match entry {
                 None => {
                     assert!(overlapping.is_empty(), "box {q}: no entry, yet it overlaps {overlapping:?}");
                     empty += 1;
@@ -450,7 +460,7 @@ fn both_widths_visit_exactly_the_leaves_the_ray_enters() {
     let four = Bvh4::from_bvh2(&bvh2);
     let eight = Bvh8::from_bvh2(&bvh2);
     if eight.is_none() {
-        eprintln!("no AVX on this CPU: the eight-wide tree is not built and not tested");
+        eprintln!("no eight-wide trees on this architecture: not built and not tested");
     }
     let mut rng = SplitMix64::new(8);
     let mut entered = 0;
@@ -466,9 +476,11 @@ fn both_widths_visit_exactly_the_leaves_the_ray_enters() {
         let ray = Ray::new(origin, dir.normalize_or(Vec3A::X), tmax);
         let expected = brute_force(&bvh2, &ray);
         entered += expected.len();
-        assert_eq!(visited(&four, &ray), (expected.clone(), expected.clone()), "4-wide, ray {i}");
+        assert_eq!(visited(&four, Plain, &ray), (expected.clone(), expected.clone()), "4-wide, ray {i}");
         if let Some(eight) = &eight {
-            assert_eq!(visited(eight, &ray), (expected.clone(), expected), "8-wide, ray {i}");
+            each_eight_test(|visit| {
+                assert_eq!(visit(eight, &ray), (expected.clone(), expected.clone()), "8-wide, ray {i}")
+            });
         }
     }
     assert!(entered > 4_000, "rays should enter many leaves ({entered})");

@@ -1,45 +1,46 @@
 //! Single-ray traversal: any hit and closest hit, front to back.
 
-use super::{LEAF, Node, NodeTest, RayBox, WideBvh, far_scale, prefetch};
+use super::{LEAF, NodeTest, RayBox, WideBvh, far_scale, prefetch};
 use crate::geometry::{
     counters::{Event, count},
     ray::Ray,
 };
 
-impl<const W: usize> WideBvh<W>
-where
-    Node<W>: NodeTest<W>,
-{
+/// Each traversal takes the node test's token (`test`), which proves the CPU may run it.
+impl<const W: usize> WideBvh<W> {
     /// Any-hit traversal: calls `leaf(first, count, stack)` for leaves the ray enters, in no
     /// particular order, until one returns true. Uses `stack` above its current length only.
     #[inline(always)]
-    pub fn occluded(
+    pub(crate) fn occluded(
         &self,
+        test: impl NodeTest<W>,
         ray: &Ray,
         stack: &mut Vec<(u32, f32)>,
         leaf: impl FnMut(u32, u32, &mut Vec<(u32, f32)>) -> bool,
     ) -> bool {
-        self.occluded_from(0, ray, stack, leaf)
+        self.occluded_from(test, 0, ray, stack, leaf)
     }
 
     /// [`WideBvh::occluded`] of the subtree under node `start`.
     #[inline(always)]
-    pub fn occluded_from(
+    pub(crate) fn occluded_from(
         &self,
+        test: impl NodeTest<W>,
         start: u32,
         ray: &Ray,
         stack: &mut Vec<(u32, f32)>,
         leaf: impl FnMut(u32, u32, &mut Vec<(u32, f32)>) -> bool,
     ) -> bool {
-        self.occluded_from_touch(start, ray, stack, leaf, |_, _| {})
+        self.occluded_from_touch(test, start, ray, stack, leaf, |_, _| {})
     }
 
     /// [`WideBvh::occluded_from`], calling `touch(first, count)` for each leaf as soon as
     /// the ray is known to enter it, before visiting any of the node's children (to prefetch
     /// its primitives); the child nodes it enters are prefetched at the same point.
     #[inline(always)]
-    pub fn occluded_from_touch(
+    pub(crate) fn occluded_from_touch(
         &self,
+        test: impl NodeTest<W>,
         start: u32,
         ray: &Ray,
         stack: &mut Vec<(u32, f32)>,
@@ -55,7 +56,7 @@ where
         loop {
             count(Event::NodeTest);
             let n = &self.nodes[node as usize];
-            let (mut mask, _) = n.test(&r, ray.tmax);
+            let (mut mask, _) = test.test(n, &r, ray.tmax);
             let mut hits = mask;
             while hits != 0 {
                 let i = hits.trailing_zeros() as usize;
@@ -105,8 +106,9 @@ where
     /// boundary is never lost to rounding, whatever order the leaves come in: this and
     /// the packet traversal (`closest_packet`) always find the same closest distance.
     #[inline(always)]
-    pub fn closest(
+    pub(crate) fn closest(
         &self,
+        test: impl NodeTest<W>,
         ray: &mut Ray,
         stack: &mut Vec<(u32, f32)>,
         mut leaf: impl FnMut(u32, u32, &mut Ray, &mut Vec<(u32, f32)>),
@@ -126,7 +128,7 @@ where
             } else {
                 count(Event::NodeTest);
                 let n = &self.nodes[item as usize];
-                let (mut mask, near) = n.test(&r, ray.tmax * far_scale());
+                let (mut mask, near) = test.test(n, &r, ray.tmax * far_scale());
                 if mask != 0 {
                     let code = |i: usize| if n.count[i] > 0 { LEAF | (item << 3) | i as u32 } else { n.child[i] };
                     // Hit children sorted by entry distance (insertion sort of at most W).

@@ -35,10 +35,9 @@ pub(super) struct CompressedRun<'a> {
 impl<L: PassLanes + CompressLanes> Kernel<L> for CompressedRun<'_> {
     type Output = (u64, u64);
     #[inline(always)]
-    unsafe fn run(self) -> (u64, u64) {
+    fn run(self, isa: L::Isa) -> (u64, u64) {
         let CompressedRun { rays, geometry, stack, spawn, frame, terms, arriving } = self;
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        unsafe { rays.add_cosine_compressed::<L>(geometry, stack, spawn, frame, terms, arriving) }
+        rays.add_cosine_compressed::<L>(isa, geometry, stack, spawn, frame, terms, arriving)
     }
 }
 
@@ -48,13 +47,12 @@ impl DirectionRays {
     /// mapped to directions ([`cosine_hemisphere_lanes`]) and sorted into the quadrants of
     /// [`DirectionRays::add_lanes`] by lane compression; packets load their lanes straight from
     /// those columns.
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
-    pub(super) unsafe fn add_cosine_compressed<L: PassLanes + CompressLanes>(
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn add_cosine_compressed<L: PassLanes + CompressLanes>(
         &mut self,
+        isa: L::Isa,
         geometry: &SceneGeometry,
         stack: &mut Vec<(u32, f32)>,
         spawn: &SpawnOrigins,
@@ -84,16 +82,14 @@ impl DirectionRays {
             let mut count = [0u32; 4];
             for g in 0..groups {
                 let at = g * w;
-                // SAFETY (this block): the caller's CPU has `L`'s instruction set; the columns
-                // hold whole groups.
-                let masks = unsafe {
-                    let local = cosine_hemisphere_lanes(L::load(&xs[at..]), L::load(&ys[at..]));
+                let masks = {
+                    let local = cosine_hemisphere_lanes(L::load(isa, &xs[at..]), L::load(isa, &ys[at..]));
                     let d = to_world(frame, local);
                     for (column, lanes) in [&mut *dx, &mut *dy, &mut *dz].into_iter().zip(d) {
                         lanes.store(&mut column[at..]);
                     }
                     let valid = (1u32 << (n - at).min(w)) - 1;
-                    let zero = L::splat(0.0);
+                    let zero = L::splat(isa, 0.0);
                     let negative = [L::bits(along(&d, tu).lt(zero)), L::bits(along(&d, tv).lt(zero))];
                     quadrant_lanes(valid, negative)
                 };
@@ -115,16 +111,10 @@ impl DirectionRays {
                         continue;
                     }
                     let to = *cursor as usize;
-                    // SAFETY (this block): the caller's CPU has `L`'s instruction set; the
-                    // loads read one group of the sample columns and the stores write the
-                    // quadrant's next `lanes.count_ones()` entries, within the `traced` of each
-                    // ray column.
-                    unsafe {
-                        for (from, to_column) in [&*dx, &*dy, &*dz].into_iter().zip(&mut self.ray_dirs) {
-                            L::load(&from[at..]).compress_store(lanes, &mut to_column[to..]);
-                        }
-                        L::compress_indices(at as u32, lanes, &mut self.ray_samples[to..]);
+                    for (from, to_column) in [&*dx, &*dy, &*dz].into_iter().zip(&mut self.ray_dirs) {
+                        L::load(isa, &from[at..]).compress_store(lanes, &mut to_column[to..]);
                     }
+                    L::compress_indices(isa, at as u32, lanes, &mut self.ray_samples[to..]);
                     *cursor += lanes.count_ones();
                 }
             }
@@ -133,11 +123,10 @@ impl DirectionRays {
             stack.clear();
             for p in (0..traced).step_by(w) {
                 let live = (1u32 << (traced - p).min(w)) - 1;
-                // SAFETY: the caller's CPU has `L`'s instruction set; the loads read the
-                // packet's `live` rays, the rest of the ray columns from `p`.
-                let (hit, took) = unsafe {
+                let (hit, took) = {
                     let [x, y, z] = &self.ray_dirs;
-                    let d = [L::load_partial(&x[p..]), L::load_partial(&y[p..]), L::load_partial(&z[p..])];
+                    let d =
+                        [L::load_partial(isa, &x[p..]), L::load_partial(isa, &y[p..]), L::load_partial(isa, &z[p..])];
                     let lanes = spawned_lanes(d, spawn, terms.max_distance);
                     occluded_lanes(geometry, stack, &lanes, live, self.timing)
                 };
@@ -151,8 +140,7 @@ impl DirectionRays {
             }
         }
         for (sums, &dark) in arriving.chunks_mut(w).zip(&self.dark) {
-            // SAFETY: the caller's CPU has `L`'s instruction set.
-            unsafe { add_clear_or_floor::<L>(clear, floor, dark, sums) };
+            add_clear_or_floor::<L>(isa, clear, floor, dark, sums);
         }
         (traced as u64, cycles)
     }
@@ -164,14 +152,12 @@ impl DirectionRays {
     /// ([`CosineTable`](crate::sampling::cosine_table::CosineTable)) in that order, with no columns written and no sort; then each sample's
     /// answer is read back by its slot, in sample order, or, for a sum, the blocked ones
     /// counted. Each sample gets the same ray, answer and light as in [`DirectionRays::add`].
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    pub(super) unsafe fn add_cosine_quadrants<L: PassLanes>(
+    pub(super) fn add_cosine_quadrants<L: PassLanes>(
         &mut self,
+        isa: L::Isa,
         geometry: &SceneGeometry,
         stack: &mut Vec<(u32, f32)>,
         spawn: &SpawnOrigins,
@@ -191,9 +177,8 @@ impl DirectionRays {
             let mut blocked = [0u32; 16];
             if tracing {
                 for (packet, local) in table.pattern(p).chunks_exact(3 * L::WIDTH).enumerate() {
-                    // SAFETY (every block below): the caller's CPU has `L`'s instruction set.
-                    let (hit, took) = unsafe {
-                        let local = [0, 1, 2].map(|axis| L::load(&local[axis * L::WIDTH..]));
+                    let (hit, took) = {
+                        let local = [0, 1, 2].map(|axis| L::load(isa, &local[axis * L::WIDTH..]));
                         let lanes = spawned_lanes(to_world(frame, local), spawn, terms.max_distance);
                         occluded_lanes(geometry, stack, &lanes, all, self.timing)
                     };
@@ -207,9 +192,9 @@ impl DirectionRays {
                 dark += blocked.iter().map(|b| b.count_ones()).sum::<u32>();
                 continue;
             };
-            let pattern = unsafe { QuadrantPattern::<L>::new(cmj, p) };
+            let pattern = QuadrantPattern::<L>::new(isa, cmj, p);
             for (group, sums) in arriving[pass * n..][..n].chunks_mut(L::WIDTH).enumerate() {
-                unsafe { add_clear_or_floor::<L>(clear, floor, pattern.marked(group, &blocked), sums) };
+                add_clear_or_floor::<L>(isa, clear, floor, pattern.marked(group, &blocked), sums);
             }
         }
         if let QuadrantOut::Sum(samples, sum) = out {

@@ -37,10 +37,9 @@ pub(super) struct AddRun<'a> {
 impl<L: PacketLanes> Kernel<L> for AddRun<'_> {
     type Output = (u64, u64);
     #[inline(always)]
-    unsafe fn run(self) -> (u64, u64) {
+    fn run(self, isa: L::Isa) -> (u64, u64) {
         let AddRun { rays, geometry, stack, spawn, run, terms, arriving } = self;
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        unsafe { rays.add_lanes::<L>(geometry, stack, spawn, run, terms, arriving) }
+        rays.add_lanes::<L>(isa, geometry, stack, spawn, run, terms, arriving)
     }
 }
 
@@ -54,13 +53,12 @@ impl DirectionRays {
     /// normal) stays together deeper than one from the world octants, whose pieces of a
     /// hemisphere can be thin slivers, and fewer of its rays go on alone, which traces faster
     /// than packets by octant on every peer scene but the dragon (the same there).
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
-    unsafe fn add_lanes<L: PacketLanes>(
+    #[allow(clippy::too_many_arguments)]
+    fn add_lanes<L: PacketLanes>(
         &mut self,
+        isa: L::Isa,
         geometry: &SceneGeometry,
         stack: &mut Vec<(u32, f32)>,
         spawn: &SpawnOrigins,
@@ -72,8 +70,7 @@ impl DirectionRays {
         let width = L::WIDTH;
         let groups = n.div_ceil(width);
         let floor = Vec3A::from(terms.radiance * terms.floor);
-        // SAFETY (every block below): the caller's CPU has `L`'s instruction set.
-        let zero = unsafe { L::splat(0.0) };
+        let zero = L::splat(isa, 0.0);
         // Which lanes need a ray (a positive weight whose clear value differs from the floor),
         // their quadrants counted.
         self.groups.clear();
@@ -82,12 +79,12 @@ impl DirectionRays {
         let (u, v) = (Vec3A::from(tangents.u), Vec3A::from(tangents.v));
         let mut count = [0u32; 4];
         for g in 0..groups {
-            let masks = unsafe {
-                let (w, c) = clear_lanes::<L>(run, terms, g);
-                let [x, y, z] = dir_lanes::<L>(run, g);
-                let differs = L::bits(c[0].ne(L::splat(floor.x)))
-                    | L::bits(c[1].ne(L::splat(floor.y)))
-                    | L::bits(c[2].ne(L::splat(floor.z)));
+            let masks = {
+                let (w, c) = clear_lanes::<L>(isa, run, terms, g);
+                let [x, y, z] = dir_lanes::<L>(isa, run, g);
+                let differs = L::bits(c[0].ne(L::splat(isa, floor.x)))
+                    | L::bits(c[1].ne(L::splat(isa, floor.y)))
+                    | L::bits(c[2].ne(L::splat(isa, floor.z)));
                 let valid = (1u32 << (n - g * width).min(width)) - 1;
                 let negative = [L::bits(along(&[x, y, z], u).lt(zero)), L::bits(along(&[x, y, z], v).lt(zero))];
                 quadrant_lanes(L::bits(w.gt(zero)) & differs & valid, negative)
@@ -112,27 +109,25 @@ impl DirectionRays {
             }
             // Each lane's place: its quadrant's next, counting the lanes before it in that
             // quadrant, or past the rays for none.
-            let at = unsafe { L::places(masks, &cursor, traced as u32) };
+            let at = L::places(isa, masks, &cursor, traced as u32);
             for (cursor, lanes) in cursor.iter_mut().zip(masks) {
                 *cursor += lanes.count_ones();
             }
-            unsafe {
-                let [x, y, z] = dir_lanes::<L>(run, g);
-                // Behind the surface: the same products and sums as `SpawnOrigins::towards`.
-                let behind = along(&[x, y, z], normal).lt(zero);
-                let one = L::splat(1.0);
-                let lanes = RayLanes {
-                    origin: [
-                        L::splat(front.x).select(behind, L::splat(back.x)),
-                        L::splat(front.y).select(behind, L::splat(back.y)),
-                        L::splat(front.z).select(behind, L::splat(back.z)),
-                    ],
-                    dir: [x, y, z],
-                    inv_dir: [one.div(x), one.div(y), one.div(z)],
-                    tmax: L::splat(terms.max_distance),
-                };
-                L::write_rays(&lanes, &mut self.rays, &at);
-            }
+            let [x, y, z] = dir_lanes::<L>(isa, run, g);
+            // Behind the surface: the same products and sums as `SpawnOrigins::towards`.
+            let behind = along(&[x, y, z], normal).lt(zero);
+            let one = L::splat(isa, 1.0);
+            let lanes = RayLanes {
+                origin: [
+                    L::splat(isa, front.x).select(behind, L::splat(isa, back.x)),
+                    L::splat(isa, front.y).select(behind, L::splat(isa, back.y)),
+                    L::splat(isa, front.z).select(behind, L::splat(isa, back.z)),
+                ],
+                dir: [x, y, z],
+                inv_dir: [one.div(x), one.div(y), one.div(z)],
+                tmax: L::splat(isa, terms.max_distance),
+            };
+            L::write_rays(&lanes, &mut self.rays, &at);
             self.slots[g * width..(g + 1) * width].copy_from_slice(&at[..width]);
         }
         let cycles = self.trace(geometry, stack, traced, RayOrder::Grouped);
@@ -143,14 +138,12 @@ impl DirectionRays {
             for (k, &slot) in self.slots[g * width..g * width + sums.len()].iter().enumerate() {
                 dark |= u32::from(self.blocked[slot as usize]) << k;
             }
-            unsafe {
-                let (w, c) = clear_lanes::<L>(run, terms, g);
-                let dark = L::mask(dark | L::bits(w.le(zero)));
-                let x = c[0].select(dark, L::splat(floor.x));
-                let y = c[1].select(dark, L::splat(floor.y));
-                let z = c[2].select(dark, L::splat(floor.z));
-                add_group(x, y, z, sums);
-            }
+            let (w, c) = clear_lanes::<L>(isa, run, terms, g);
+            let dark = L::mask(isa, dark | L::bits(w.le(zero)));
+            let x = c[0].select(dark, L::splat(isa, floor.x));
+            let y = c[1].select(dark, L::splat(isa, floor.y));
+            let z = c[2].select(dark, L::splat(isa, floor.z));
+            add_group(x, y, z, sums);
         }
         (traced as u64, cycles)
     }
@@ -158,19 +151,15 @@ impl DirectionRays {
 
 /// Adds each lane's x, y and z to its sample's sum in `sums`, one group of at most `L::WIDTH`
 /// samples (lanes past its end are dropped).
-///
-/// # Safety
-/// The CPU must have `L`'s instruction set.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-unsafe fn add_group<L: Lanes>(x: L, y: L, z: L, sums: &mut [Vec3A]) {
-    // SAFETY (both blocks): the caller's CPU has `L`'s instruction set.
+fn add_group<L: Lanes>(x: L, y: L, z: L, sums: &mut [Vec3A]) {
     if sums.len() == L::WIDTH {
-        unsafe { L::add_to(x, y, z, sums) };
+        L::add_to(x, y, z, sums);
     } else {
         // −0 + v is v, bit for bit, for every v.
         let mut full = [Vec3A::splat(-0.0); 16];
-        unsafe { L::add_to(x, y, z, &mut full) };
+        L::add_to(x, y, z, &mut full);
         for (sum, add) in sums.iter_mut().zip(full) {
             *sum += add;
         }
@@ -179,18 +168,12 @@ unsafe fn add_group<L: Lanes>(x: L, y: L, z: L, sums: &mut [Vec3A]) {
 
 /// Adds `clear` to each sample of `sums` (at most `L::WIDTH`) whose bit in `dark` is clear,
 /// and `floor` to the others.
-///
-/// # Safety
-/// The CPU must have `L`'s instruction set.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-pub(super) unsafe fn add_clear_or_floor<L: Lanes>(clear: Vec3A, floor: Vec3A, dark: u32, sums: &mut [Vec3A]) {
-    // SAFETY: the caller's CPU has `L`'s instruction set.
-    unsafe {
-        let dark = L::mask(dark);
-        let pick = |c: f32, f: f32| L::splat(c).select(dark, L::splat(f));
-        add_group(pick(clear.x, floor.x), pick(clear.y, floor.y), pick(clear.z, floor.z), sums);
-    }
+pub(super) fn add_clear_or_floor<L: Lanes>(isa: L::Isa, clear: Vec3A, floor: Vec3A, dark: u32, sums: &mut [Vec3A]) {
+    let dark = L::mask(isa, dark);
+    let pick = |c: f32, f: f32| L::splat(isa, c).select(dark, L::splat(isa, f));
+    add_group(pick(clear.x, floor.x), pick(clear.y, floor.y), pick(clear.z, floor.z), sums);
 }
 
 /// Lanes that trace whole passes of quadrant patterns
@@ -219,63 +202,51 @@ pub(super) struct QuadrantRun<'a, I> {
 impl<L: PassLanes, I: Iterator<Item = u32>> Kernel<L> for QuadrantRun<'_, I> {
     type Output = (u64, u64);
     #[inline(always)]
-    unsafe fn run(self) -> (u64, u64) {
+    fn run(self, isa: L::Isa) -> (u64, u64) {
         let QuadrantRun { rays, geometry, stack, spawn, frame, passes, terms, out } = self;
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        unsafe { rays.add_cosine_quadrants::<L>(geometry, stack, spawn, frame, passes, terms, out) }
+        rays.add_cosine_quadrants::<L>(isa, geometry, stack, spawn, frame, passes, terms, out)
     }
 }
 
 /// Local directions (x, y and z lanes) in `frame`, in world space: `u·x + v·y + w·z`,
 /// component by component (the frame's `to_world`).
-///
-/// # Safety
-/// The CPU must have `L`'s instruction set.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-pub(super) unsafe fn to_world<L: Lanes>(frame: &Onb, [x, y, z]: [L; 3]) -> [L; 3] {
+pub(super) fn to_world<L: Lanes>(frame: &Onb, [x, y, z]: [L; 3]) -> [L; 3] {
     let (u, v, w) = (frame.u, frame.v, frame.w);
-    // SAFETY: the caller's CPU has `L`'s instruction set.
-    let world = |a: usize| unsafe { L::splat(u[a]).mul(x).add(L::splat(v[a]).mul(y)).add(L::splat(w[a]).mul(z)) };
+    let isa = x.isa();
+    let world = |a: usize| L::splat(isa, u[a]).mul(x).add(L::splat(isa, v[a]).mul(y)).add(L::splat(isa, w[a]).mul(z));
     [world(0), world(1), world(2)]
 }
 
 /// Shadow rays along `d` (x, y and z lanes) leaving `spawn`, each from the side of the surface
 /// its direction points to (the same products and sums as `SpawnOrigins::towards`), up to
 /// `tmax`.
-///
-/// # Safety
-/// The CPU must have `L`'s instruction set.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-pub(super) unsafe fn spawned_lanes<L: Lanes>(d: [L; 3], spawn: &SpawnOrigins, tmax: f32) -> RayLanes<L> {
+pub(super) fn spawned_lanes<L: Lanes>(d: [L; 3], spawn: &SpawnOrigins, tmax: f32) -> RayLanes<L> {
     let (front, back) = spawn.sides();
-    // SAFETY: the caller's CPU has `L`'s instruction set.
-    unsafe {
-        let k = |x: f32| L::splat(x);
-        let behind = along(&d, spawn.normal()).lt(k(0.0));
-        let one = k(1.0);
-        RayLanes {
-            origin: [
-                k(front.x).select(behind, k(back.x)),
-                k(front.y).select(behind, k(back.y)),
-                k(front.z).select(behind, k(back.z)),
-            ],
-            dir: d,
-            inv_dir: [one.div(d[0]), one.div(d[1]), one.div(d[2])],
-            tmax: k(tmax),
-        }
+    let isa = d[0].isa();
+    let k = |x: f32| L::splat(isa, x);
+    let behind = along(&d, spawn.normal()).lt(k(0.0));
+    let one = k(1.0);
+    RayLanes {
+        origin: [
+            k(front.x).select(behind, k(back.x)),
+            k(front.y).select(behind, k(back.y)),
+            k(front.z).select(behind, k(back.z)),
+        ],
+        dir: d,
+        inv_dir: [one.div(d[0]), one.div(d[1]), one.div(d[2])],
+        tmax: k(tmax),
     }
 }
 
 /// The lanes of `live` whose ray in `lanes` something in `geometry` blocks, and the cycles
 /// the query took ([`cycle_count`]) when `timing` (0 otherwise).
-///
-/// # Safety
-/// The CPU must have `L`'s instruction set.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-pub(super) unsafe fn occluded_lanes<L: PassLanes>(
+pub(super) fn occluded_lanes<L: PassLanes>(
     geometry: &SceneGeometry,
     stack: &mut Vec<(u32, f32)>,
     lanes: &RayLanes<L>,
@@ -297,49 +268,35 @@ pub(super) unsafe fn occluded_lanes<L: PassLanes>(
         tmax: lanes.tmax.lane(j),
     };
     let start = timing.then(cycle_count);
-    // SAFETY: the caller's CPU has `L`'s instruction set.
-    let hit = unsafe { L::compiled(SceneLanes { scene: geometry, lanes, ray, live, stack }) };
+    let hit = L::compiled(lanes.tmax.isa(), SceneLanes { scene: geometry, lanes, ray, live, stack });
     (hit, start.map_or(0, cycles_since))
 }
 
 /// Group `g`'s weights, and the light each lane brings when clear, per channel: the lanes of
 /// [`clear_and_floor`](super::clear_and_floor).
-///
-/// # Safety
-/// The CPU must have `L`'s instruction set.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-unsafe fn clear_lanes<L: Lanes>(run: &DirectionRun, terms: &DirectionTerms, g: usize) -> (L, [L; 3]) {
+fn clear_lanes<L: Lanes>(isa: L::Isa, run: &DirectionRun, terms: &DirectionTerms, g: usize) -> (L, [L; 3]) {
     let (radiance, f) = (terms.radiance, terms.floor);
-    // SAFETY: the caller's CPU has `L`'s instruction set.
-    unsafe {
-        let w = L::load(&run.weight[g * L::WIDTH..]);
-        let s = L::splat(f).add(L::splat(1.0 - f).mul(w));
-        (w, [L::splat(radiance.x).mul(s), L::splat(radiance.y).mul(s), L::splat(radiance.z).mul(s)])
-    }
+    let w = L::load(isa, &run.weight[g * L::WIDTH..]);
+    let s = L::splat(isa, f).add(L::splat(isa, 1.0 - f).mul(w));
+    (w, [L::splat(isa, radiance.x).mul(s), L::splat(isa, radiance.y).mul(s), L::splat(isa, radiance.z).mul(s)])
 }
 
 /// Each lane's component of direction `d` (x, y and z lanes) along `t`: `x·t.x + y·t.y + z·t.z`,
 /// summed in that order.
-///
-/// # Safety
-/// The CPU must have `L`'s instruction set.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-pub(super) unsafe fn along<L: Lanes>(d: &[L; 3], t: Vec3A) -> L {
+pub(super) fn along<L: Lanes>(d: &[L; 3], t: Vec3A) -> L {
     let [x, y, z] = *d;
-    // SAFETY: the caller's CPU has `L`'s instruction set.
-    unsafe { x.mul(L::splat(t.x)).add(y.mul(L::splat(t.y))).add(z.mul(L::splat(t.z))) }
+    let isa = x.isa();
+    x.mul(L::splat(isa, t.x)).add(y.mul(L::splat(isa, t.y))).add(z.mul(L::splat(isa, t.z)))
 }
 
 /// Group `g`'s directions: x, y and z lanes.
-///
-/// # Safety
-/// The CPU must have `L`'s instruction set.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-unsafe fn dir_lanes<L: Lanes>(run: &DirectionRun, g: usize) -> [L; 3] {
+fn dir_lanes<L: Lanes>(isa: L::Isa, run: &DirectionRun, g: usize) -> [L; 3] {
     let at = g * L::WIDTH;
-    // SAFETY: the caller's CPU has `L`'s instruction set.
-    unsafe { [L::load(&run.x[at..]), L::load(&run.y[at..]), L::load(&run.z[at..])] }
+    [L::load(isa, &run.x[at..]), L::load(isa, &run.y[at..]), L::load(isa, &run.z[at..])]
 }

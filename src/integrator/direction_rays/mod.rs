@@ -137,9 +137,8 @@ impl DirectionRays {
             let lanes = geometry.packet_lanes();
             if matches!(lanes, 8 | 16) {
                 let kernel = lanes::AddRun { rays: self, geometry, stack, spawn, run, terms, arriving };
-                // SAFETY: sixteen- and eight-lane packets are used only where AVX-512 and
-                // x86-64-v3 were detected.
-                return unsafe { crate::simd::run_in(lanes, kernel) }.expect("eight or sixteen lanes");
+                // Sixteen- and eight-lane packets are used only where `simd::isa` allows them.
+                return crate::simd::run_in(lanes, kernel).expect("eight or sixteen lanes");
             }
         }
         self.add_each(geometry, stack, spawn, run, terms, arriving)
@@ -181,12 +180,13 @@ impl DirectionRays {
                 None => QuadrantOut::Each(arriving),
             };
             let kernel = lanes::QuadrantRun { rays: self, geometry, stack, spawn, frame, passes, terms, out };
-            // SAFETY: sixteen-lane packets are used only where AVX-512 was detected, eight-lane
-            // ones only where AVX2 was ([`crate::simd::isa`]), and quadrant patterns need AVX2.
-            return unsafe { crate::simd::run_in(lanes, kernel) };
+            return crate::simd::run_in(lanes, kernel);
         }
         #[cfg(target_arch = "x86_64")]
-        if geometry.packet_lanes() == 16 && !geometry.has_alpha() {
+        if geometry.packet_lanes() == 16
+            && !geometry.has_alpha()
+            && let Some(isa) = crate::simd::HasAvx512::allowed()
+        {
             let n = arriving.len().next_multiple_of(16);
             let [xs, ys, ..] = &mut self.samples;
             xs.resize(n, 0.5);
@@ -197,8 +197,7 @@ impl DirectionRays {
                 sum.per_sample = true;
             }
             let kernel = cosine::CompressedRun { rays: self, geometry, stack, spawn, frame, terms, arriving };
-            // SAFETY: sixteen-lane packets are used only where AVX-512 was detected.
-            return Some(unsafe { <crate::simd::Avx512 as crate::simd::Lanes>::compiled(kernel) });
+            return Some(<crate::simd::Avx512 as crate::simd::Lanes>::compiled(isa, kernel));
         }
         let _ = (geometry, stack, spawn, frame, sets, pixel, first, dim, terms, arriving, sum);
         None

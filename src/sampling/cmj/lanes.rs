@@ -11,39 +11,29 @@ use crate::{
 };
 
 /// The integer part of [`randfloat`](super::randfloat) in each lane, with its operations.
-///
-/// # Safety
-/// The CPU must have `V`'s instruction set.
 #[inline(always)]
-unsafe fn randfloat_bits<V: U32Lanes>(i: V, p: u32) -> V {
-    // SAFETY: the caller's CPU has `V`'s instruction set.
-    unsafe {
-        let u = |x: u32| V::splat(x);
-        let mut i = i.xor(u(p));
-        i = i.xor(i.shr(u(17)));
-        i = i.xor(i.shr(u(10)));
-        i = i.mul(u(0xb365_34e5));
-        i = i.xor(i.shr(u(12)));
-        i = i.xor(i.shr(u(21)));
-        i = i.mul(u(0x93fc_4795));
-        i = i.xor(u(0xdf6e_307f));
-        i = i.xor(i.shr(u(17)));
-        i.mul(u(1 | p >> 18))
-    }
+fn randfloat_bits<V: U32Lanes>(i: V, p: u32) -> V {
+    let isa = i.isa();
+    let u = |x: u32| V::splat(isa, x);
+    let mut i = i.xor(u(p));
+    i = i.xor(i.shr(u(17)));
+    i = i.xor(i.shr(u(10)));
+    i = i.mul(u(0xb365_34e5));
+    i = i.xor(i.shr(u(12)));
+    i = i.xor(i.shr(u(21)));
+    i = i.mul(u(0x93fc_4795));
+    i = i.xor(u(0xdf6e_307f));
+    i = i.xor(i.shr(u(17)));
+    i.mul(u(1 | p >> 18))
 }
 
 /// [`randfloat`](super::randfloat) of each lane, with its operations, so each lane gets its
 /// value.
-///
-/// # Safety
-/// The CPU must have `L`'s instruction set.
 #[inline(always)]
-unsafe fn randfloat_lanes<L: SampleLanes>(i: L::U32, p: u32) -> L {
-    // SAFETY: the caller's CPU has `L`'s instruction set.
-    unsafe {
-        let f = L::from_u32(randfloat_bits(i, p)).mul(L::splat(1.0 / 4_294_967_808.0));
-        f.min_keep(L::splat(ONE_MINUS_EPSILON))
-    }
+fn randfloat_lanes<L: SampleLanes>(i: L::U32, p: u32) -> L {
+    let isa = i.isa();
+    let f = L::from_u32(randfloat_bits(i, p)).mul(L::splat(isa, 1.0 / 4_294_967_808.0));
+    f.min_keep(L::splat(isa, ONE_MINUS_EPSILON))
 }
 
 /// One pattern of a [`Cmj`] whose n is a power of two on a grid of at most 16 × 16, set up
@@ -52,6 +42,7 @@ unsafe fn randfloat_lanes<L: SampleLanes>(i: L::U32, p: u32) -> L {
 /// from sixteen-entry tables worked out once ([`U32Lanes::lookup16`]). Each lane does the
 /// scalar code's operations in its order, so every value is [`Cmj::sample`]'s.
 pub(crate) struct SmallGrid<L: SampleLanes> {
+    isa: L::Isa,
     sc: Scrambles,
     masks: [u32; 3],
     shift: u32,
@@ -64,17 +55,14 @@ pub(crate) struct SmallGrid<L: SampleLanes> {
 
 impl<L: SampleLanes> SmallGrid<L> {
     /// Pattern `p` of `cmj`, which must have a small grid ([`Cmj::has_small_grid16`]).
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
     #[inline(always)]
-    pub(crate) unsafe fn new(cmj: &Cmj, p: u32) -> Self {
+    pub(crate) fn new(isa: L::Isa, cmj: &Cmj, p: u32) -> Self {
         debug_assert!(cmj.has_small_grid16());
         let sc = Scrambles::new(p);
         let (wm, wk) = (cmj.m.mask(), cmj.k.mask());
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        let (by_col, by_row) = unsafe { (shuffle_table::<L::U32>(wm, sc.x), shuffle_table::<L::U32>(wk, sc.y)) };
+        let (by_col, by_row) = (shuffle_table::<L::U32>(isa, wm, sc.x), shuffle_table::<L::U32>(isa, wk, sc.y));
         SmallGrid {
+            isa,
             sc,
             masks: [cmj.n.mask(), wm, wk],
             shift: cmj.m.get().trailing_zeros(),
@@ -85,66 +73,46 @@ impl<L: SampleLanes> SmallGrid<L> {
     }
 
     /// Each lane's sample `s` after the sample order's permutation.
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
     #[inline(always)]
-    unsafe fn shuffled(&self, s: L::U32) -> L::U32 {
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        unsafe { permute_pow2_lanes(s, self.masks[0], self.sc.order) }
+    fn shuffled(&self, s: L::U32) -> L::U32 {
+        permute_pow2_lanes(s, self.masks[0], self.sc.order)
     }
 
     /// Samples `first, first + 1, …` (x lanes, y lanes); lanes past n hold values of no
     /// sample.
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
     #[inline(always)]
-    unsafe fn points(&self, first: u32) -> (L, L) {
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        unsafe { self.points_of(self.shuffled(L::U32::consecutive(first))) }
+    fn points(&self, first: u32) -> (L, L) {
+        self.points_of(self.shuffled(L::U32::consecutive(self.isa, first)))
     }
 
     /// The points of the shuffled samples `s` (each lane a sample's place in the pattern,
     /// after the sample order's permutation): x lanes, y lanes.
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
     #[inline(always)]
-    unsafe fn points_of(&self, s: L::U32) -> (L, L) {
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        unsafe {
-            let u = |x: u32| L::U32::splat(x);
-            let (col, row) = (s.and(u(self.masks[1])), s.shr(u(self.shift)));
-            let (sx, sy) = (col.lookup16(self.by_col), row.lookup16(self.by_row));
-            let (jx, jy) = (randfloat_lanes::<L>(s, self.sc.jx), randfloat_lanes::<L>(s, self.sc.jy));
-            let [inv_m, inv_k] = self.inv.map(|v| L::splat(v));
-            // Grid indices are below 16: the conversion is exact.
-            let f = |v| L::from_small_u32(v);
-            let x = f(col).add(f(sy).add(jx).mul(inv_k)).mul(inv_m);
-            let y = f(row).add(f(sx).add(jy).mul(inv_m)).mul(inv_k);
-            let below_one = L::splat(ONE_MINUS_EPSILON);
-            (x.min_keep(below_one), y.min_keep(below_one))
-        }
+    fn points_of(&self, s: L::U32) -> (L, L) {
+        let u = |x: u32| L::U32::splat(self.isa, x);
+        let (col, row) = (s.and(u(self.masks[1])), s.shr(u(self.shift)));
+        let (sx, sy) = (col.lookup16(self.by_col), row.lookup16(self.by_row));
+        let (jx, jy) = (randfloat_lanes::<L>(s, self.sc.jx), randfloat_lanes::<L>(s, self.sc.jy));
+        let [inv_m, inv_k] = self.inv.map(|v| L::splat(self.isa, v));
+        // Grid indices are below 16: the conversion is exact.
+        let f = |v| L::from_small_u32(v);
+        let x = f(col).add(f(sy).add(jx).mul(inv_k)).mul(inv_m);
+        let y = f(row).add(f(sx).add(jy).mul(inv_m)).mul(inv_k);
+        let below_one = L::splat(self.isa, ONE_MINUS_EPSILON);
+        (x.min_keep(below_one), y.min_keep(below_one))
     }
 }
 
 /// The shuffle of w + 1 (a power of two, at most 16) grid columns or rows by `seed` as a table:
 /// entry i holds i's shuffled place ([`permute_pow2`](crate::sampling::hash::permute_pow2) of
 /// i & w); entries past w repeat the first w + 1.
-///
-/// # Safety
-/// The CPU must have `V`'s instruction set.
 #[inline(always)]
-unsafe fn shuffle_table<V: U32Lanes>(w: u32, seed: u32) -> V::Table16 {
+fn shuffle_table<V: U32Lanes>(isa: V::Isa, w: u32, seed: u32) -> V::Table16 {
     let mut entries = [0; 16];
-    // SAFETY: the caller's CPU has `V`'s instruction set.
-    unsafe {
-        for from in (0..16).step_by(V::WIDTH) {
-            permute_pow2_lanes(V::consecutive(from as u32).and(V::splat(w)), w, seed).store(&mut entries[from..]);
-        }
-        V::table16(&entries)
+    for from in (0..16).step_by(V::WIDTH) {
+        permute_pow2_lanes(V::consecutive(isa, from as u32).and(V::splat(isa, w)), w, seed).store(&mut entries[from..]);
     }
+    V::table16(isa, &entries)
 }
 
 /// [`Cmj::fill`] where n is a power of two on a grid of at most 16 × 16
@@ -160,15 +128,12 @@ pub(super) struct FillSmallGrid<'a> {
 impl<L: SampleLanes> Kernel<L> for FillSmallGrid<'_> {
     type Output = ();
     #[inline(always)]
-    unsafe fn run(self) {
+    fn run(self, isa: L::Isa) {
         let FillSmallGrid { cmj, first, p, out } = self;
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        unsafe {
-            let grid = SmallGrid::<L>::new(cmj, p);
-            for (i, chunk) in out.chunks_mut(L::WIDTH).enumerate() {
-                let (x, y) = grid.points(first + (L::WIDTH * i) as u32);
-                L::store_points(x, y, chunk);
-            }
+        let grid = SmallGrid::<L>::new(isa, cmj, p);
+        for (i, chunk) in out.chunks_mut(L::WIDTH).enumerate() {
+            let (x, y) = grid.points(first + (L::WIDTH * i) as u32);
+            L::store_points(x, y, chunk);
         }
     }
 }
@@ -186,17 +151,14 @@ pub(super) struct FillColumns<'a> {
 impl<L: SampleLanes + CompressLanes> Kernel<L> for FillColumns<'_> {
     type Output = ();
     #[inline(always)]
-    unsafe fn run(self) {
+    fn run(self, isa: L::Isa) {
         let FillColumns { cmj, first, p, xs, ys } = self;
         assert_eq!(xs.len(), ys.len(), "one column per coordinate");
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        unsafe {
-            let grid = SmallGrid::<L>::new(cmj, p);
-            for (i, (xs, ys)) in xs.chunks_mut(L::WIDTH).zip(ys.chunks_mut(L::WIDTH)).enumerate() {
-                let (x, y) = grid.points(first + (L::WIDTH * i) as u32);
-                x.store_partial(xs);
-                y.store_partial(ys);
-            }
+        let grid = SmallGrid::<L>::new(isa, cmj, p);
+        for (i, (xs, ys)) in xs.chunks_mut(L::WIDTH).zip(ys.chunks_mut(L::WIDTH)).enumerate() {
+            let (x, y) = grid.points(first + (L::WIDTH * i) as u32);
+            x.store_partial(xs);
+            y.store_partial(ys);
         }
     }
 }
@@ -224,87 +186,62 @@ pub(crate) struct QuadrantPattern<'a, L: SampleLanes> {
 
 impl<'a, L: SampleLanes> QuadrantPattern<'a, L> {
     /// Pattern `p` of `cmj`, which must have quadrants ([`Cmj::has_quadrants`]).
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
     #[inline(always)]
-    pub(crate) unsafe fn new(cmj: &'a Cmj, p: u32) -> Self {
+    pub(crate) fn new(isa: L::Isa, cmj: &'a Cmj, p: u32) -> Self {
         debug_assert!(cmj.has_quadrants());
         let (bits, packet_bits) = quadrant_bits(cmj, L::WIDTH as u32);
         let samples = &cmj.quadrant_samples[usize::from(L::WIDTH == 16)];
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        QuadrantPattern { grid: unsafe { SmallGrid::new(cmj, p) }, samples, bits, packet_bits }
+        QuadrantPattern { grid: SmallGrid::new(isa, cmj, p), samples, bits, packet_bits }
     }
 
     /// The points of the slots of packet `packet` (`L::WIDTH` consecutive slots): x lanes, y
     /// lanes.
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
     #[inline(always)]
-    pub(crate) unsafe fn points(&self, packet: usize) -> (L, L) {
+    pub(crate) fn points(&self, packet: usize) -> (L, L) {
         let at = L::WIDTH * packet;
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        unsafe { self.grid.points_of(L::U32::load(&self.samples[at..at + L::WIDTH])) }
+        self.grid.points_of(L::U32::load(self.grid.isa, &self.samples[at..at + L::WIDTH]))
     }
 
     /// Which of the samples `L::WIDTH·group …` (in sample order, as [`Cmj::fill`] numbers
     /// them) lie in a marked slot, slot `t` being marked where bit `t % 16` of `marks[t / 16]`
     /// is set: bit k for the group's sample k.
-    ///
-    /// # Safety
-    /// The CPU must have `L`'s instruction set.
     #[inline(always)]
-    pub(crate) unsafe fn marked(&self, group: usize, marks: &[u32; 16]) -> u32 {
+    pub(crate) fn marked(&self, group: usize, marks: &[u32; 16]) -> u32 {
         let ([a, b], [pc, pr]) = (self.bits, self.packet_bits);
-        // SAFETY: the caller's CPU has `L`'s instruction set.
-        unsafe {
-            let s = self.grid.shuffled(L::U32::consecutive((L::WIDTH * group) as u32));
-            let [col, quarter, row] = split_bits(s, [a, 2, b]);
-            let [col_lo, col_hi, _] = split_bits(col, [pc, a - pc, 0]);
-            let [row_lo, row_hi, _] = split_bits(row, [pr, b - pr, 0]);
-            let rest = join_bits([col_hi, row_hi, quarter], [a - pc, b - pr, 2]);
-            marked_lanes(join_bits([col_lo, row_lo, rest], [pc, pr, 0]), marks)
-        }
+        let s = self.grid.shuffled(L::U32::consecutive(self.grid.isa, (L::WIDTH * group) as u32));
+        let [col, quarter, row] = split_bits(s, [a, 2, b]);
+        let [col_lo, col_hi, _] = split_bits(col, [pc, a - pc, 0]);
+        let [row_lo, row_hi, _] = split_bits(row, [pr, b - pr, 0]);
+        let rest = join_bits([col_hi, row_hi, quarter], [a - pc, b - pr, 2]);
+        marked_lanes(join_bits([col_lo, row_lo, rest], [pc, pr, 0]), marks)
     }
 }
 
 /// The lanes whose slot (`slots`, one per lane, each below 256) is marked, slot `t` being
 /// marked where bit `t % 16` of `marks[t / 16]` is set: bit k for lane k.
-///
-/// # Safety
-/// The CPU must have `V`'s instruction set.
 #[inline(always)]
-unsafe fn marked_lanes<V: U32Lanes>(slots: V, marks: &[u32; 16]) -> u32 {
-    // SAFETY: the caller's CPU has `V`'s instruction set.
-    unsafe {
-        let word = slots.shr(V::splat(4)).lookup16(V::table16(marks));
-        word.shr(slots.and(V::splat(15))).test(V::splat(1))
-    }
+fn marked_lanes<V: U32Lanes>(slots: V, marks: &[u32; 16]) -> u32 {
+    let isa = slots.isa();
+    let word = slots.shr(V::splat(isa, 4)).lookup16(V::table16(isa, marks));
+    word.shr(slots.and(V::splat(isa, 15))).test(V::splat(isa, 1))
 }
 
 /// Each lane of `v` cut into three bit fields of `widths` bits, lowest first.
-///
-/// # Safety
-/// The CPU must have `V`'s instruction set.
 #[inline(always)]
-unsafe fn split_bits<V: U32Lanes>(v: V, widths: [u32; 3]) -> [V; 3] {
-    // SAFETY: the caller's CPU has `V`'s instruction set.
-    let field = |shift: u32, bits: u32| unsafe { v.shr(V::splat(shift)).and(V::splat((1 << bits) - 1)) };
+fn split_bits<V: U32Lanes>(v: V, widths: [u32; 3]) -> [V; 3] {
+    let isa = v.isa();
+    let field = |shift: u32, bits: u32| v.shr(V::splat(isa, shift)).and(V::splat(isa, (1 << bits) - 1));
     let [a, b, c] = widths;
     [field(0, a), field(a, b), field(a + b, c)]
 }
 
 /// Three bit fields of `widths` bits joined in each lane, the first lowest: the inverse of
 /// [`split_bits`].
-///
-/// # Safety
-/// The CPU must have `V`'s instruction set.
 #[inline(always)]
-unsafe fn join_bits<V: U32Lanes>(fields: [V; 3], widths: [u32; 3]) -> V {
+fn join_bits<V: U32Lanes>(fields: [V; 3], widths: [u32; 3]) -> V {
     let [x, y, z] = fields;
-    // SAFETY: the caller's CPU has `V`'s instruction set.
-    unsafe { x.or(y.shl(V::splat(widths[0]))).or(z.shl(V::splat(widths[0] + widths[1]))) }
+    let isa = x.isa();
+    x.or(y.shl(V::splat(isa, widths[0]))).or(z.shl(V::splat(isa, widths[0] + widths[1])))
 }
 
 /// The bits of a quadrant pattern's slots ([`QuadrantPattern`]) for packets of `width` slots:

@@ -99,12 +99,11 @@ impl Cmj {
         // Where n is a power of two and the grid at most 16 × 16, the column and row shuffles
         // are worked out once per call and looked up by lane permutes, in the packets' lanes.
         #[cfg(target_arch = "x86_64")]
-        if self.has_small_grid16() && crate::simd::avx2() {
+        if self.has_small_grid16() {
             let kernel = FillSmallGrid { cmj: self, first, p, out };
-            // SAFETY: `packet_lanes` is sixteen only where AVX-512 is allowed, else eight, and
-            // AVX2 is allowed (checked just above).
-            return unsafe { crate::simd::run_in(crate::simd::packet_lanes(), kernel) }
-                .expect("eight or sixteen lanes");
+            // `packet_lanes` is sixteen where AVX-512 is allowed, else eight (AVX2's lanes or
+            // the portable ones).
+            return crate::simd::run_in(crate::simd::packet_lanes(), kernel).expect("eight or sixteen lanes");
         }
         fill_in_lanes(self, first, p, out);
     }
@@ -115,22 +114,21 @@ impl Cmj {
     /// most 16 × 16, where sixteen samples at a time go straight from lanes to the columns.
     pub(crate) fn fill_columns(&self, first: u32, p: u32, xs: &mut [f32], ys: &mut [f32]) -> bool {
         #[cfg(target_arch = "x86_64")]
-        if self.has_small_grid16() && crate::simd::avx512() {
-            // SAFETY: the CPU has AVX-512F, checked just above.
-            unsafe {
-                <crate::simd::Avx512 as crate::simd::Lanes>::compiled(FillColumns { cmj: self, first, p, xs, ys })
-            };
+        if self.has_small_grid16()
+            && let Some(isa) = crate::simd::HasAvx512::allowed()
+        {
+            <crate::simd::Avx512 as crate::simd::Lanes>::compiled(isa, FillColumns { cmj: self, first, p, xs, ys });
             return true;
         }
         let _ = (first, p, xs, ys);
         false
     }
 
-    /// Whether this CPU has AVX2 (see [`crate::simd::isa`]) and the patterns are
-    /// [`QuadrantPattern`]s ([`Cmj::has_quadrant_grid`]).
+    /// Whether the patterns are taken as [`QuadrantPattern`]s ([`Cmj::has_quadrant_grid`]) by
+    /// the lane kernels, which exist on this architecture.
     #[cfg(target_arch = "x86_64")]
     pub(crate) fn has_quadrants(&self) -> bool {
-        self.has_quadrant_grid() && crate::simd::avx2()
+        self.has_quadrant_grid()
     }
 
     /// Whether the grid suits [`QuadrantPattern`]s, whatever the CPU: n a power of two on a

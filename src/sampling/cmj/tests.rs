@@ -22,8 +22,9 @@ fn cmj_is_stratified_on_the_grid_and_both_axes() {
     }
 }
 
-/// Every fill path gives `sample`'s values: each small-grid vector copy this CPU has (AVX-512
-/// and AVX2 lanes for power-of-two grids up to 16 × 16, n ≤ 256), the portable loop, and the
+/// Every fill path gives `sample`'s values: the small-grid copy in portable lanes and each
+/// vector copy this CPU has (AVX-512 and AVX2 lanes, for power-of-two grids up to 16 × 16,
+/// n ≤ 256), the portable loop, and the
 /// dispatch (the copy of the loop the environment picks, above 256 and for other n);
 /// one sample at a time for other n. So do the columns, wherever they are computed.
 #[test]
@@ -32,25 +33,26 @@ fn fill_gives_the_samples_of_sample() {
     let mut fills: Vec<(&str, Fill)> = vec![("fill", Cmj::fill), ("portable", |c, f, p, o| c.fill_portable(f, p, o))];
     #[cfg(target_arch = "x86_64")]
     {
-        use crate::simd::{Avx, Avx512, Isa, cpu_isa};
-        if cpu_isa() >= Isa::Avx2 {
-            // SAFETY: the CPU has AVX2 and the rest of x86-64-v3, checked just above.
-            fills.push(("avx2", |c, f, p, o| {
-                if c.has_small_grid16() {
-                    unsafe { Avx::compiled(FillSmallGrid { cmj: c, first: f, p, out: o }) }
-                } else {
-                    c.fill_portable(f, p, o)
-                }
+        use crate::simd::{Avx, Avx512, HasAvx2, HasAvx512, Plain, Portable};
+        fills.push(("portable lanes", |c, f, p, o| {
+            if c.has_small_grid16() {
+                Portable::compiled(Plain, FillSmallGrid { cmj: c, first: f, p, out: o })
+            } else {
+                c.fill_portable(f, p, o)
+            }
+        }));
+        if HasAvx2::on_cpu().is_some() {
+            fills.push(("avx2", |c, f, p, o| match HasAvx2::on_cpu() {
+                Some(isa) if c.has_small_grid16() => Avx::compiled(isa, FillSmallGrid { cmj: c, first: f, p, out: o }),
+                _ => c.fill_portable(f, p, o),
             }));
         }
-        if cpu_isa() >= Isa::Avx512 {
-            // SAFETY: the CPU has AVX-512F and x86-64-v3, checked just above.
-            fills.push(("avx512", |c, f, p, o| {
-                if c.has_small_grid16() {
-                    unsafe { Avx512::compiled(FillSmallGrid { cmj: c, first: f, p, out: o }) }
-                } else {
-                    c.fill_portable(f, p, o)
+        if HasAvx512::on_cpu().is_some() {
+            fills.push(("avx512", |c, f, p, o| match HasAvx512::on_cpu() {
+                Some(isa) if c.has_small_grid16() => {
+                    Avx512::compiled(isa, FillSmallGrid { cmj: c, first: f, p, out: o })
                 }
+                _ => c.fill_portable(f, p, o),
             }));
         }
     }
@@ -106,51 +108,42 @@ fn quadrant_slot_tables_put_each_sample_once_in_its_quarter() {
 
 /// A quadrant pattern's slots hold every sample of the pattern once, each at
 /// [`Cmj::sample`]'s point, quarter by quarter of x (so of the azimuth 2πx); and a mark on
-/// a slot reads back on exactly the sample whose point that slot holds. For each width
-/// this CPU has: eight lanes (AVX2) and sixteen (AVX-512).
+/// a slot reads back on exactly the sample whose point that slot holds. For the portable
+/// lanes and each vector width this CPU has: eight lanes (AVX2) and sixteen (AVX-512).
 #[cfg(target_arch = "x86_64")]
 #[test]
 fn quadrant_patterns_hold_each_sample_once_in_its_quarter() {
     for n in [4u32, 8, 12, 16, 32, 64, 128, 256, 512] {
         let cmj = Cmj::new(n);
         let splits = [16, 32, 64, 128, 256].contains(&n);
-        if !crate::simd::avx2() {
-            assert!(!cmj.has_quadrants(), "n {n}: quadrants without AVX2");
-            continue;
-        }
         assert_eq!(cmj.has_quadrants(), splits, "n {n}");
         if !splits {
             continue;
         }
         for p in [0u32, 1, 99, 0xdead_beef] {
-            // SAFETY: the CPU has AVX2 and x86-64-v3 (`avx2()` above).
-            unsafe { pattern_slots_hold_their_samples::<crate::simd::Avx>(&cmj, p) };
-            if crate::simd::avx512() {
-                // SAFETY: the CPU has AVX-512F, checked just above.
-                unsafe { pattern_slots_hold_their_samples::<crate::simd::Avx512>(&cmj, p) };
+            pattern_slots_hold_their_samples::<crate::simd::Portable>(crate::simd::Plain, &cmj, p);
+            if let Some(isa) = crate::simd::HasAvx2::on_cpu() {
+                pattern_slots_hold_their_samples::<crate::simd::Avx>(isa, &cmj, p);
+            }
+            if let Some(isa) = crate::simd::HasAvx512::on_cpu() {
+                pattern_slots_hold_their_samples::<crate::simd::Avx512>(isa, &cmj, p);
             }
         }
     }
 }
 
 /// [`slots_hold_their_samples`] for pattern `p` of `cmj` in `L`'s lanes.
-///
-/// # Safety
-/// The CPU must have `L`'s instruction set.
 #[cfg(target_arch = "x86_64")]
-unsafe fn pattern_slots_hold_their_samples<L: crate::simd::SampleLanes>(cmj: &Cmj, p: u32) {
-    // SAFETY (every block): the caller's CPU has `L`'s instruction set.
-    let pattern = unsafe { QuadrantPattern::<L>::new(cmj, p) };
+fn pattern_slots_hold_their_samples<L: crate::simd::SampleLanes>(isa: L::Isa, cmj: &Cmj, p: u32) {
+    let pattern = QuadrantPattern::<L>::new(isa, cmj, p);
     let points = |packet| {
         let (mut x, mut y) = (vec![0.0f32; L::WIDTH], vec![0.0f32; L::WIDTH]);
-        unsafe {
-            let (xs, ys) = pattern.points(packet);
-            xs.store(&mut x);
-            ys.store(&mut y);
-        }
+        let (xs, ys) = pattern.points(packet);
+        xs.store(&mut x);
+        ys.store(&mut y);
         (x, y)
     };
-    let marked = |g, marks: &[u32; 16]| unsafe { pattern.marked(g, marks) };
+    let marked = |g, marks: &[u32; 16]| pattern.marked(g, marks);
     slots_hold_their_samples(cmj, p, L::WIDTH, points, marked);
 }
 
