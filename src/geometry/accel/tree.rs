@@ -12,7 +12,7 @@ use crate::simd::Plain;
 use crate::simd::{Avx, Eight, Kernel, Lanes, Portable};
 
 /// The wide tree traversal uses: eight children per node (with the token of the eight lanes
-/// that test them, AVX2's or the portable ones'), or four where `HEMI_BVH_WIDTH` asks for it.
+/// that test them, AVX2's or the portable ones'), or four ([`bvh_width`]).
 #[derive(Clone, Debug)]
 pub(super) enum Tree {
     Four(Bvh4),
@@ -27,7 +27,7 @@ impl Default for Tree {
 }
 
 impl Tree {
-    /// Collapses `bvh2` to eight children per node unless `HEMI_BVH_WIDTH` is 4, else to four.
+    /// Collapses `bvh2` to eight children per node where [`bvh_width`] is 8, else to four.
     pub(super) fn from_bvh2(bvh2: &[Bvh2Node]) -> Self {
         #[cfg(target_arch = "x86_64")]
         if bvh_width() == 8
@@ -139,12 +139,20 @@ impl<T: Occluder> TreeQuery for OccludedEach<'_, T> {
     }
 }
 
-/// The node width asked for: 4 when the environment variable `HEMI_BVH_WIDTH` is `4`,
-/// else 8. Read once per process.
+/// The node width: what the environment variable `HEMI_BVH_WIDTH` asks for (4 or 8), else 8
+/// where the vector lanes run ([`crate::simd::isa`] at least AVX2) and 4 where they do not:
+/// without vector instructions one ray at a time through four-wide nodes is quicker than
+/// eight-ray packets in plain arrays (which `HEMI_BVH_WIDTH=8` still runs, with the same
+/// images). Read once per process.
 #[cfg(target_arch = "x86_64")]
 pub(super) fn bvh_width() -> usize {
     static WIDTH: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
-    *WIDTH.get_or_init(|| if std::env::var("HEMI_BVH_WIDTH").is_ok_and(|w| w.trim() == "4") { 4 } else { 8 })
+    *WIDTH.get_or_init(|| match std::env::var("HEMI_BVH_WIDTH").as_deref().map(str::trim) {
+        Ok("4") => 4,
+        Ok("8") => 8,
+        _ if crate::simd::isa() >= crate::simd::Isa::Avx2 => 8,
+        _ => 4,
+    })
 }
 
 /// A closest hit in a scene: (instance, primitive slot, b1, b2).
