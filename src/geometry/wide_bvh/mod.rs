@@ -81,8 +81,11 @@ impl RayBox {
 /// where the direction is positive, row a + 3 (the maximum) where it is negative.
 #[inline(always)]
 fn plane_rows(negative: u32) -> ([usize; 3], [usize; 3]) {
-    let neg = |a: usize| ((negative >> a) & 1) as usize;
-    (std::array::from_fn(|a| a + 3 * neg(a)), std::array::from_fn(|a| a + 3 - 3 * neg(a)))
+    // Written out rather than through `array::from_fn`, which does not always fold away where
+    // this inlines into a large kernel.
+    let far_row = |a: u32| 3 * ((negative >> a) & 1) as usize;
+    let (x, y, z) = (far_row(0), far_row(1), far_row(2));
+    ([x, 1 + y, 2 + z], [3 - x, 4 - y, 5 - z])
 }
 
 /// The ray–children test of nodes of width `W`, run by the token of the lanes it is compiled
