@@ -41,6 +41,7 @@ pub mod sampling;
 pub mod scene;
 pub mod sequence;
 mod simd;
+pub mod srgb;
 pub mod stats;
 #[path = "../systems/mod.rs"]
 pub mod systems;

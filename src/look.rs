@@ -4,7 +4,7 @@
 
 use glam::Vec3;
 
-use crate::film::linear_to_srgb8;
+use crate::srgb::linear_to_srgb8;
 
 /// A tone curve from scene-referred linear radiance to display-referred linear [0, 1].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

@@ -8,8 +8,8 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::{
-    film::linear_to_srgb8,
     resources::{AOV_FLOATS, Accumulation, Image},
+    srgb::linear_to_srgb8,
     stats::FrameStats,
 };
 

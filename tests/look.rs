@@ -55,7 +55,7 @@ fn half_covered_pixels_get_half_alpha_and_the_surface_colour() {
     let rgba = image::load_from_memory(png.get_ref()).unwrap();
     assert_eq!(rgba.color(), image::ColorType::Rgba8);
     let rgba = rgba.into_rgba8();
-    let code = |v: f32| hemi::film::linear_to_srgb8(v);
+    let code = |v: f32| hemi::srgb::linear_to_srgb8(v);
     let colour = [code(0.6), code(0.3), code(0.1)];
     assert_eq!(rgba.get_pixel(0, 0).0, [colour[0], colour[1], colour[2], 128]);
     assert_eq!(rgba.get_pixel(1, 0).0, [colour[0], colour[1], colour[2], 255]);

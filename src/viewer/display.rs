@@ -5,9 +5,9 @@ use font8x8::legacy::BASIC_LEGACY;
 use glam::Vec3;
 
 use crate::{
-    film::linear_to_srgb8,
     look::{Look, Tonemap},
     resources::{Aov, Image},
+    srgb::linear_to_srgb8,
 };
 
 /// The buffer on display: keys 1–6 pick beauty, ao, direct, albedo, normal, depth.
