@@ -204,14 +204,20 @@ fn a_corrupt_or_missing_image_is_one_warning_naming_it_and_the_factor_is_used() 
     assert!(boombox.warnings.iter().any(|w| w.contains("BoomBox_baseColor.png")), "{:?}", boombox.warnings);
 }
 
+/// The unit quad in z = 0, alpha-masked (`MASK`) by a 2 × 1 texture whose left texel is clear
+/// and whose right one is opaque red.
+fn half_cut_out_quad() -> GltfScene {
+    let sampler: Value = serde_json::from_str(NEAREST_CLAMP).unwrap();
+    let halves = [[255, 255, 255, 0], [255, 0, 0, 255]];
+    let material = textured_material(json!({}), json!({"alphaMode": "MASK"}));
+    load("cutout.gltf", &quad(material, None, one_texture(2, 1, &halves, sampler)))
+}
+
 /// The whole path: a glTF quad whose texture cuts out its left half, spawned over a floor;
 /// the albedo AOV shows the floor through the cut-out half and the texture elsewhere.
 #[test]
 fn a_loaded_alpha_mask_lets_camera_rays_through_to_the_floor() {
-    let sampler: Value = serde_json::from_str(NEAREST_CLAMP).unwrap();
-    let halves = [[255, 255, 255, 0], [255, 0, 0, 255]];
-    let material = textured_material(json!({}), json!({"alphaMode": "MASK"}));
-    let scene = load("cutout.gltf", &quad(material, None, one_texture(2, 1, &halves, sampler)));
+    let scene = half_cut_out_quad();
     let mut s = common::settings(16, 16, 1, SamplerKind::CorrelatedMultiJittered);
     (s.aovs, s.jitter) = (true, false);
     let mut r = Renderer::new(s);
@@ -237,10 +243,7 @@ fn a_loaded_alpha_mask_lets_camera_rays_through_to_the_floor() {
 #[cfg(feature = "view")]
 #[test]
 fn the_viewers_scene_bounds_include_alpha_tested_meshes() {
-    let sampler: Value = serde_json::from_str(NEAREST_CLAMP).unwrap();
-    let halves = [[255, 255, 255, 0], [255, 0, 0, 255]];
-    let material = textured_material(json!({}), json!({"alphaMode": "MASK"}));
-    let scene = load("bounds.gltf", &quad(material, None, one_texture(2, 1, &halves, sampler)));
+    let scene = half_cut_out_quad();
     let mut r = Renderer::new(common::settings(8, 8, 1, SamplerKind::CorrelatedMultiJittered));
     let world = r.world_mut();
     world.spawn((Plane { normal: Vec3::Z }, Transform::from_xyz(0.0, 0.0, -1.0), Matte::new(Vec3::ONE)));

@@ -219,23 +219,15 @@ impl SampleSets {
     /// straight to the columns, other sets through [`SampleSets::fill`] a block at a time.
     pub(crate) fn fill_columns(&self, pixel: u32, first: u32, dim: u32, xs: &mut [f32], ys: &mut [f32]) {
         assert_eq!(xs.len(), ys.len(), "two columns of the same length");
-        if self.kind == SamplerKind::CorrelatedMultiJittered {
-            let mut passes = self.passes(first, xs.len()).peekable();
-            // The first pass decides for all (the pattern size is the same).
-            if let Some(&(pass, i, ref run)) = passes.peek()
-                && self.cmj.fill_columns(
-                    i,
-                    self.cmj_pattern(pixel, pass, dim),
-                    &mut xs[run.clone()],
-                    &mut ys[run.clone()],
-                )
-            {
-                for (pass, i, run) in passes.skip(1) {
-                    let p = self.cmj_pattern(pixel, pass, dim);
-                    self.cmj.fill_columns(i, p, &mut xs[run.clone()], &mut ys[run]);
-                }
-                return;
-            }
+        // The lanes take every pass or none (the pattern size is the same), so a refusal comes
+        // at the first pass, having written nothing.
+        if self.kind == SamplerKind::CorrelatedMultiJittered
+            && self.passes(first, xs.len()).all(|(pass, i, run)| {
+                let p = self.cmj_pattern(pixel, pass, dim);
+                self.cmj.fill_columns(i, p, &mut xs[run.clone()], &mut ys[run])
+            })
+        {
+            return;
         }
         const BLOCK: usize = 64;
         let mut points = [Vec2::ZERO; BLOCK];

@@ -142,14 +142,12 @@ impl ZSobol {
     /// shifted up by `log2_spp`), each permuted by a hash of the digits above it: the same for
     /// every sample of the pixel.
     #[inline]
-    fn pixel_digits(&self, pixel: u64, dim: u32) -> u64 {
+    fn pixel_digits(&self, pixel: u64, dim_key: u64) -> u64 {
         let odd = u32::from(self.log2_spp & 1 == 1);
-        let dim_key = 0x5555_5555u64.wrapping_mul(dim as u64);
         let mut index = 0u64;
         for i in self.log2_spp.div_ceil(2)..self.base4_digits {
             let shift = 2 * i - odd;
-            let p = (mix_bits((pixel >> (shift + 2)) ^ dim_key) >> 24) % 24;
-            index |= (PERMUTATIONS[p as usize][((pixel >> shift) & 3) as usize] as u64) << shift;
+            index |= permuted_digit(pixel, shift, mix_bits((pixel >> (shift + 2)) ^ dim_key));
         }
         index
     }
@@ -170,18 +168,25 @@ impl ZSobol {
     #[inline]
     pub fn fill(&self, x: u32, y: u32, first: u32, dim: u32, seed: u64, out: &mut [glam::Vec2]) {
         let pixel = morton2(x, y) << self.log2_spp;
-        let high = self.pixel_digits(pixel, dim);
-        let hash = mix64(seed ^ mix64(dim as u64 + 1));
         let dim_key = 0x5555_5555u64.wrapping_mul(dim as u64);
+        let high = self.pixel_digits(pixel, dim_key);
+        let hash = mix64(seed ^ mix64(dim as u64 + 1));
         fill_samples(self.log2_spp, [pixel, high], first, dim_key, (hash as u32, (hash >> 32) as u32), out);
     }
 }
 
+/// The base-4 digit of `morton` at bit `shift`, permuted by `hash` (of the digits above it) and
+/// put back in its place.
+#[inline(always)]
+fn permuted_digit(morton: u64, shift: u32, hash: u64) -> u64 {
+    (PERMUTATIONS[((hash >> 24) % 24) as usize][((morton >> shift) & 3) as usize] as u64) << shift
+}
+
 crate::simd::multiversion! {
-    /// The loop of [`ZSobol::fill`]: `pixel` holds the pixel's Morton index shifted up by
-    /// `log2_spp`, and the same with its digits permuted ([`ZSobol::pixel_digits`]), `dim_key` the dimension's hash key and
-    /// `seeds` the Owen scrambling seeds of the two coordinates. Compiled per instruction set
-    /// (AVX-512 converts u32 to f32 in one instruction).
+    /// The loop of [`ZSobol::fill`]: `pixel_and_digits` holds the pixel's Morton index shifted
+    /// up by `log2_spp` and its digits permuted ([`ZSobol::pixel_digits`]), `dim_key` the
+    /// dimension's hash key and `seeds` the Owen scrambling seeds of the two coordinates.
+    /// Compiled per instruction set (AVX-512 converts u32 to f32 in one instruction).
     fn fill_samples(log2_spp: u32, pixel_and_digits: [u64; 2], first: u32, dim_key: u64, seeds: (u32, u32), out: &mut [glam::Vec2]) {
         let [pixel, high] = pixel_and_digits;
         let to_unit = |bits: u32| (bits as f32 * (1.0 / 4_294_967_296.0)).min(super::ONE_MINUS_EPSILON);
@@ -201,8 +206,7 @@ crate::simd::multiversion! {
             let mut a = high;
             for i in u32::from(odd)..log2_spp.div_ceil(2) {
                 let shift = 2 * i - u32::from(odd);
-                let p = (hashed(i as usize, morton >> (shift + 2)) >> 24) % 24;
-                a |= (PERMUTATIONS[p as usize][((morton >> shift) & 3) as usize] as u64) << shift;
+                a |= permuted_digit(morton, shift, hashed(i as usize, morton >> (shift + 2)));
             }
             if odd {
                 a |= (morton & 1) ^ (hashed(0, morton >> 1) & 1);

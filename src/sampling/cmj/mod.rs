@@ -147,11 +147,11 @@ impl Cmj {
     #[inline(always)]
     fn fill_portable(&self, first: u32, p: u32, out: &mut [Vec2]) {
         if !self.n.is_power_of_two() {
-            let sc = Scrambles::new(p);
             let (m, k) = (self.m.get() as usize, self.k.get() as usize);
             // A run longer than the grid's sides looks the column and row shuffles up in
             // tables: m + k permutations (each a loop of rounds) instead of two per sample.
             if out.len() > m + k && m <= SHUFFLE_TABLE && k <= SHUFFLE_TABLE {
+                let sc = Scrambles::new(p);
                 let (mut sx, mut sy) = ([0u32; SHUFFLE_TABLE], [0u32; SHUFFLE_TABLE]);
                 for (col, x) in (0..).zip(&mut sx[..m]) {
                     *x = permute(col, self.m, sc.x);
@@ -167,10 +167,7 @@ impl Cmj {
                 return;
             }
             for (s, o) in (first..).zip(out) {
-                let s = permute(s, self.n, sc.order);
-                let (col, row) = (self.m.remainder(s), self.m.quotient(s));
-                let (sx, sy) = (permute(col, self.m, sc.x), permute(row, self.k, sc.y));
-                *o = Vec2::from(self.point(s, col, row, sx, sy, &sc));
+                *o = Vec2::from(self.sample(s, p));
             }
             return;
         }
