@@ -131,6 +131,54 @@ fn permute_round(mut i: u32, w: u32, p: u32) -> u32 {
 #[inline(always)]
 pub(super) fn permute_pow2_lanes<V: U32Lanes>(i: V, mask: u32, seed: u32) -> V {
     let isa = i.isa();
+    permute_round_lanes(i, mask, seed).add(V::splat(isa, seed)).and(V::splat(isa, mask))
+}
+
+/// Whether [`permute_lanes`] gives [`permute`]'s values for `len` and `seed`: a power of two,
+/// or a length below 2³¹ whose last step (`i + seed` for i < len) cannot wrap around 2³², so
+/// that its remainder comes from `seed`'s. Only a seed within `len` of 2³² fails.
+#[inline]
+pub fn permutes_in_lanes(len: Modulus, seed: u32) -> bool {
+    len.is_power_of_two() || (len.get() < 1 << 31 && seed.checked_add(len.get() - 1).is_some())
+}
+
+/// [`permute`] of each lane below `len` (lanes at or past it give some value below `len`), for
+/// a length and seed that [`permutes_in_lanes`]: every lane does the scalar function's rounds,
+/// those that land past the length again (cycle walking) until none does.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub(super) fn permute_lanes<V: U32Lanes>(i: V, len: Modulus, seed: u32) -> V {
+    if len.is_power_of_two() {
+        return permute_pow2_lanes(i, len.mask, seed);
+    }
+    debug_assert!(permutes_in_lanes(len, seed));
+    let isa = i.isa();
+    let u = |x: u32| V::splat(isa, x);
+    let ones = u(u32::MAX);
+    // All ones in the lanes at or past the length, from the sign of len − 1 − x (every value
+    // here is below 2³¹).
+    let past = |x: V| u(len.get() - 1).add(x.xor(ones).add(u(1))).shr(u(31)).mul(ones);
+    // Lanes past the length start from 0: their walk might never come back below it.
+    let mut i = i.and(past(i).xor(ones));
+    i = permute_round_lanes(i, len.mask, seed);
+    loop {
+        let out = past(i);
+        if out.test(ones) == 0 {
+            break;
+        }
+        i = permute_round_lanes(i, len.mask, seed).and(out).or(i.and(out.xor(ones)));
+    }
+    // (i + seed) mod len = (i + seed mod len) mod len, as i + seed does not wrap; the sum is
+    // below twice the length.
+    let sum = i.add(u(seed % len.get()));
+    sum.add(u(len.get().wrapping_neg()).and(past(sum)))
+}
+
+/// [`permute_round`] of each lane, with its operations.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn permute_round_lanes<V: U32Lanes>(i: V, mask: u32, seed: u32) -> V {
+    let isa = i.isa();
     let u = |x: u32| V::splat(isa, x);
     let w = u(mask);
     let masked_shift = |i: V, n: u32| i.and(w).shr(u(n));
@@ -151,8 +199,7 @@ pub(super) fn permute_pow2_lanes<V: U32Lanes>(i: V, mask: u32, seed: u32) -> V {
     i = i.xor(masked_shift(i, 2));
     i = i.mul(u(0xc860_a3df));
     i = i.and(w);
-    i = i.xor(i.shr(u(5)));
-    i.add(u(seed)).and(w)
+    i.xor(i.shr(u(5)))
 }
 
 #[cfg(test)]
@@ -194,6 +241,33 @@ mod tests {
                     assert_eq!(permute(i, Modulus::new(len), seed), general(i, len, seed), "len {len}");
                 }
             }
+        }
+    }
+
+    /// The lane permutation gives the scalar one in every lane below the length, for lengths
+    /// that are and are not powers of two (cycle walking a different number of rounds per
+    /// lane), and a value below the length in the lanes past it.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn lane_permutation_is_the_scalar_one() {
+        use crate::simd::{Plain, Portable, SampleLanes};
+        type PortableU32 = <Portable as SampleLanes>::U32;
+        for len in [1u32, 3, 8, 17, 48, 100, 1000, 70_001] {
+            let len = Modulus::new(len);
+            for seed in [0u32, 5, 0xdead_beef, u32::MAX - len.get() + 1] {
+                assert!(permutes_in_lanes(len, seed));
+                for first in (0..len.get() + 8).step_by(8) {
+                    let mut out = [0; 8];
+                    permute_lanes(PortableU32::consecutive(Plain, first), len, seed).store(&mut out);
+                    for (i, &v) in (first..).zip(&out) {
+                        assert!(v < len.get(), "len {}, seed {seed}: lane {i} gave {v}", len.get());
+                        if i < len.get() {
+                            assert_eq!(v, permute(i, len, seed), "len {}, seed {seed}, i {i}", len.get());
+                        }
+                    }
+                }
+            }
+            assert_eq!(permutes_in_lanes(len, (u32::MAX - len.get()).wrapping_add(2)), len.is_power_of_two());
         }
     }
 

@@ -219,8 +219,8 @@ impl SampleSets {
     /// straight to the columns, other sets through [`SampleSets::fill`] a block at a time.
     pub(crate) fn fill_columns(&self, pixel: u32, first: u32, dim: u32, xs: &mut [f32], ys: &mut [f32]) {
         assert_eq!(xs.len(), ys.len(), "two columns of the same length");
-        // The lanes take every pass or none (the pattern size is the same), so a refusal comes
-        // at the first pass, having written nothing.
+        // The lanes take a pass unless its pattern's order would wrap (a few patterns in 2³² of
+        // sizes not a power of two): a refusal falls back to filling every sample below.
         if self.kind == SamplerKind::CorrelatedMultiJittered
             && self.passes(first, xs.len()).all(|(pass, i, run)| {
                 let p = self.cmj_pattern(pixel, pass, dim);

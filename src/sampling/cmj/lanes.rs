@@ -6,7 +6,10 @@ use glam::Vec2;
 
 use super::{Cmj, Scrambles};
 use crate::{
-    sampling::{ONE_MINUS_EPSILON, hash::permute_pow2_lanes},
+    sampling::{
+        ONE_MINUS_EPSILON,
+        hash::{Modulus, permute, permute_lanes, permute_pow2_lanes},
+    },
     simd::{CompressLanes, Kernel, SampleLanes, U32Lanes},
 };
 
@@ -36,16 +39,20 @@ fn randfloat_lanes<L: SampleLanes>(i: L::U32, p: u32) -> L {
     f.min_keep(L::splat(isa, ONE_MINUS_EPSILON))
 }
 
-/// One pattern of a [`Cmj`] whose n is a power of two on a grid of at most 16 × 16, set up
-/// for `L::WIDTH` samples at a time: the sample order's permutation and the two jitters per
-/// sample (three of the five hashes) computed in lanes, the column and row shuffles looked up
-/// from sixteen-entry tables worked out once ([`U32Lanes::lookup16`]). Each lane does the
-/// scalar code's operations in its order, so every value is [`Cmj::sample`]'s.
+/// One pattern of a [`Cmj`] on a grid of at most 16 × 16, set up for `L::WIDTH` samples at a
+/// time: the sample order's permutation and the two jitters per sample (three of the five
+/// hashes) computed in lanes, the column and row shuffles looked up from sixteen-entry tables
+/// worked out once ([`U32Lanes::lookup16`]). Each lane does the scalar code's operations in its
+/// order, so every value is [`Cmj::sample`]'s.
 pub(crate) struct SmallGrid<L: SampleLanes> {
     isa: L::Isa,
     sc: Scrambles,
-    masks: [u32; 3],
-    shift: u32,
+    n: Modulus,
+    /// m − 1 and log₂ m where n (and so m) is a power of two.
+    pow2_col: Option<(u32, u32)>,
+    /// m, and ⌈2¹⁶ / m⌉: the row of a sample s < 256 is (s · that) >> 16, exactly.
+    m: u32,
+    row_magic: u32,
     inv: [f32; 2],
     /// Column c's shuffled sub-column in entry c (entries past m are never looked up).
     by_col: <L::U32 as U32Lanes>::Table16,
@@ -54,18 +61,20 @@ pub(crate) struct SmallGrid<L: SampleLanes> {
 }
 
 impl<L: SampleLanes> SmallGrid<L> {
-    /// Pattern `p` of `cmj`, which must have a small grid ([`Cmj::has_small_grid16`]).
+    /// Pattern `p` of `cmj`, which must take it in lanes ([`Cmj::in_lanes`]).
     #[inline(always)]
     pub(crate) fn new(isa: L::Isa, cmj: &Cmj, p: u32) -> Self {
-        debug_assert!(cmj.has_small_grid16());
+        debug_assert!(cmj.in_lanes(p));
         let sc = Scrambles::new(p);
-        let (wm, wk) = (cmj.m.mask(), cmj.k.mask());
-        let (by_col, by_row) = (shuffle_table::<L::U32>(isa, wm, sc.x), shuffle_table::<L::U32>(isa, wk, sc.y));
+        let (by_col, by_row) = (shuffle_table::<L::U32>(isa, cmj.m, sc.x), shuffle_table::<L::U32>(isa, cmj.k, sc.y));
+        let m = cmj.m.get();
         SmallGrid {
             isa,
             sc,
-            masks: [cmj.n.mask(), wm, wk],
-            shift: cmj.m.get().trailing_zeros(),
+            n: cmj.n,
+            pow2_col: cmj.n.is_power_of_two().then(|| (cmj.m.mask(), m.trailing_zeros())),
+            m,
+            row_magic: (1u32 << 16).div_ceil(m),
             inv: cmj.inv,
             by_col,
             by_row,
@@ -75,7 +84,7 @@ impl<L: SampleLanes> SmallGrid<L> {
     /// Each lane's sample `s` after the sample order's permutation.
     #[inline(always)]
     fn shuffled(&self, s: L::U32) -> L::U32 {
-        permute_pow2_lanes(s, self.masks[0], self.sc.order)
+        permute_lanes(s, self.n, self.sc.order)
     }
 
     /// Samples `first, first + 1, …` (x lanes, y lanes); lanes past n hold values of no
@@ -90,7 +99,14 @@ impl<L: SampleLanes> SmallGrid<L> {
     #[inline(always)]
     fn points_of(&self, s: L::U32) -> (L, L) {
         let u = |x: u32| L::U32::splat(self.isa, x);
-        let (col, row) = (s.and(u(self.masks[1])), s.shr(u(self.shift)));
+        let (col, row) = match self.pow2_col {
+            Some((mask, shift)) => (s.and(u(mask)), s.shr(u(shift))),
+            None => {
+                // s < n ≤ 256: the quotient by multiplication is exact, the column s − row·m.
+                let row = s.mul(u(self.row_magic)).shr(u(16));
+                (s.add(row.mul(u(self.m.wrapping_neg()))), row)
+            }
+        };
         let (sx, sy) = (col.lookup16(self.by_col), row.lookup16(self.by_row));
         let (jx, jy) = (randfloat_lanes::<L>(s, self.sc.jx), randfloat_lanes::<L>(s, self.sc.jy));
         let [inv_m, inv_k] = self.inv.map(|v| L::splat(self.isa, v));
@@ -103,20 +119,28 @@ impl<L: SampleLanes> SmallGrid<L> {
     }
 }
 
-/// The shuffle of w + 1 (a power of two, at most 16) grid columns or rows by `seed` as a table:
-/// entry i holds i's shuffled place ([`permute_pow2`](crate::sampling::hash::permute_pow2) of
-/// i & w); entries past w repeat the first w + 1.
+/// The shuffle of `len` (at most 16) grid columns or rows by `seed` as a table: entry i holds
+/// i's shuffled place ([`permute`](crate::sampling::hash::permute)); entries past `len` are
+/// never looked up.
 #[inline(always)]
-fn shuffle_table<V: U32Lanes>(isa: V::Isa, w: u32, seed: u32) -> V::Table16 {
+fn shuffle_table<V: U32Lanes>(isa: V::Isa, len: Modulus, seed: u32) -> V::Table16 {
     let mut entries = [0; 16];
-    for from in (0..16).step_by(V::WIDTH) {
-        permute_pow2_lanes(V::consecutive(isa, from as u32).and(V::splat(isa, w)), w, seed).store(&mut entries[from..]);
+    if len.is_power_of_two() {
+        let w = len.mask();
+        for from in (0..16).step_by(V::WIDTH) {
+            permute_pow2_lanes(V::consecutive(isa, from as u32).and(V::splat(isa, w)), w, seed)
+                .store(&mut entries[from..]);
+        }
+    } else {
+        for (i, e) in (0..len.get()).zip(&mut entries) {
+            *e = permute(i, len, seed);
+        }
     }
     V::table16(isa, &entries)
 }
 
-/// [`Cmj::fill`] where n is a power of two on a grid of at most 16 × 16
-/// ([`Cmj::has_small_grid16`]): `L::WIDTH` samples at a time ([`SmallGrid::points`]), stored
+/// [`Cmj::fill`] for a pattern taken in lanes ([`Cmj::in_lanes`]): `L::WIDTH` samples at a
+/// time ([`SmallGrid::points`]), stored
 /// as the `Vec2`s they are.
 pub(super) struct FillSmallGrid<'a> {
     pub(super) cmj: &'a Cmj,

@@ -16,7 +16,7 @@ use glam::Vec2;
 use super::{
     ONE_MINUS_EPSILON,
     generators::grid_shape,
-    hash::{Modulus, permute, permute_pow2},
+    hash::{Modulus, permute, permute_pow2, permutes_in_lanes},
 };
 
 /// Kensler's hash to a float in [0, 1).
@@ -96,10 +96,10 @@ impl Cmj {
     #[inline]
     pub fn fill(&self, first: u32, p: u32, out: &mut [Vec2]) {
         debug_assert!(first as u64 + out.len() as u64 <= self.n.get() as u64);
-        // Where n is a power of two and the grid at most 16 × 16, the column and row shuffles
-        // are worked out once per call and looked up by lane permutes, in the packets' lanes.
+        // Where the grid is at most 16 × 16, the column and row shuffles are worked out once
+        // per call and looked up by lane permutes, in the packets' lanes.
         #[cfg(target_arch = "x86_64")]
-        if self.has_small_grid16() {
+        if self.in_lanes(p) {
             let kernel = FillSmallGrid { cmj: self, first, p, out };
             // `packet_lanes` is sixteen where AVX-512 is allowed, else eight (AVX2's lanes or
             // the portable ones).
@@ -110,11 +110,11 @@ impl Cmj {
 
     /// Samples `first..first + xs.len()` (all < n) of pattern `p` as two columns, x into `xs`
     /// and y into `ys` (same length): [`Cmj::fill`]'s values. Returns false, writing nothing,
-    /// unless this CPU has AVX-512 (see [`crate::simd::isa`]) and n is a power of two on a grid of at
-    /// most 16 × 16, where sixteen samples at a time go straight from lanes to the columns.
+    /// unless this CPU has AVX-512 (see [`crate::simd::isa`]) and the pattern is taken in lanes
+    /// ([`Cmj::in_lanes`]), where sixteen samples at a time go straight from lanes to the columns.
     pub(crate) fn fill_columns(&self, first: u32, p: u32, xs: &mut [f32], ys: &mut [f32]) -> bool {
         #[cfg(target_arch = "x86_64")]
-        if self.has_small_grid16()
+        if self.in_lanes(p)
             && let Some(isa) = crate::simd::HasAvx512::allowed()
         {
             <crate::simd::Avx512 as crate::simd::Lanes>::compiled(isa, FillColumns { cmj: self, first, p, xs, ys });
@@ -135,13 +135,21 @@ impl Cmj {
     /// grid of at most 16 × 16 whose m columns split into quarters (n = 16 … 256).
     #[cfg(target_arch = "x86_64")]
     fn has_quadrant_grid(&self) -> bool {
-        self.has_small_grid16() && self.m.get().is_multiple_of(4)
+        self.n.is_power_of_two() && self.has_small_grid() && self.m.get().is_multiple_of(4)
     }
 
-    /// Whether n is a power of two on a grid of at most 16 × 16 ([`lanes::SmallGrid`]'s patterns).
+    /// Whether pattern `p` is computed in lanes ([`lanes::SmallGrid`]): a grid of at most
+    /// 16 × 16 (n ≤ 256), and a sample order whose permutation the lanes give exactly
+    /// ([`permutes_in_lanes`]: all but a few patterns in 2³² where n is not a power of two).
     #[cfg(target_arch = "x86_64")]
-    fn has_small_grid16(&self) -> bool {
-        self.n.is_power_of_two() && self.m.get() <= 16 && self.k.get() <= 16
+    fn in_lanes(&self, p: u32) -> bool {
+        self.has_small_grid() && permutes_in_lanes(self.n, Scrambles::new(p).order)
+    }
+
+    /// Whether the grid is at most 16 × 16, so that its columns and rows fit the lanes' tables.
+    #[cfg(target_arch = "x86_64")]
+    fn has_small_grid(&self) -> bool {
+        self.m.get() <= 16 && self.k.get() <= 16
     }
 
     #[inline(always)]

@@ -23,10 +23,10 @@ fn cmj_is_stratified_on_the_grid_and_both_axes() {
 }
 
 /// Every fill path gives `sample`'s values: the small-grid copy in portable lanes and each
-/// vector copy this CPU has (AVX-512 and AVX2 lanes, for power-of-two grids up to 16 × 16,
-/// n ≤ 256), the portable loop, and the
-/// dispatch (the copy of the loop the environment picks, above 256 and for other n);
-/// one sample at a time for other n. So do the columns, wherever they are computed.
+/// vector copy this CPU has (AVX-512 and AVX2 lanes, for grids up to 16 × 16, n ≤ 256, any n,
+/// patterns whose permutation would wrap excepted), the portable loop, and the dispatch (the
+/// copy of the loop the environment picks, above 256); one sample at a time for other n. So do
+/// the columns, wherever they are computed.
 #[test]
 fn fill_gives_the_samples_of_sample() {
     type Fill = fn(&Cmj, u32, u32, &mut [Vec2]);
@@ -35,7 +35,7 @@ fn fill_gives_the_samples_of_sample() {
     {
         use crate::simd::{Avx, Avx512, HasAvx2, HasAvx512, Plain, Portable};
         fills.push(("portable lanes", |c, f, p, o| {
-            if c.has_small_grid16() {
+            if c.in_lanes(p) {
                 Portable::compiled(Plain, FillSmallGrid { cmj: c, first: f, p, out: o })
             } else {
                 c.fill_portable(f, p, o)
@@ -43,22 +43,24 @@ fn fill_gives_the_samples_of_sample() {
         }));
         if HasAvx2::on_cpu().is_some() {
             fills.push(("avx2", |c, f, p, o| match HasAvx2::on_cpu() {
-                Some(isa) if c.has_small_grid16() => Avx::compiled(isa, FillSmallGrid { cmj: c, first: f, p, out: o }),
+                Some(isa) if c.in_lanes(p) => Avx::compiled(isa, FillSmallGrid { cmj: c, first: f, p, out: o }),
                 _ => c.fill_portable(f, p, o),
             }));
         }
         if HasAvx512::on_cpu().is_some() {
             fills.push(("avx512", |c, f, p, o| match HasAvx512::on_cpu() {
-                Some(isa) if c.has_small_grid16() => {
-                    Avx512::compiled(isa, FillSmallGrid { cmj: c, first: f, p, out: o })
-                }
+                Some(isa) if c.in_lanes(p) => Avx512::compiled(isa, FillSmallGrid { cmj: c, first: f, p, out: o }),
                 _ => c.fill_portable(f, p, o),
             }));
         }
     }
-    for n in [1u32, 2, 8, 12, 16, 32, 48, 64, 128, 192, 256, 1000, 1024, 5000] {
+    // This pattern's sample order is seeded u32::MAX − 7: for n > 8 not a power of two it must
+    // leave the lanes (the permutation's last step wraps around 2³²).
+    let near_wrap = (u32::MAX - 7).wrapping_mul(inverse_odd(0x5163_3e2d));
+    assert_eq!(Scrambles::new(near_wrap).order, u32::MAX - 7);
+    for n in [1u32, 2, 3, 7, 8, 12, 16, 17, 24, 32, 48, 64, 100, 128, 192, 200, 240, 256, 1000, 1024, 5000] {
         let cmj = Cmj::new(n);
-        for p in [0u32, 1, 99, 0xdead_beef] {
+        for p in [0u32, 1, 99, 0xdead_beef, near_wrap] {
             for first in [0, n / 3, n - 1] {
                 for (name, fill) in &fills {
                     let mut out = vec![Vec2::NAN; (n - first) as usize];
@@ -74,7 +76,7 @@ fn fill_gives_the_samples_of_sample() {
                     }
                 } else {
                     #[cfg(target_arch = "x86_64")]
-                    assert!(!(crate::simd::avx512() && cmj.has_small_grid16()), "n {n}: columns refused");
+                    assert!(!(crate::simd::avx512() && cmj.in_lanes(p)), "n {n}: columns refused");
                     assert!(xs.iter().chain(&ys).all(|v| v.is_nan()), "refused, yet written");
                 }
             }
@@ -185,4 +187,13 @@ fn slots_hold_their_samples(
             .collect();
         assert_eq!(marked, owners, "n {n}, p {p}, width {width}: slot {t}");
     }
+}
+
+/// The inverse of odd `a` modulo 2³² (Newton's iteration: each step doubles the correct bits).
+fn inverse_odd(a: u32) -> u32 {
+    let mut x = a;
+    for _ in 0..5 {
+        x = x.wrapping_mul(2u32.wrapping_sub(a.wrapping_mul(x)));
+    }
+    x
 }
