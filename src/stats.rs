@@ -409,13 +409,13 @@ impl FrameStats {
         let r = &self.rays;
         let _ = writeln!(
             s,
-            "  rays: {} primary, {} ao, {} shadow; bvh: {} binary nodes, {} {}-wide{}, {} prims, {:.1} MiB{}{}; buffers {:.1} MiB",
+            "  rays: {} primary, {} ao, {} shadow; bvh: {} {}-wide nodes (collapsed from {} binary){}, {} prims, {:.1} MiB{}{}; buffers {:.1} MiB",
             r.primary,
             r.ao,
             r.shadow,
-            self.bvh_nodes,
             self.bvh_wide_nodes,
             self.bvh_width,
+            self.bvh_nodes,
             if self.packet_lanes > 0 { format!(", {}-ray packets", self.packet_lanes) } else { String::new() },
             self.bvh_prims,
             self.bvh_bytes as f64 / (1 << 20) as f64,
