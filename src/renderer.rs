@@ -11,7 +11,7 @@ use crate::{
     geometry::SceneGeometry,
     integrator::register_light,
     light::Light,
-    resources::{Accumulation, FrameSamples, Image, RenderSettings, SceneProblems, Time},
+    resources::{Accumulation, FrameSamples, Image, RenderSettings, SceneProblems, ShapeValueChanges, Time},
     sampling::{SampleSets, SamplerKind},
     scene::{DEFAULT_BACKGROUND, spawn_default_scene},
     stats::{FrameStats, take_peak_rss},
@@ -51,6 +51,7 @@ impl Renderer {
         world.init_resource::<FrameSamples>();
         world.init_resource::<Image>();
         world.init_resource::<SceneProblems>();
+        world.init_resource::<ShapeValueChanges>();
         world.init_resource::<FrameStats>();
         let mut r = Renderer { world, schedule: frame_schedule(), pool: None, frames: 0, measure_memory: false };
         r.add_light::<AmbientOccluder>()

@@ -348,6 +348,15 @@ impl Image {
     }
 }
 
+/// Whether this frame's writes to shape values (transforms, spheres, planes, cuboids, surfaces)
+/// changed any, as [`detect_scene_changes`](crate::systems::scene_changes::detect_scene_changes)
+/// found them: a write of an equal value is no change, and leaves the BVH as it is.
+#[derive(Resource, Clone, Copy, Debug, Default)]
+pub struct ShapeValueChanges {
+    /// Some written shape value differs from the one it replaced.
+    pub any: bool,
+}
+
 /// Problems found in the scene; while any is present nothing is traced and `run_frame` fails.
 #[derive(Resource, Clone, Debug, Default)]
 pub struct SceneProblems {

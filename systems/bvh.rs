@@ -33,7 +33,7 @@ use crate::{
         world_space,
     },
     material::{PlacedSurface, Surface},
-    resources::{Accumulation, RenderSettings, SceneProblems},
+    resources::{Accumulation, RenderSettings, SceneProblems, ShapeValueChanges},
     stats::FrameStats,
 };
 
@@ -62,6 +62,9 @@ type WorldChanged = Or<(Changed<Transform>, Changed<Sphere>, Changed<Plane>, Cha
 type ShapeAdded = Or<(Added<Sphere>, Added<Plane>, Added<Cuboid>, Added<TriangleMesh>)>;
 /// A mesh entity moved or got another mesh.
 type MeshChanged = Or<(Changed<Transform>, Changed<TriangleMesh>)>;
+
+/// A mesh written or deformed: a change whatever its value (meshes are compared by pointer).
+type MeshWritten = Or<(Changed<TriangleMesh>, Changed<Deforming>)>;
 /// Changes that can decide whether a mesh is baked: markers added, or a mesh swapped (which
 /// changes how many entities share it).
 type BakingChanged =
@@ -166,6 +169,8 @@ pub fn update_bvh(
     added: Query<(), ShapeAdded>,
     mut removed: ShapeRemovals,
     recoloured: Query<(Entity, &Matte), (Changed<Matte>, Shaped)>,
+    meshes_written: Query<(), (MeshWritten, Shaped)>,
+    shape_changes: Res<ShapeValueChanges>,
     shapes: Query<ShapeQuery, Shaped>,
     settings: Res<RenderSettings>,
     mut geometry: ResMut<SceneGeometry>,
@@ -188,7 +193,10 @@ pub fn update_bvh(
         stats.reset = Some("the shared meshes' baking changed with max_spp".into());
     }
     let structural = !cache.built_once || !added.is_empty() || removed.any() || rebake;
-    let note = if structural || !changed.is_empty() {
+    // Writes of equal shape values change nothing. Meshes are compared by pointer, which a mesh
+    // deformed in place keeps: their writes always count.
+    let changed = !changed.is_empty() && (shape_changes.any || !meshes_written.is_empty());
+    let note = if structural || changed {
         cache.built_once = true;
         // Drop the old scene's references first so deforming BLASes refit in place.
         let objects_before = std::mem::take(&mut geometry.objects);

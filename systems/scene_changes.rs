@@ -11,7 +11,7 @@ use crate::{
     frame::{describe_change, short_type_name},
     integrator::LightRegistry,
     material::Surface,
-    resources::{Accumulation, RenderSettings, SceneProblems},
+    resources::{Accumulation, RenderSettings, SceneProblems, ShapeValueChanges},
     stats::FrameStats,
 };
 
@@ -96,9 +96,10 @@ pub struct SceneWatch<'w, 's> {
 }
 
 impl SceneWatch<'_, '_> {
-    /// What changed first (`Sphere of entity 3v0 changed`), if anything did; every watch is brought
-    /// up to date so that no change is seen twice.
-    fn first_change(&mut self) -> Option<String> {
+    /// What changed first (`Sphere of entity 3v0 changed`), if anything did, and whether a shape
+    /// value (a transform, sphere, plane, cuboid or surface) did; every watch is brought up to
+    /// date so that no change is seen twice.
+    fn first_change(&mut self) -> (Option<String>, bool) {
         let changes = [
             (short_type_name::<Transform>(), self.transform.first_change()),
             (short_type_name::<Sphere>(), self.sphere.first_change()),
@@ -111,9 +112,19 @@ impl SceneWatch<'_, '_> {
             (short_type_name::<OrthographicCamera>(), self.orthographic.first_change()),
             (short_type_name::<ThinLensCamera>(), self.lens.first_change()),
         ];
-        let (component, (entity, removed)) = changes.into_iter().find_map(|(c, e)| Some((c, e?)))?;
-        let what = describe_change(component, entity, self.names.get(entity).ok());
-        Some(format!("{what} {}", if removed { "was removed" } else { "changed" }))
+        let shape_types = [
+            short_type_name::<Transform>(),
+            short_type_name::<Sphere>(),
+            short_type_name::<Plane>(),
+            short_type_name::<Cuboid>(),
+            short_type_name::<Surface>(),
+        ];
+        let shapes = changes.iter().any(|(c, e)| e.is_some() && shape_types.contains(c));
+        let first = changes.into_iter().find_map(|(c, e)| Some((c, e?))).map(|(component, (entity, removed))| {
+            let what = describe_change(component, entity, self.names.get(entity).ok());
+            format!("{what} {}", if removed { "was removed" } else { "changed" })
+        });
+        (first, shapes)
     }
 }
 
@@ -135,11 +146,13 @@ pub fn detect_scene_changes(
     mut lights: ResMut<LightRegistry>,
     mut accumulation: ResMut<Accumulation>,
     mut problems: ResMut<SceneProblems>,
+    mut shape_changes: ResMut<ShapeValueChanges>,
     mut stats: ResMut<FrameStats>,
     mut seen_settings: Local<Option<RenderSettings>>,
 ) {
     let start = Instant::now();
-    let component_change = watch.first_change();
+    let (component_change, shapes_changed) = watch.first_change();
+    shape_changes.any = shapes_changed;
     let light_change = lights.take_changed();
     let settings_changed = settings.is_changed() && {
         let changed = seen_settings.as_ref().is_none_or(|old| image_settings(old) != image_settings(&settings));

@@ -77,6 +77,21 @@ fn writing_equal_values_every_frame_does_not_restart_accumulation() {
     assert_eq!(rewritten.render(32).unwrap(), 16, "one frame per two samples, none restarted");
     assert_eq!(rewritten.stats().reset, None);
     assert!(rewritten.image() == plain.image());
+    // Nor does it make the BVH refit or rebuild anything.
+    assert_eq!(bvh_note(&rewritten), "unchanged");
+
+    // A sphere that really moves each frame does make the BVH work.
+    let mut moving = small_default_scene();
+    moving.world_mut().spawn((Wobble, Sphere { radius: 0.2 }));
+    moving.schedule_mut().add_systems(wobble.in_set(FrameStage::Animate));
+    moving.run_frame().unwrap();
+    moving.run_frame().unwrap();
+    assert!(bvh_note(&moving).contains("TLAS over"), "{}", bvh_note(&moving));
+}
+
+/// What the BVH system did in the last frame.
+fn bvh_note(r: &Renderer) -> String {
+    r.stats().systems.iter().find(|s| s.name == "bvh").expect("the BVH system ran").note.clone()
 }
 
 #[derive(Component)]
