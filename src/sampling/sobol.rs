@@ -74,7 +74,12 @@ pub fn morton2(x: u32, y: u32) -> u64 {
 /// Burley's hash-based Owen scrambling (pbrt-v4's `FastOwenScrambler`, Vegdahl's constants).
 #[inline]
 pub fn fast_owen(v: u32, seed: u32) -> u32 {
-    let mut v = v.reverse_bits();
+    fast_owen_of_reversed(v.reverse_bits(), seed)
+}
+
+/// [`fast_owen`] of the value whose bits `v` holds reversed (its first step).
+#[inline(always)]
+fn fast_owen_of_reversed(mut v: u32, seed: u32) -> u32 {
     v ^= v.wrapping_mul(0x3d20_adea);
     v = v.wrapping_add(seed);
     v = v.wrapping_mul((seed >> 16) | 1);
@@ -82,6 +87,35 @@ pub fn fast_owen(v: u32, seed: u32) -> u32 {
     v ^= v.wrapping_mul(0x53a2_2864);
     v.reverse_bits()
 }
+
+/// Bits of a sample index that [`LOW_SOBOL`] tables.
+const LOW_BITS: u32 = 10;
+
+/// Both dimensions' Sobol' bits of every index below 2^[`LOW_BITS`], bit-reversed (as
+/// [`fast_owen`] first reverses them): a pixel's sample indices differ only in their low bits,
+/// and the matrices are linear over GF(2), so a sample's bits are the XOR of its pixel's high
+/// bits' and its low bits' (the bit reversal is linear too).
+static LOW_SOBOL: [[u32; 1 << LOW_BITS]; 2] = {
+    let mut t = [[0u32; 1 << LOW_BITS]; 2];
+    let mut i = 0;
+    while i < 1 << LOW_BITS {
+        let mut dim = 0;
+        while dim < 2 {
+            let mut v = 0;
+            let mut bit = 0;
+            while bit < LOW_BITS as usize {
+                if i >> bit & 1 == 1 {
+                    v ^= SOBOL[dim][bit];
+                }
+                bit += 1;
+            }
+            t[dim][i] = v.reverse_bits();
+            dim += 1;
+        }
+        i += 1;
+    }
+    t
+};
 
 /// Dimension 1's matrix applied to each byte of the index: `SOBOL1_BYTES[k][b]` is the XOR of
 /// the columns 8k..8k+8 selected by the bits of `b`.
@@ -201,18 +235,27 @@ crate::simd::multiversion! {
             }
             *h
         };
+        // The pixel's high bits' Sobol' bits, reversed, for runs whose indices fit the table.
+        let tabled = log2_spp <= LOW_BITS;
+        let high_bits = [0, 1].map(|dim| sobol_bits(high as u32, dim).reverse_bits());
         for (index, o) in (first..).zip(out) {
             let morton = pixel | index as u64;
-            let mut a = high;
+            let mut low = 0;
             for i in u32::from(odd)..log2_spp.div_ceil(2) {
                 let shift = 2 * i - u32::from(odd);
-                a |= permuted_digit(morton, shift, hashed(i as usize, morton >> (shift + 2)));
+                low |= permuted_digit(morton, shift, hashed(i as usize, morton >> (shift + 2)));
             }
             if odd {
-                a |= (morton & 1) ^ (hashed(0, morton >> 1) & 1);
+                low |= (morton & 1) ^ (hashed(0, morton >> 1) & 1);
             }
-            let a = a as u32;
-            *o = glam::Vec2::new(to_unit(fast_owen(sobol_bits(a, 0), seeds.0)), to_unit(fast_owen(sobol_bits(a, 1), seeds.1)));
+            let reversed = if tabled {
+                [0, 1].map(|dim| high_bits[dim] ^ LOW_SOBOL[dim][low as usize])
+            } else {
+                let a = (high | low) as u32;
+                [0, 1].map(|dim| sobol_bits(a, dim).reverse_bits())
+            };
+            let [x, y] = [(reversed[0], seeds.0), (reversed[1], seeds.1)].map(|(v, seed)| to_unit(fast_owen_of_reversed(v, seed)));
+            *o = glam::Vec2::new(x, y);
         }
     }
 }
@@ -273,7 +316,7 @@ mod tests {
 
     #[test]
     fn runs_of_samples_equal_pbrts_index_sample_by_sample() {
-        for spp in [1, 2, 8, 16, 32, 64, 128, 1024] {
+        for spp in [1, 2, 8, 16, 32, 64, 128, 1024, 2048, 4096] {
             let z = ZSobol::new(spp, 640);
             for (x, y, dim, seed) in [(0, 0, 0, 0), (3, 5, 1, 7), (639, 359, 4, 0xdead_beef), (100, 7, 2, 1 << 40)] {
                 let mut run = vec![glam::Vec2::ZERO; spp as usize];
