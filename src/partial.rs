@@ -127,6 +127,7 @@ pub fn render(
         s.samples_per_frame = info.spf;
         s.validate().map_err(HemiError::Usage)?;
     }
+    renderer.world_mut().resource_mut::<FrameSamples>().keep_sums = true;
     let mut frames = Vec::new();
     info.frames.clear();
     loop {

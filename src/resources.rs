@@ -87,7 +87,7 @@ impl RenderSettings {
     /// The most samples per pixel a render may ask for (`--spp`, a peer scene's `ao.samples`).
     pub const MAX_SPP: u32 = 1_000_000;
 
-    /// Largest image hemi accepts, in pixels (8192 × 4096); buffers take about 60 bytes each.
+    /// Largest image hemi accepts, in pixels (8192 × 4096); buffers take about 40 bytes each.
     pub const MAX_PIXELS: u64 = 1 << 25;
 
     /// A one-line description of the first unusable setting.
@@ -207,22 +207,20 @@ impl Aov {
     }
 }
 
-/// The samples traced by the current frame, per pixel (written by the trace system).
+/// What the current frame traced (the trace system adds its samples straight into
+/// [`Accumulation`], tile by tile, so that no image-sized frame buffer sits beside the sums).
 #[derive(Resource, Clone, Debug, Default)]
 pub struct FrameSamples {
-    /// Sum of this frame's radiance samples per pixel, row-major.
-    pub sums: Vec<Vec3>,
     /// Samples per pixel traced this frame (0 when the frame traced nothing); pixels that
-    /// adaptive sampling retired got none (see `counts`).
+    /// adaptive sampling retired got none.
     pub samples_per_pixel: u32,
-    /// Samples traced per pixel this frame.
-    pub counts: Vec<u32>,
-    /// Sum of the squared luminance of this frame's samples per pixel (for the variance).
-    pub sq_sums: Vec<f32>,
     /// Pixels traced this frame.
     pub active_pixels: usize,
-    /// Per-pixel AOV sums (empty unless `RenderSettings::aovs`).
-    pub aovs: Vec<AovValues>,
+    /// Keep each frame's per-pixel radiance sums in [`FrameSamples::sums`]: the parts of a
+    /// render split by sample index store them, so that merged parts add up bit for bit.
+    pub keep_sums: bool,
+    /// Sum of this frame's radiance samples per pixel, row-major (empty unless `keep_sums`).
+    pub sums: Vec<Vec3>,
 }
 
 /// Running sums over frames; reset whenever the scene or the settings change.
@@ -232,11 +230,13 @@ pub struct Accumulation {
     pub width: u32,
     /// Image height the buffer was sized for.
     pub height: u32,
-    /// Sum of all radiance samples per pixel (f64 so that long runs do not lose precision).
+    /// Sum of all radiance samples per pixel (f64: a sum of frames in f32 would round
+    /// differently, and the image would depend on how the samples were split into frames).
     pub sums: Vec<DVec3>,
     /// Samples accumulated per pixel.
     pub counts: Vec<u32>,
-    /// Sum of squared sample luminance per pixel.
+    /// Sum of squared sample luminance per pixel: kept only for adaptive sampling (empty
+    /// otherwise), as nothing else reads it.
     pub sq_sums: Vec<f64>,
     /// Per-pixel AOV sums (empty unless `RenderSettings::aovs`), in f64.
     pub aovs: Vec<[f64; AOV_FLOATS]>,
@@ -252,16 +252,24 @@ pub fn luminance(c: Vec3) -> f32 {
     c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
 }
 
+/// Standard error of a pixel's mean luminance from the sum, count and sum of squared
+/// luminance of its samples (∞ below 2 samples).
+#[inline]
+pub fn standard_error(sum: DVec3, count: u32, sq_sum: f64) -> f64 {
+    let n = count as f64;
+    if n < 2.0 {
+        return f64::INFINITY;
+    }
+    let mean = luminance(sum.as_vec3()) as f64 / n;
+    let var = ((sq_sum / n - mean * mean) * n / (n - 1.0)).max(0.0);
+    (var / n).sqrt()
+}
+
 impl Accumulation {
-    /// Standard error of pixel `i`'s mean luminance from its samples so far (∞ below 2).
+    /// Standard error of pixel `i`'s mean luminance from its samples so far (∞ below 2
+    /// samples, and without squared sums: a render that is not adaptive keeps none).
     pub fn standard_error(&self, i: usize) -> f64 {
-        let n = self.counts[i] as f64;
-        if n < 2.0 {
-            return f64::INFINITY;
-        }
-        let mean = luminance(self.sums[i].as_vec3()) as f64 / n;
-        let var = ((self.sq_sums[i] / n - mean * mean) * n / (n - 1.0)).max(0.0);
-        (var / n).sqrt()
+        self.sq_sums.get(i).map_or(f64::INFINITY, |&sq_sum| standard_error(self.sums[i], self.counts[i], sq_sum))
     }
 
     /// Samples taken in all, and the samples uniform sampling would need for the same RMS of
@@ -291,6 +299,14 @@ impl Accumulation {
         target.is_some_and(|e| self.counts[i] >= RenderSettings::ADAPTIVE_MIN_SPP && self.standard_error(i) <= e as f64)
     }
 
+    /// Bytes its per-pixel buffers hold.
+    pub fn buffer_bytes(&self) -> usize {
+        size_of_val(&self.sums[..])
+            + size_of_val(&self.counts[..])
+            + size_of_val(&self.sq_sums[..])
+            + size_of_val(&self.aovs[..])
+    }
+
     /// Empties the buffer and sizes it for `width × height`.
     pub fn reset(&mut self, width: u32, height: u32) {
         let n = width as usize * height as usize;
@@ -300,8 +316,8 @@ impl Accumulation {
         self.sums.resize(n, DVec3::ZERO);
         self.counts.clear();
         self.counts.resize(n, 0);
+        // Squared sums and AOV sums are sized by the first frame that needs them.
         self.sq_sums.clear();
-        self.sq_sums.resize(n, 0.0);
         self.aovs.clear();
         self.spp = 0;
         self.resets += 1;
@@ -340,6 +356,11 @@ impl Image {
                 })
                 .collect(),
         )
+    }
+
+    /// Bytes its per-pixel buffers hold.
+    pub fn buffer_bytes(&self) -> usize {
+        size_of_val(&self.linear[..]) + size_of_val(&self.srgb[..]) + size_of_val(&self.aovs[..])
     }
 
     /// Linear radiance at pixel (x, y).
