@@ -142,7 +142,8 @@ pub fn render(
             break;
         }
     }
-    let counts = renderer.world().resource::<Accumulation>().counts.clone();
+    let acc = renderer.world().resource::<Accumulation>();
+    let counts = (0..acc.sums.len()).map(|i| acc.count(i)).collect();
     Ok(Partial { info, frames, counts })
 }
 
@@ -317,9 +318,11 @@ pub fn merge(parts: &[(std::path::PathBuf, Partial)]) -> Result<Image, HemiError
 
     let (w, h) = (first.info.width, first.info.height);
     let mut acc = Accumulation::default();
-    acc.reset(w, h);
+    acc.reset(w, h, Default::default());
+    // Per-pixel counts, as the parts hold them.
+    acc.counts.resize(acc.sums.len(), 0);
     for (path, part) in order {
-        if part.counts.len() != acc.counts.len() || part.frames.iter().any(|f| f.len() != acc.sums.len()) {
+        if part.counts.len() != acc.counts.len() || part.frames.iter().any(|f| f.len() != acc.counts.len()) {
             return Err(HemiError::Io {
                 path: path.clone(),
                 message: "pixel data does not match the image size".into(),
@@ -327,7 +330,7 @@ pub fn merge(parts: &[(std::path::PathBuf, Partial)]) -> Result<Image, HemiError
         }
         // Frame by frame in sample order, each added as the accumulate system adds a frame.
         for (frame, &n) in part.frames.iter().zip(&part.info.frames) {
-            for (sum, add) in acc.sums.iter_mut().zip(frame) {
+            for (sum, add) in acc.sums.frames_mut().iter_mut().zip(frame) {
                 *sum += add.as_dvec3();
             }
             acc.spp += n;

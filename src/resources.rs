@@ -145,6 +145,14 @@ impl RenderSettings {
     pub fn pixel_count(&self) -> usize {
         self.width as usize * self.height as usize
     }
+
+    /// The buffers an accumulation for these settings keeps.
+    pub fn accumulation_layout(&self) -> AccumulationLayout {
+        AccumulationLayout {
+            one_frame: self.target_spp().is_some_and(|spp| spp <= self.samples_per_frame),
+            adaptive: self.target_error.is_some(),
+        }
+    }
 }
 
 /// Arbitrary output variables: per-pixel quantities written beside the beauty image (as
@@ -230,10 +238,10 @@ pub struct Accumulation {
     pub width: u32,
     /// Image height the buffer was sized for.
     pub height: u32,
-    /// Sum of all radiance samples per pixel (f64: a sum of frames in f32 would round
-    /// differently, and the image would depend on how the samples were split into frames).
-    pub sums: Vec<DVec3>,
-    /// Samples accumulated per pixel.
+    /// Sum of all radiance samples per pixel.
+    pub sums: Sums,
+    /// Samples accumulated per pixel: kept only for adaptive sampling, where pixels differ
+    /// (empty otherwise: every pixel has `spp`). [`Accumulation::count`] reads either.
     pub counts: Vec<u32>,
     /// Sum of squared sample luminance per pixel: kept only for adaptive sampling (empty
     /// otherwise), as nothing else reads it.
@@ -244,6 +252,75 @@ pub struct Accumulation {
     pub spp: u32,
     /// How many times the buffer has been reset.
     pub resets: u64,
+}
+
+/// Which per-pixel buffers an [`Accumulation`] keeps besides its sums.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct AccumulationLayout {
+    /// The first frame completes the render: the sums start as [`Sums::OneFrame`].
+    pub one_frame: bool,
+    /// Adaptive sampling: per-pixel counts and squared sums.
+    pub adaptive: bool,
+}
+
+/// Per-pixel radiance sums: f32 while they hold one frame (what an f64 sum of that frame
+/// holds, exactly), f64 once frames add up (a sum of frames in f32 would round differently,
+/// and the image would depend on how the samples were split into frames).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Sums {
+    /// One frame's sums.
+    OneFrame(Vec<Vec3>),
+    /// Sums over frames.
+    Frames(Vec<DVec3>),
+}
+
+impl Default for Sums {
+    fn default() -> Self {
+        Sums::Frames(Vec::new())
+    }
+}
+
+impl Sums {
+    /// Number of pixels.
+    pub fn len(&self) -> usize {
+        match self {
+            Sums::OneFrame(v) => v.len(),
+            Sums::Frames(v) => v.len(),
+        }
+    }
+
+    /// Whether there are no pixels.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Pixel `i`'s sum.
+    #[inline]
+    pub fn get(&self, i: usize) -> DVec3 {
+        match self {
+            Sums::OneFrame(v) => v[i].as_dvec3(),
+            Sums::Frames(v) => v[i],
+        }
+    }
+
+    /// Bytes the sums hold.
+    pub fn bytes(&self) -> usize {
+        match self {
+            Sums::OneFrame(v) => size_of_val(&v[..]),
+            Sums::Frames(v) => size_of_val(&v[..]),
+        }
+    }
+
+    /// The f64 sums, widened first from one frame's f32 (exactly), for more frames to add to.
+    pub fn frames_mut(&mut self) -> &mut Vec<DVec3> {
+        if let Sums::OneFrame(v) = self {
+            *self = Sums::Frames(v.iter().map(|s| s.as_dvec3()).collect());
+        }
+        match self {
+            Sums::Frames(v) => v,
+            Sums::OneFrame(_) => unreachable!("widened above"),
+        }
+    }
 }
 
 /// Luminance (Rec. 709) of linear RGB.
@@ -269,20 +346,20 @@ impl Accumulation {
     /// Standard error of pixel `i`'s mean luminance from its samples so far (∞ below 2
     /// samples, and without squared sums: a render that is not adaptive keeps none).
     pub fn standard_error(&self, i: usize) -> f64 {
-        self.sq_sums.get(i).map_or(f64::INFINITY, |&sq_sum| standard_error(self.sums[i], self.counts[i], sq_sum))
+        self.sq_sums.get(i).map_or(f64::INFINITY, |&sq_sum| standard_error(self.sums.get(i), self.count(i), sq_sum))
     }
 
     /// Samples taken in all, and the samples uniform sampling would need for the same RMS of
     /// the pixels' standard errors (N = mean variance / RMS², the same N in every pixel).
     pub fn samples_against_uniform(&self) -> (u64, f64) {
         let (mut taken, mut var_sum, mut err2_sum, mut n) = (0u64, 0.0f64, 0.0f64, 0usize);
-        for i in 0..self.counts.len() {
+        for i in 0..self.sums.len() {
             let e = self.standard_error(i);
             if !e.is_finite() {
                 continue;
             }
-            taken += self.counts[i] as u64;
-            var_sum += e * e * self.counts[i] as f64;
+            taken += self.count(i) as u64;
+            var_sum += e * e * self.count(i) as f64;
             err2_sum += e * e;
             n += 1;
         }
@@ -296,28 +373,44 @@ impl Accumulation {
     /// Whether adaptive sampling has retired pixel `i` for target error `e`.
     #[inline]
     pub fn pixel_done(&self, i: usize, target: Option<f32>) -> bool {
-        target.is_some_and(|e| self.counts[i] >= RenderSettings::ADAPTIVE_MIN_SPP && self.standard_error(i) <= e as f64)
+        target.is_some_and(|e| self.count(i) >= RenderSettings::ADAPTIVE_MIN_SPP && self.standard_error(i) <= e as f64)
+    }
+
+    /// Samples pixel `i` has accumulated.
+    #[inline]
+    pub fn count(&self, i: usize) -> u32 {
+        self.counts.get(i).copied().unwrap_or(self.spp)
     }
 
     /// Bytes its per-pixel buffers hold.
     pub fn buffer_bytes(&self) -> usize {
-        size_of_val(&self.sums[..])
-            + size_of_val(&self.counts[..])
-            + size_of_val(&self.sq_sums[..])
-            + size_of_val(&self.aovs[..])
+        self.sums.bytes() + size_of_val(&self.counts[..]) + size_of_val(&self.sq_sums[..]) + size_of_val(&self.aovs[..])
     }
 
-    /// Empties the buffer and sizes it for `width × height`.
-    pub fn reset(&mut self, width: u32, height: u32) {
+    /// Empties the buffers and sizes those `layout` keeps for `width × height` (AOV sums are
+    /// sized by the first frame that makes them).
+    pub fn reset(&mut self, width: u32, height: u32, layout: AccumulationLayout) {
         let n = width as usize * height as usize;
         self.width = width;
         self.height = height;
-        self.sums.clear();
-        self.sums.resize(n, DVec3::ZERO);
+        // The buffer of the kind there is is reused (progressive views reset often).
+        match (&mut self.sums, layout.one_frame) {
+            (Sums::OneFrame(v), true) => {
+                v.clear();
+                v.resize(n, Vec3::ZERO);
+            }
+            (Sums::Frames(v), false) => {
+                v.clear();
+                v.resize(n, DVec3::ZERO);
+            }
+            (_, true) => self.sums = Sums::OneFrame(vec![Vec3::ZERO; n]),
+            (_, false) => self.sums = Sums::Frames(vec![DVec3::ZERO; n]),
+        }
+        let adaptive = if layout.adaptive { n } else { 0 };
         self.counts.clear();
-        self.counts.resize(n, 0);
-        // Squared sums and AOV sums are sized by the first frame that needs them.
+        self.counts.resize(adaptive, 0);
         self.sq_sums.clear();
+        self.sq_sums.resize(adaptive, 0.0);
         self.aovs.clear();
         self.spp = 0;
         self.resets += 1;

@@ -28,21 +28,18 @@ pub fn resolve_into(accumulation: &Accumulation, image: &mut Image) {
     image.height = accumulation.height;
     image.linear.resize(n, Vec3::ZERO);
     image.srgb.resize(3 * n, 0);
-    image
-        .linear
-        .par_iter_mut()
-        .zip(image.srgb.par_chunks_mut(3))
-        .zip(accumulation.sums.par_iter().zip(accumulation.counts.par_iter()))
-        .for_each(|((linear, srgb), (sum, &count))| {
-            let mean = if count > 0 { (*sum / count as f64).as_vec3() } else { Vec3::ZERO };
-            *linear = if mean.is_finite() { mean } else { Vec3::ZERO };
-            for (c, v) in srgb.iter_mut().zip(linear.to_array()) {
-                *c = linear_to_srgb8(v);
-            }
-        });
+    image.linear.par_iter_mut().zip(image.srgb.par_chunks_mut(3)).enumerate().for_each(|(i, (linear, srgb))| {
+        let count = accumulation.count(i);
+        let mean = if count > 0 { (accumulation.sums.get(i) / count as f64).as_vec3() } else { Vec3::ZERO };
+        *linear = if mean.is_finite() { mean } else { Vec3::ZERO };
+        for (c, v) in srgb.iter_mut().zip(linear.to_array()) {
+            *c = linear_to_srgb8(v);
+        }
+    });
     image.aovs.clear();
     if accumulation.aovs.len() == n {
-        image.aovs.par_extend(accumulation.aovs.par_iter().zip(accumulation.counts.par_iter()).map(|(sum, &count)| {
+        image.aovs.par_extend(accumulation.aovs.par_iter().enumerate().map(|(i, sum)| {
+            let count = accumulation.count(i);
             let mut mean = [0.0f32; AOV_FLOATS];
             if count > 0 {
                 for (m, s) in mean.iter_mut().zip(sum) {

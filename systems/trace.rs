@@ -15,7 +15,8 @@ use crate::{
     geometry::{SceneGeometry, TraversalCounts, accel::AlphaCounts, counters},
     integrator::{LightGroup, LightRegistry, SampleResult, Scene, Tracer},
     resources::{
-        AOV_FLOATS, Accumulation, AovValues, FrameSamples, RenderSettings, SceneProblems, luminance, standard_error,
+        AOV_FLOATS, Accumulation, AovValues, FrameSamples, RenderSettings, SceneProblems, Sums, luminance,
+        standard_error,
     },
     sampling::{SampleSets, dims},
     stats::{FrameStats, RayCounts, TraceSplit, cycle_count, cycles_since, query_timed_pixel, timed_pixel},
@@ -104,8 +105,9 @@ pub fn trace(
     let n = settings.pixel_count();
     let acc = &mut *accumulation;
     debug_assert_eq!(acc.sums.len(), n, "the accumulation is sized for the settings");
-    if job.adaptive && acc.sq_sums.len() != n {
-        acc.sq_sums.resize(n, 0.0);
+    if acc.spp > 0 {
+        // A second frame: one frame's f32 sums become f64 before it adds to them.
+        acc.sums.frames_mut();
     }
     if job.aovs && acc.aovs.len() != n {
         acc.aovs.resize(n, [0.0; AOV_FLOATS]);
@@ -148,6 +150,9 @@ fn all_finite(v: Vec3A) -> bool {
 struct TilePixels<'a> {
     tile: Tile,
     width: u32,
+    /// Samples every pixel has when the accumulation keeps no per-pixel counts.
+    spp: u32,
+    one_frame_sums: Vec<&'a mut [Vec3]>,
     sums: Vec<&'a mut [DVec3]>,
     counts: Vec<&'a mut [u32]>,
     sq_sums: Vec<&'a mut [f64]>,
@@ -167,7 +172,7 @@ impl TilePixels<'_> {
     #[inline]
     fn count(&self, i: usize) -> u32 {
         let (r, c) = self.at(i);
-        self.counts[r][c]
+        self.counts.get(r).map_or(self.spp, |row| row[c])
     }
 
     /// Whether adaptive sampling has retired pixel `i` for target error `e` (as
@@ -176,14 +181,17 @@ impl TilePixels<'_> {
     fn pixel_done(&self, i: usize, target: Option<f32>) -> bool {
         let (r, c) = self.at(i);
         target.is_some_and(|e| {
-            self.counts[r][c] >= RenderSettings::ADAPTIVE_MIN_SPP
-                && standard_error(self.sums[r][c], self.counts[r][c], self.sq_sums[r][c]) <= e as f64
+            let sum = self.sums.get(r).map_or_else(|| self.one_frame_sums[r][c].as_dvec3(), |row| row[c]);
+            self.count(i) >= RenderSettings::ADAPTIVE_MIN_SPP
+                && standard_error(sum, self.count(i), self.sq_sums[r][c]) <= e as f64
         })
     }
 
     /// Adds the tile's frame samples, row-major over the tile, to its pixels.
     fn add(&mut self, sums: &[Vec3], counts: &[u32], sq_sums: &[f32], aovs: &[AovValues]) {
         let w = (self.tile.x1 - self.tile.x0) as usize;
+        // 0 + x rounds alike in f32 and f64: one frame's f32 sum is the f64 sum's value.
+        fold(&mut self.one_frame_sums, sums, w, |s, a| *s += *a);
         fold(&mut self.sums, sums, w, |s, a| *s += a.as_dvec3());
         fold(&mut self.counts, counts, w, |s, a| *s += a);
         fold(&mut self.sq_sums, sq_sums, w, |s, a| *s += *a as f64);
@@ -203,6 +211,8 @@ fn fold<T, U>(rows: &mut [&mut [T]], values: &[U], w: usize, f: impl Fn(&mut T, 
 struct Band<'a> {
     y0: u32,
     y1: u32,
+    spp: u32,
+    one_frame_sums: &'a mut [Vec3],
     sums: &'a mut [DVec3],
     counts: &'a mut [u32],
     sq_sums: &'a mut [f64],
@@ -213,6 +223,7 @@ struct Band<'a> {
 impl<'a> Band<'a> {
     /// The band's tiles, left to right, `size` pixels wide.
     fn tiles(self, width: u32, size: u32) -> Vec<TilePixels<'a>> {
+        let mut one_frame_sums = tile_rows(self.one_frame_sums, width, size);
         let mut sums = tile_rows(self.sums, width, size);
         let mut counts = tile_rows(self.counts, width, size);
         let mut sq_sums = tile_rows(self.sq_sums, width, size);
@@ -222,6 +233,8 @@ impl<'a> Band<'a> {
             .map(|i| TilePixels {
                 tile: Tile { x0: i * size, y0: self.y0, x1: ((i + 1) * size).min(width), y1: self.y1 },
                 width,
+                spp: self.spp,
+                one_frame_sums: one_frame_sums.next().unwrap_or_default(),
                 sums: sums.next().unwrap_or_default(),
                 counts: counts.next().unwrap_or_default(),
                 sq_sums: sq_sums.next().unwrap_or_default(),
@@ -234,9 +247,14 @@ impl<'a> Band<'a> {
 
 /// Cuts the accumulation's buffers and the frame's kept sums into bands of `size` rows.
 fn bands<'a>(acc: &'a mut Accumulation, frame_sums: &'a mut [Vec3], width: u32, size: u32) -> Vec<Band<'a>> {
-    let height = (acc.counts.len() / width as usize) as u32;
+    let height = (acc.sums.len() / width as usize) as u32;
     let (len, count) = (width as usize * size as usize, height.div_ceil(size) as usize);
-    let mut sums = split(&mut acc.sums, len, count);
+    let (one_frame_sums, sums): (&mut [Vec3], &mut [DVec3]) = match &mut acc.sums {
+        Sums::OneFrame(v) => (v, &mut []),
+        Sums::Frames(v) => (&mut [], v),
+    };
+    let mut one_frame_sums = split(one_frame_sums, len, count);
+    let mut sums = split(sums, len, count);
     let mut counts = split(&mut acc.counts, len, count);
     let mut sq_sums = split(&mut acc.sq_sums, len, count);
     let mut aovs = split(&mut acc.aovs, len, count);
@@ -246,6 +264,8 @@ fn bands<'a>(acc: &'a mut Accumulation, frame_sums: &'a mut [Vec3], width: u32, 
             Some(Band {
                 y0: b * size,
                 y1: ((b + 1) * size).min(height),
+                spp: acc.spp,
+                one_frame_sums: one_frame_sums.next()?,
                 sums: sums.next()?,
                 counts: counts.next()?,
                 sq_sums: sq_sums.next()?,
