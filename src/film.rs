@@ -195,7 +195,7 @@ pub fn write_picture<W: Write + Seek>(
     let size = exr::math::Vec2(w as usize, h as usize);
     match (format, picture.alpha) {
         (OutputFormat::Png, false) if picture.look.is_identity() => {
-            PngEncoder::new(out).write_image(&image.srgb, w, h, image::ExtendedColorType::Rgb8)
+            PngEncoder::new(out).write_image(&image.srgb8(), w, h, image::ExtendedColorType::Rgb8)
         }
         (OutputFormat::Png, false) => {
             let bytes: Vec<u8> = image.linear.iter().flat_map(|&c| picture.look.srgb8(c)).collect();
@@ -261,7 +261,7 @@ mod tests {
     fn exr_round_trips_linear_values_exactly() {
         use glam::Vec3;
         let linear = vec![Vec3::new(0.25, 1.5, 1e-3), Vec3::new(7.0, 0.0, 0.125)];
-        let image = Image { width: 2, height: 1, srgb: vec![0; 6], linear: linear.clone(), aovs: vec![] };
+        let image = Image { width: 2, height: 1, linear: linear.clone(), aovs: vec![] };
         let mut buf = std::io::Cursor::new(Vec::new());
         write_image(&image, OutputFormat::Exr, &mut buf).unwrap();
         let back = image::load_from_memory_with_format(buf.get_ref(), ImageFormat::OpenExr).unwrap().into_rgb32f();

@@ -64,8 +64,7 @@ mod tests {
         for (k, v) in aov.iter_mut().enumerate() {
             *v = k as f32 + 0.5;
         }
-        let image =
-            Image { width: 1, height: 1, linear: vec![Vec3::new(1.0, 2.0, 3.0)], srgb: vec![0; 3], aovs: vec![aov] };
+        let image = Image { width: 1, height: 1, linear: vec![Vec3::new(1.0, 2.0, 3.0)], aovs: vec![aov] };
         let bytes = layered_exr(&image, &[Aov::Ao, Aov::Direct, Aov::Albedo, Aov::Normal, Aov::Depth]).unwrap();
         let read = exr::prelude::read()
             .no_deep_data()

@@ -395,7 +395,7 @@ mod tests {
         }
         let merged = merge(&parts).unwrap();
         assert_eq!(merged.linear, whole.image().linear);
-        assert_eq!(merged.srgb, whole.image().srgb);
+        assert_eq!(merged.srgb8(), whole.image().srgb8());
         // A part holds other samples than the whole: its image differs.
         assert_eq!(merge(&[part(0, SPP)]).unwrap().linear, whole.image().linear);
         assert_ne!(parts[0].1.frames[0], parts[1].1.frames[0]);
@@ -446,7 +446,7 @@ mod tests {
         let m = Partial::load(&path).unwrap_err().to_string();
         assert!(m.contains("broken.exr") && m.lines().count() == 1, "{m}");
         // A plain EXR image is not a partial.
-        let image = Image { width: 1, height: 1, linear: vec![Vec3::ONE], srgb: vec![255; 3], aovs: vec![] };
+        let image = Image { width: 1, height: 1, linear: vec![Vec3::ONE], aovs: vec![] };
         crate::film::save(&image, &path).unwrap();
         let m = Partial::load(&path).unwrap_err().to_string();
         assert!(m.contains("not a hemi partial"), "{m}");

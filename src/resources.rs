@@ -2,8 +2,9 @@
 
 use bevy_ecs::prelude::Resource;
 use glam::{DVec3, Vec3};
+use rayon::prelude::*;
 
-use crate::sampling::SamplerKind;
+use crate::{sampling::SamplerKind, srgb::linear_to_srgb8};
 
 /// What to render and how.
 #[derive(Resource, Clone, Debug, PartialEq)]
@@ -417,7 +418,8 @@ impl Accumulation {
     }
 }
 
-/// The resolved image: linear radiance and its 8-bit sRGB encoding.
+/// The resolved image: linear radiance (its 8-bit sRGB encoding is made when asked for,
+/// [`Image::srgb8`]: only PNG output and the window need it).
 #[derive(Resource, Clone, Debug, Default, PartialEq)]
 pub struct Image {
     /// Width in pixels.
@@ -426,8 +428,6 @@ pub struct Image {
     pub height: u32,
     /// Mean radiance per pixel, linear RGB, row-major, top row first. Always finite.
     pub linear: Vec<Vec3>,
-    /// The same image clamped to \[0, 1\] and sRGB-encoded, 3 bytes per pixel.
-    pub srgb: Vec<u8>,
     /// Per-pixel AOV means (empty unless `RenderSettings::aovs`). Always finite.
     pub aovs: Vec<AovValues>,
 }
@@ -453,7 +453,18 @@ impl Image {
 
     /// Bytes its per-pixel buffers hold.
     pub fn buffer_bytes(&self) -> usize {
-        size_of_val(&self.linear[..]) + size_of_val(&self.srgb[..]) + size_of_val(&self.aovs[..])
+        size_of_val(&self.linear[..]) + size_of_val(&self.aovs[..])
+    }
+
+    /// The image clamped to \[0, 1\] and sRGB-encoded, 3 bytes per pixel, row-major.
+    pub fn srgb8(&self) -> Vec<u8> {
+        let mut srgb = vec![0; 3 * self.linear.len()];
+        srgb.par_chunks_mut(3).zip(self.linear.par_iter()).for_each(|(srgb, linear)| {
+            for (c, v) in srgb.iter_mut().zip(linear.to_array()) {
+                *c = linear_to_srgb8(v);
+            }
+        });
+        srgb
     }
 
     /// Linear radiance at pixel (x, y).

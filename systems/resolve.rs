@@ -1,4 +1,4 @@
-//! Stage 6: averages the accumulated sums into the linear image and its 8-bit sRGB encoding.
+//! Stage 6: averages the accumulated sums into the linear image.
 //! Runs only when the accumulation changed. No NaN or Inf can reach a pixel.
 
 use std::time::Instant;
@@ -9,7 +9,6 @@ use rayon::prelude::*;
 
 use crate::{
     resources::{AOV_FLOATS, Accumulation, Image},
-    srgb::linear_to_srgb8,
     stats::FrameStats,
 };
 
@@ -27,14 +26,10 @@ pub fn resolve_into(accumulation: &Accumulation, image: &mut Image) {
     image.width = accumulation.width;
     image.height = accumulation.height;
     image.linear.resize(n, Vec3::ZERO);
-    image.srgb.resize(3 * n, 0);
-    image.linear.par_iter_mut().zip(image.srgb.par_chunks_mut(3)).enumerate().for_each(|(i, (linear, srgb))| {
+    image.linear.par_iter_mut().enumerate().for_each(|(i, linear)| {
         let count = accumulation.count(i);
         let mean = if count > 0 { (accumulation.sums.get(i) / count as f64).as_vec3() } else { Vec3::ZERO };
         *linear = if mean.is_finite() { mean } else { Vec3::ZERO };
-        for (c, v) in srgb.iter_mut().zip(linear.to_array()) {
-            *c = linear_to_srgb8(v);
-        }
     });
     image.aovs.clear();
     if accumulation.aovs.len() == n {
