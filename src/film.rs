@@ -11,6 +11,7 @@ use image::{ImageEncoder, ImageFormat, RgbImage, codecs::png::PngEncoder};
 
 use crate::{
     error::HemiError,
+    layers::write_layered_exr,
     look::Look,
     resources::{Aov, Image},
 };
@@ -111,6 +112,12 @@ impl OutputFile {
         let path = self.path.clone();
         let format = self.format.ok_or_else(|| io_error(&path, "cannot write image", "no .png or .exr extension"))?;
         self.finish("cannot write image", |out| write_picture(image, format, picture, out).map_err(|e| e.to_string()))
+    }
+
+    /// Writes `image` and its AOVs `aovs` as one layered EXR ([`write_layered_exr`]), then
+    /// puts the file in place.
+    pub fn write_layered(self, image: &Image, aovs: &[Aov]) -> Result<(), HemiError> {
+        self.finish("cannot write image", |out| write_layered_exr(image, aovs, out))
     }
 
     /// Writes text (e.g. JSON statistics), then puts the file in place.

@@ -88,7 +88,7 @@ impl RenderSettings {
     /// The most samples per pixel a render may ask for (`--spp`, a peer scene's `ao.samples`).
     pub const MAX_SPP: u32 = 1_000_000;
 
-    /// Largest image hemi accepts, in pixels (8192 × 4096); buffers take about 40 bytes each.
+    /// Largest image hemi accepts, in pixels (8192 × 4096); buffers take 24 to 48 bytes each (192 with AOVs).
     pub const MAX_PIXELS: u64 = 1 << 25;
 
     /// A one-line description of the first unusable setting.
