@@ -240,15 +240,15 @@ pub struct Accumulation {
     /// Image height the buffer was sized for.
     pub height: u32,
     /// Sum of all radiance samples per pixel.
-    pub sums: Sums,
+    pub sums: Sums<Vec3>,
     /// Samples accumulated per pixel: kept only for adaptive sampling, where pixels differ
     /// (empty otherwise: every pixel has `spp`). [`Accumulation::count`] reads either.
     pub counts: Vec<u32>,
     /// Sum of squared sample luminance per pixel: kept only for adaptive sampling (empty
     /// otherwise), as nothing else reads it.
     pub sq_sums: Vec<f64>,
-    /// Per-pixel AOV sums (empty unless `RenderSettings::aovs`), in f64.
-    pub aovs: Vec<[f64; AOV_FLOATS]>,
+    /// Per-pixel AOV sums (empty unless `RenderSettings::aovs`), of the radiance sums' kind.
+    pub aovs: Sums<AovValues>,
     /// Samples per pixel accumulated so far (every pixel has the same count).
     pub spp: u32,
     /// How many times the buffer has been reset.
@@ -264,24 +264,46 @@ pub struct AccumulationLayout {
     pub adaptive: bool,
 }
 
-/// Per-pixel radiance sums: f32 while they hold one frame (what an f64 sum of that frame
-/// holds, exactly), f64 once frames add up (a sum of frames in f32 would round differently,
-/// and the image would depend on how the samples were split into frames).
+/// Per-pixel sums: f32 while they hold one frame (what an f64 sum of that frame holds,
+/// exactly: 0 + x rounds alike in both), f64 once frames add up (a sum of frames in f32 would
+/// round differently, and the image would depend on how the samples were split into frames).
 #[derive(Clone, Debug, PartialEq)]
-pub enum Sums {
+pub enum Sums<T: Widen> {
     /// One frame's sums.
-    OneFrame(Vec<Vec3>),
+    OneFrame(Vec<T>),
     /// Sums over frames.
-    Frames(Vec<DVec3>),
+    Frames(Vec<T::Wide>),
 }
 
-impl Default for Sums {
+/// A per-pixel f32 value and its f64 counterpart.
+pub trait Widen: Copy {
+    /// The same value in f64.
+    type Wide: Copy;
+    /// Converts exactly.
+    fn widen(self) -> Self::Wide;
+}
+
+impl Widen for Vec3 {
+    type Wide = DVec3;
+    fn widen(self) -> DVec3 {
+        self.as_dvec3()
+    }
+}
+
+impl Widen for AovValues {
+    type Wide = [f64; AOV_FLOATS];
+    fn widen(self) -> [f64; AOV_FLOATS] {
+        self.map(f64::from)
+    }
+}
+
+impl<T: Widen> Default for Sums<T> {
     fn default() -> Self {
         Sums::Frames(Vec::new())
     }
 }
 
-impl Sums {
+impl<T: Widen> Sums<T> {
     /// Number of pixels.
     pub fn len(&self) -> usize {
         match self {
@@ -297,9 +319,9 @@ impl Sums {
 
     /// Pixel `i`'s sum.
     #[inline]
-    pub fn get(&self, i: usize) -> DVec3 {
+    pub fn get(&self, i: usize) -> T::Wide {
         match self {
-            Sums::OneFrame(v) => v[i].as_dvec3(),
+            Sums::OneFrame(v) => v[i].widen(),
             Sums::Frames(v) => v[i],
         }
     }
@@ -313,13 +335,38 @@ impl Sums {
     }
 
     /// The f64 sums, widened first from one frame's f32 (exactly), for more frames to add to.
-    pub fn frames_mut(&mut self) -> &mut Vec<DVec3> {
+    pub fn frames_mut(&mut self) -> &mut Vec<T::Wide> {
         if let Sums::OneFrame(v) = self {
-            *self = Sums::Frames(v.iter().map(|s| s.as_dvec3()).collect());
+            *self = Sums::Frames(v.iter().map(|s| s.widen()).collect());
         }
         match self {
             Sums::Frames(v) => v,
             Sums::OneFrame(_) => unreachable!("widened above"),
+        }
+    }
+
+    /// Empties the sums and sizes them for `n` pixels of zero, f32 if `one_frame`, reusing the
+    /// buffer there is when it is of that kind (progressive views reset often).
+    fn reset(&mut self, n: usize, one_frame: bool, zero: T, wide_zero: T::Wide) {
+        match (&mut *self, one_frame) {
+            (Sums::OneFrame(v), true) => {
+                v.clear();
+                v.resize(n, zero);
+            }
+            (Sums::Frames(v), false) => {
+                v.clear();
+                v.resize(n, wide_zero);
+            }
+            (_, true) => *self = Sums::OneFrame(vec![zero; n]),
+            (_, false) => *self = Sums::Frames(vec![wide_zero; n]),
+        }
+    }
+
+    /// Sizes the sums for `n` pixels of zero, of the kind they are, if they are not.
+    pub fn size(&mut self, n: usize, zero: T, wide_zero: T::Wide) {
+        match self {
+            Sums::OneFrame(v) => v.resize(n, zero),
+            Sums::Frames(v) => v.resize(n, wide_zero),
         }
     }
 }
@@ -385,7 +432,7 @@ impl Accumulation {
 
     /// Bytes its per-pixel buffers hold.
     pub fn buffer_bytes(&self) -> usize {
-        self.sums.bytes() + size_of_val(&self.counts[..]) + size_of_val(&self.sq_sums[..]) + size_of_val(&self.aovs[..])
+        self.sums.bytes() + size_of_val(&self.counts[..]) + size_of_val(&self.sq_sums[..]) + self.aovs.bytes()
     }
 
     /// Empties the buffers and sizes those `layout` keeps for `width × height` (AOV sums are
@@ -394,25 +441,13 @@ impl Accumulation {
         let n = width as usize * height as usize;
         self.width = width;
         self.height = height;
-        // The buffer of the kind there is is reused (progressive views reset often).
-        match (&mut self.sums, layout.one_frame) {
-            (Sums::OneFrame(v), true) => {
-                v.clear();
-                v.resize(n, Vec3::ZERO);
-            }
-            (Sums::Frames(v), false) => {
-                v.clear();
-                v.resize(n, DVec3::ZERO);
-            }
-            (_, true) => self.sums = Sums::OneFrame(vec![Vec3::ZERO; n]),
-            (_, false) => self.sums = Sums::Frames(vec![DVec3::ZERO; n]),
-        }
+        self.sums.reset(n, layout.one_frame, Vec3::ZERO, DVec3::ZERO);
+        self.aovs.reset(0, layout.one_frame, [0.0; AOV_FLOATS], [0.0; AOV_FLOATS]);
         let adaptive = if layout.adaptive { n } else { 0 };
         self.counts.clear();
         self.counts.resize(adaptive, 0);
         self.sq_sums.clear();
         self.sq_sums.resize(adaptive, 0.0);
-        self.aovs.clear();
         self.spp = 0;
         self.resets += 1;
     }

@@ -33,12 +33,12 @@ pub fn resolve_into(accumulation: &Accumulation, image: &mut Image) {
     });
     image.aovs.clear();
     if accumulation.aovs.len() == n {
-        image.aovs.par_extend(accumulation.aovs.par_iter().enumerate().map(|(i, sum)| {
+        image.aovs.par_extend((0..n).into_par_iter().map(|i| {
             let count = accumulation.count(i);
             let mut mean = [0.0f32; AOV_FLOATS];
             if count > 0 {
-                for (m, s) in mean.iter_mut().zip(sum) {
-                    let v = (*s / count as f64) as f32;
+                for (m, s) in mean.iter_mut().zip(accumulation.aovs.get(i)) {
+                    let v = (s / count as f64) as f32;
                     *m = if v.is_finite() { v } else { 0.0 };
                 }
             }

@@ -108,9 +108,10 @@ pub fn trace(
     if acc.spp > 0 {
         // A second frame: one frame's f32 sums become f64 before it adds to them.
         acc.sums.frames_mut();
+        acc.aovs.frames_mut();
     }
     if job.aovs && acc.aovs.len() != n {
-        acc.aovs.resize(n, [0.0; AOV_FLOATS]);
+        acc.aovs.size(n, [0.0; AOV_FLOATS], [0.0; AOV_FLOATS]);
     }
     let frame = &mut *frame;
     frame.sums.clear();
@@ -156,6 +157,7 @@ struct TilePixels<'a> {
     sums: Vec<&'a mut [DVec3]>,
     counts: Vec<&'a mut [u32]>,
     sq_sums: Vec<&'a mut [f64]>,
+    one_frame_aovs: Vec<&'a mut [AovValues]>,
     aovs: Vec<&'a mut [[f64; AOV_FLOATS]]>,
     frame_sums: Vec<&'a mut [Vec3]>,
 }
@@ -195,6 +197,7 @@ impl TilePixels<'_> {
         fold(&mut self.sums, sums, w, |s, a| *s += a.as_dvec3());
         fold(&mut self.counts, counts, w, |s, a| *s += a);
         fold(&mut self.sq_sums, sq_sums, w, |s, a| *s += *a as f64);
+        fold(&mut self.one_frame_aovs, aovs, w, |s, a| s.iter_mut().zip(a).for_each(|(s, a)| *s += *a));
         fold(&mut self.aovs, aovs, w, |s, a| s.iter_mut().zip(a).for_each(|(s, a)| *s += *a as f64));
         fold(&mut self.frame_sums, sums, w, |s, a| *s = *a);
     }
@@ -216,6 +219,7 @@ struct Band<'a> {
     sums: &'a mut [DVec3],
     counts: &'a mut [u32],
     sq_sums: &'a mut [f64],
+    one_frame_aovs: &'a mut [AovValues],
     aovs: &'a mut [[f64; AOV_FLOATS]],
     frame_sums: &'a mut [Vec3],
 }
@@ -227,6 +231,7 @@ impl<'a> Band<'a> {
         let mut sums = tile_rows(self.sums, width, size);
         let mut counts = tile_rows(self.counts, width, size);
         let mut sq_sums = tile_rows(self.sq_sums, width, size);
+        let mut one_frame_aovs = tile_rows(self.one_frame_aovs, width, size);
         let mut aovs = tile_rows(self.aovs, width, size);
         let mut frame_sums = tile_rows(self.frame_sums, width, size);
         (0..width.div_ceil(size))
@@ -238,6 +243,7 @@ impl<'a> Band<'a> {
                 sums: sums.next().unwrap_or_default(),
                 counts: counts.next().unwrap_or_default(),
                 sq_sums: sq_sums.next().unwrap_or_default(),
+                one_frame_aovs: one_frame_aovs.next().unwrap_or_default(),
                 aovs: aovs.next().unwrap_or_default(),
                 frame_sums: frame_sums.next().unwrap_or_default(),
             })
@@ -257,7 +263,12 @@ fn bands<'a>(acc: &'a mut Accumulation, frame_sums: &'a mut [Vec3], width: u32, 
     let mut sums = split(sums, len, count);
     let mut counts = split(&mut acc.counts, len, count);
     let mut sq_sums = split(&mut acc.sq_sums, len, count);
-    let mut aovs = split(&mut acc.aovs, len, count);
+    let (one_frame_aovs, aovs): (&mut [AovValues], &mut [[f64; AOV_FLOATS]]) = match &mut acc.aovs {
+        Sums::OneFrame(v) => (v, &mut []),
+        Sums::Frames(v) => (&mut [], v),
+    };
+    let mut one_frame_aovs = split(one_frame_aovs, len, count);
+    let mut aovs = split(aovs, len, count);
     let mut frame = split(frame_sums, len, count);
     (0..count as u32)
         .filter_map(|b| {
@@ -269,6 +280,7 @@ fn bands<'a>(acc: &'a mut Accumulation, frame_sums: &'a mut [Vec3], width: u32, 
                 sums: sums.next()?,
                 counts: counts.next()?,
                 sq_sums: sq_sums.next()?,
+                one_frame_aovs: one_frame_aovs.next()?,
                 aovs: aovs.next()?,
                 frame_sums: frame.next()?,
             })

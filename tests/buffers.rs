@@ -38,8 +38,9 @@ fn each_render_keeps_the_bytes_per_pixel_its_layout_needs() {
     assert_eq!(pixel_bytes(&mut renderer(4, None, false), 8), PIXELS * 36);
     // Adaptive sampling adds counts (4) and squared sums (8).
     assert_eq!(pixel_bytes(&mut renderer(16, Some(0.05), false), 32), PIXELS * 48);
-    // AOVs: f64 sums of 12 floats (96) and their f32 means (48).
-    assert_eq!(pixel_bytes(&mut renderer(8, None, true), 8), PIXELS * (24 + 96 + 48));
+    // AOVs: sums of 12 floats, f32 (48) for one frame, f64 (96) over frames, and their means (48).
+    assert_eq!(pixel_bytes(&mut renderer(8, None, true), 8), PIXELS * (24 + 48 + 48));
+    assert_eq!(pixel_bytes(&mut renderer(4, None, true), 8), PIXELS * (36 + 96 + 48));
 }
 
 #[test]
@@ -66,7 +67,9 @@ fn one_frames_f32_sums_give_the_image_of_f64_sums() {
     for aovs in [false, true] {
         let mut one_frame = renderer(8, None, aovs);
         one_frame.render(8).unwrap();
-        assert!(matches!(one_frame.world().resource::<Accumulation>().sums, Sums::OneFrame(_)));
+        let acc = one_frame.world().resource::<Accumulation>();
+        assert!(matches!(acc.sums, Sums::OneFrame(_)) && matches!(acc.aovs, Sums::OneFrame(_)));
+        assert_eq!(acc.aovs.len(), if aovs { PIXELS } else { 0 });
         // No sample target: the accumulation keeps f64 sums from its first frame.
         let mut frames = renderer(8, None, aovs);
         frames.run_frame().unwrap();
@@ -74,7 +77,8 @@ fn one_frames_f32_sums_give_the_image_of_f64_sums() {
         assert!(one_frame.image() == frames.image(), "aovs {aovs}: one frame's images differ");
 
         one_frame.render(16).unwrap();
-        assert!(matches!(one_frame.world().resource::<Accumulation>().sums, Sums::Frames(_)));
+        let acc = one_frame.world().resource::<Accumulation>();
+        assert!(matches!(acc.sums, Sums::Frames(_)) && matches!(acc.aovs, Sums::Frames(_)));
         frames.run_frame().unwrap();
         assert_eq!(frames.spp(), 16);
         assert!(one_frame.image() == frames.image(), "aovs {aovs}: two frames' images differ");
