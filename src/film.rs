@@ -238,10 +238,10 @@ pub fn write_picture<W: Write + Seek>(
     }
 }
 
-/// An EXR encoding failure as the `image` crate reports one.
+/// An EXR encoding failure as the `image` crate's encoder reports one (on one line).
 fn exr_error(e: exr::error::Error) -> image::ImageError {
     let format = image::error::ImageFormatHint::Exact(ImageFormat::OpenExr);
-    image::ImageError::Encoding(image::error::EncodingError::new(format, e))
+    image::ImageError::Decoding(image::error::DecodingError::new(format, e.to_string()))
 }
 
 /// Whether `path` holds a complete image: it decodes, entirely, as a PNG or EXR, and is
