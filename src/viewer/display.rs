@@ -3,6 +3,7 @@
 
 use font8x8::legacy::BASIC_LEGACY;
 use glam::Vec3;
+use rayon::prelude::*;
 
 use crate::{
     look::{Look, Tonemap},
@@ -79,8 +80,9 @@ pub fn encode(image: &Image, display: &Display) -> Vec<u32> {
         Buffer::Beauty => None,
     };
     match aov {
+        // The image's 8-bit encoding, made here for the window (the image keeps none).
         None if display.exposure == 0.0 && display.tonemap == Tonemap::None => {
-            image.linear.iter().map(|&c| encode_linear(c)).collect()
+            image.linear.par_iter().map(|&c| encode_linear(c)).collect()
         }
         None => {
             let look = Look { exposure: display.exposure, tonemap: display.tonemap };
