@@ -6,10 +6,12 @@ use std::{
     path::{Path, PathBuf},
 };
 
-use image::{ImageEncoder, ImageFormat, Rgb32FImage, RgbImage, Rgba32FImage, codecs::png::PngEncoder};
+use exr::prelude::{Image as ExrImage, SpecificChannels, WritableImage};
+use image::{ImageEncoder, ImageFormat, RgbImage, codecs::png::PngEncoder};
 
 use crate::{
     error::HemiError,
+    layers::write_layered_exr,
     look::Look,
     resources::{Aov, Image},
 };
@@ -112,6 +114,12 @@ impl OutputFile {
         self.finish("cannot write image", |out| write_picture(image, format, picture, out).map_err(|e| e.to_string()))
     }
 
+    /// Writes `image` and its AOVs `aovs` as one layered EXR ([`write_layered_exr`]), then
+    /// puts the file in place.
+    pub fn write_layered(self, image: &Image, aovs: &[Aov]) -> Result<(), HemiError> {
+        self.finish("cannot write image", |out| write_layered_exr(image, aovs, out))
+    }
+
     /// Writes text (e.g. JSON statistics), then puts the file in place.
     pub fn write_text(self, text: &str) -> Result<(), HemiError> {
         self.finish("cannot write", |out| out.write_all(text.as_bytes()).map_err(|e| e.to_string()))
@@ -180,7 +188,8 @@ pub fn write_image<W: Write + Seek>(image: &Image, format: OutputFormat, out: &m
     write_picture(image, format, &Picture::default(), out)
 }
 
-/// Encodes `image` into `out` as PNG or EXR, as `picture` says.
+/// Encodes `image` into `out` as PNG or EXR, as `picture` says. The encoders read the
+/// image's own buffers: only a PNG with a look or alpha makes its 8-bit pixels first.
 pub fn write_picture<W: Write + Seek>(
     image: &Image,
     format: OutputFormat,
@@ -188,12 +197,12 @@ pub fn write_picture<W: Write + Seek>(
     out: &mut W,
 ) -> Result<(), image::ImageError> {
     let (w, h) = (image.width, image.height);
-    let alpha =
-        || image.aov(Aov::Alpha).map_or_else(|| vec![1.0; image.linear.len()], |a| a.iter().map(|p| p.x).collect());
+    let has_alpha = !image.aovs.is_empty() && image.aovs.len() == image.linear.len();
+    let alpha = |i: usize| if has_alpha { image.aovs[i][Aov::Alpha.range().start] } else { 1.0 };
+    let size = exr::math::Vec2(w as usize, h as usize);
     match (format, picture.alpha) {
         (OutputFormat::Png, false) if picture.look.is_identity() => {
-            let rgb = RgbImage::from_raw(w, h, image.srgb.clone()).expect("buffer size matches");
-            PngEncoder::new(out).write_image(&rgb, w, h, image::ExtendedColorType::Rgb8)
+            PngEncoder::new(out).write_image(&image.srgb8(), w, h, image::ExtendedColorType::Rgb8)
         }
         (OutputFormat::Png, false) => {
             let bytes: Vec<u8> = image.linear.iter().flat_map(|&c| picture.look.srgb8(c)).collect();
@@ -201,20 +210,38 @@ pub fn write_picture<W: Write + Seek>(
         }
         (OutputFormat::Png, true) => {
             let bytes: Vec<u8> =
-                image.linear.iter().zip(alpha()).flat_map(|(&c, a)| picture.look.srgba8(c, a)).collect();
+                image.linear.iter().enumerate().flat_map(|(i, &c)| picture.look.srgba8(c, alpha(i))).collect();
             PngEncoder::new(out).write_image(&bytes, w, h, image::ExtendedColorType::Rgba8)
         }
-        (OutputFormat::Exr, false) => {
-            let data: Vec<f32> = image.linear.iter().flat_map(|p| p.to_array()).collect();
-            let rgb = Rgb32FImage::from_raw(w, h, data).expect("buffer size matches");
-            rgb.write_to(out, ImageFormat::OpenExr)
-        }
-        (OutputFormat::Exr, true) => {
-            let data: Vec<f32> = image.linear.iter().zip(alpha()).flat_map(|(p, a)| [p.x, p.y, p.z, a]).collect();
-            let rgba = Rgba32FImage::from_raw(w, h, data).expect("buffer size matches");
-            rgba.write_to(out, ImageFormat::OpenExr)
-        }
+        // The EXR the `image` crate writes for an RGB(A) f32 buffer, from the image itself.
+        (OutputFormat::Exr, false) => ExrImage::from_channels(
+            size,
+            SpecificChannels::rgb(|p: exr::math::Vec2<usize>| {
+                let c = image.linear[p.flat_index_for_size(size)];
+                (c.x, c.y, c.z)
+            }),
+        )
+        .write()
+        .to_buffered(out)
+        .map_err(exr_error),
+        (OutputFormat::Exr, true) => ExrImage::from_channels(
+            size,
+            SpecificChannels::rgba(|p: exr::math::Vec2<usize>| {
+                let i = p.flat_index_for_size(size);
+                let c = image.linear[i];
+                (c.x, c.y, c.z, alpha(i))
+            }),
+        )
+        .write()
+        .to_buffered(out)
+        .map_err(exr_error),
     }
+}
+
+/// An EXR encoding failure as the `image` crate's encoder reports one (on one line).
+fn exr_error(e: exr::error::Error) -> image::ImageError {
+    let format = image::error::ImageFormatHint::Exact(ImageFormat::OpenExr);
+    image::ImageError::Decoding(image::error::DecodingError::new(format, e.to_string()))
 }
 
 /// Whether `path` holds a complete image: it decodes, entirely, as a PNG or EXR, and is
@@ -241,7 +268,7 @@ mod tests {
     fn exr_round_trips_linear_values_exactly() {
         use glam::Vec3;
         let linear = vec![Vec3::new(0.25, 1.5, 1e-3), Vec3::new(7.0, 0.0, 0.125)];
-        let image = Image { width: 2, height: 1, srgb: vec![0; 6], linear: linear.clone(), aovs: vec![] };
+        let image = Image { width: 2, height: 1, linear: linear.clone(), aovs: vec![] };
         let mut buf = std::io::Cursor::new(Vec::new());
         write_image(&image, OutputFormat::Exr, &mut buf).unwrap();
         let back = image::load_from_memory_with_format(buf.get_ref(), ImageFormat::OpenExr).unwrap().into_rgb32f();

@@ -1,7 +1,7 @@
 //! The beauty image and its AOVs as one multi-layer EXR, with the channel names Blender and
 //! Nuke read as layers: `R G B A`, `ao`, `direct.R/G/B`, `albedo.R/G/B`, `N.X/Y/Z`, `Z`.
 
-use std::io::Cursor;
+use std::io::{Seek, Write};
 
 use exr::prelude::{
     AnyChannel, AnyChannels, Encoding, FlatSamples, Image as ExrImage, Layer, LayerAttributes, SmallVec, WritableImage,
@@ -22,9 +22,10 @@ pub fn channel_names(aov: Aov) -> &'static [&'static str] {
 }
 
 /// Encodes the linear beauty image (`R`, `G`, `B`) and the AOVs `aovs` of `image`, plus
-/// coverage as `A` whenever the image has AOVs, as one 32-bit float EXR. AOVs the image did
-/// not accumulate are left out.
-pub fn layered_exr(image: &Image, aovs: &[Aov]) -> Result<Vec<u8>, String> {
+/// coverage as `A` whenever the image has AOVs, as one 32-bit float EXR into `out` (the file
+/// itself: the encoded image is never held whole in memory). AOVs the image did not
+/// accumulate are left out.
+pub fn write_layered_exr(image: &Image, aovs: &[Aov], out: &mut (impl Write + Seek)) -> Result<(), String> {
     let (w, h) = (image.width as usize, image.height as usize);
     let mut list: Vec<AnyChannel<FlatSamples>> = Vec::new();
     for (c, name) in ["R", "G", "B"].into_iter().enumerate() {
@@ -46,13 +47,13 @@ pub fn layered_exr(image: &Image, aovs: &[Aov]) -> Result<Vec<u8>, String> {
         Encoding::SMALL_LOSSLESS,
         AnyChannels::sort(SmallVec::from_vec(list)),
     );
-    let mut out = Cursor::new(Vec::new());
-    ExrImage::from_layer(layer).write().to_buffered(&mut out).map_err(|e| e.to_string())?;
-    Ok(out.into_inner())
+    ExrImage::from_layer(layer).write().to_buffered(out).map_err(|e| e.to_string())
 }
 
 #[cfg(test)]
 mod tests {
+    use std::io::Cursor;
+
     use exr::prelude::{ReadChannels, ReadLayers};
     use glam::Vec3;
 
@@ -64,16 +65,17 @@ mod tests {
         for (k, v) in aov.iter_mut().enumerate() {
             *v = k as f32 + 0.5;
         }
-        let image =
-            Image { width: 1, height: 1, linear: vec![Vec3::new(1.0, 2.0, 3.0)], srgb: vec![0; 3], aovs: vec![aov] };
-        let bytes = layered_exr(&image, &[Aov::Ao, Aov::Direct, Aov::Albedo, Aov::Normal, Aov::Depth]).unwrap();
+        let image = Image { width: 1, height: 1, linear: vec![Vec3::new(1.0, 2.0, 3.0)], aovs: vec![aov] };
+        let mut bytes = Cursor::new(Vec::new());
+        write_layered_exr(&image, &[Aov::Ao, Aov::Direct, Aov::Albedo, Aov::Normal, Aov::Depth], &mut bytes).unwrap();
+        bytes.set_position(0);
         let read = exr::prelude::read()
             .no_deep_data()
             .largest_resolution_level()
             .all_channels()
             .first_valid_layer()
             .all_attributes()
-            .from_buffered(Cursor::new(bytes))
+            .from_buffered(bytes)
             .unwrap();
         let mut got: Vec<(String, f32)> = read
             .layer_data

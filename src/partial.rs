@@ -127,6 +127,7 @@ pub fn render(
         s.samples_per_frame = info.spf;
         s.validate().map_err(HemiError::Usage)?;
     }
+    renderer.world_mut().resource_mut::<FrameSamples>().keep_sums = true;
     let mut frames = Vec::new();
     info.frames.clear();
     loop {
@@ -141,7 +142,8 @@ pub fn render(
             break;
         }
     }
-    let counts = renderer.world().resource::<Accumulation>().counts.clone();
+    let acc = renderer.world().resource::<Accumulation>();
+    let counts = (0..acc.sums.len()).map(|i| acc.count(i)).collect();
     Ok(Partial { info, frames, counts })
 }
 
@@ -316,9 +318,11 @@ pub fn merge(parts: &[(std::path::PathBuf, Partial)]) -> Result<Image, HemiError
 
     let (w, h) = (first.info.width, first.info.height);
     let mut acc = Accumulation::default();
-    acc.reset(w, h);
+    acc.reset(w, h, Default::default());
+    // Per-pixel counts, as the parts hold them.
+    acc.counts.resize(acc.sums.len(), 0);
     for (path, part) in order {
-        if part.counts.len() != acc.counts.len() || part.frames.iter().any(|f| f.len() != acc.sums.len()) {
+        if part.counts.len() != acc.counts.len() || part.frames.iter().any(|f| f.len() != acc.counts.len()) {
             return Err(HemiError::Io {
                 path: path.clone(),
                 message: "pixel data does not match the image size".into(),
@@ -326,7 +330,7 @@ pub fn merge(parts: &[(std::path::PathBuf, Partial)]) -> Result<Image, HemiError
         }
         // Frame by frame in sample order, each added as the accumulate system adds a frame.
         for (frame, &n) in part.frames.iter().zip(&part.info.frames) {
-            for (sum, add) in acc.sums.iter_mut().zip(frame) {
+            for (sum, add) in acc.sums.frames_mut().iter_mut().zip(frame) {
                 *sum += add.as_dvec3();
             }
             acc.spp += n;
@@ -391,7 +395,7 @@ mod tests {
         }
         let merged = merge(&parts).unwrap();
         assert_eq!(merged.linear, whole.image().linear);
-        assert_eq!(merged.srgb, whole.image().srgb);
+        assert_eq!(merged.srgb8(), whole.image().srgb8());
         // A part holds other samples than the whole: its image differs.
         assert_eq!(merge(&[part(0, SPP)]).unwrap().linear, whole.image().linear);
         assert_ne!(parts[0].1.frames[0], parts[1].1.frames[0]);
@@ -442,7 +446,7 @@ mod tests {
         let m = Partial::load(&path).unwrap_err().to_string();
         assert!(m.contains("broken.exr") && m.lines().count() == 1, "{m}");
         // A plain EXR image is not a partial.
-        let image = Image { width: 1, height: 1, linear: vec![Vec3::ONE], srgb: vec![255; 3], aovs: vec![] };
+        let image = Image { width: 1, height: 1, linear: vec![Vec3::ONE], aovs: vec![] };
         crate::film::save(&image, &path).unwrap();
         let m = Partial::load(&path).unwrap_err().to_string();
         assert!(m.contains("not a hemi partial"), "{m}");

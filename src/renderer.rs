@@ -168,16 +168,11 @@ impl Renderer {
     }
 
     fn buffer_bytes(&self) -> usize {
-        let acc = self.world.resource::<Accumulation>();
         let frame = self.world.resource::<FrameSamples>();
-        let image = self.world.resource::<Image>();
-        let sets = self.world.resource::<SampleSets>();
-        acc.sums.len() * 24
-            + acc.counts.len() * 4
-            + frame.sums.len() * 12
-            + image.linear.len() * 12
-            + image.srgb.len()
-            + sets.memory_bytes()
+        self.world.resource::<Accumulation>().buffer_bytes()
+            + size_of_val(&frame.sums[..])
+            + self.world.resource::<Image>().buffer_bytes()
+            + self.world.resource::<SampleSets>().memory_bytes()
     }
 
     /// Frames in a row that may each restart accumulation before [`Renderer::render`] gives

@@ -2,8 +2,9 @@
 
 use bevy_ecs::prelude::Resource;
 use glam::{DVec3, Vec3};
+use rayon::prelude::*;
 
-use crate::sampling::SamplerKind;
+use crate::{sampling::SamplerKind, srgb::linear_to_srgb8};
 
 /// What to render and how.
 #[derive(Resource, Clone, Debug, PartialEq)]
@@ -87,7 +88,7 @@ impl RenderSettings {
     /// The most samples per pixel a render may ask for (`--spp`, a peer scene's `ao.samples`).
     pub const MAX_SPP: u32 = 1_000_000;
 
-    /// Largest image hemi accepts, in pixels (8192 × 4096); buffers take about 60 bytes each.
+    /// Largest image hemi accepts, in pixels (8192 × 4096); buffers take 24 to 48 bytes each (192 with AOVs).
     pub const MAX_PIXELS: u64 = 1 << 25;
 
     /// A one-line description of the first unusable setting.
@@ -144,6 +145,14 @@ impl RenderSettings {
     /// Number of pixels.
     pub fn pixel_count(&self) -> usize {
         self.width as usize * self.height as usize
+    }
+
+    /// The buffers an accumulation for these settings keeps.
+    pub fn accumulation_layout(&self) -> AccumulationLayout {
+        AccumulationLayout {
+            one_frame: self.target_spp().is_some_and(|spp| spp <= self.samples_per_frame),
+            adaptive: self.target_error.is_some(),
+        }
     }
 }
 
@@ -207,22 +216,20 @@ impl Aov {
     }
 }
 
-/// The samples traced by the current frame, per pixel (written by the trace system).
+/// What the current frame traced (the trace system adds its samples straight into
+/// [`Accumulation`], tile by tile, so that no image-sized frame buffer sits beside the sums).
 #[derive(Resource, Clone, Debug, Default)]
 pub struct FrameSamples {
-    /// Sum of this frame's radiance samples per pixel, row-major.
-    pub sums: Vec<Vec3>,
     /// Samples per pixel traced this frame (0 when the frame traced nothing); pixels that
-    /// adaptive sampling retired got none (see `counts`).
+    /// adaptive sampling retired got none.
     pub samples_per_pixel: u32,
-    /// Samples traced per pixel this frame.
-    pub counts: Vec<u32>,
-    /// Sum of the squared luminance of this frame's samples per pixel (for the variance).
-    pub sq_sums: Vec<f32>,
     /// Pixels traced this frame.
     pub active_pixels: usize,
-    /// Per-pixel AOV sums (empty unless `RenderSettings::aovs`).
-    pub aovs: Vec<AovValues>,
+    /// Keep each frame's per-pixel radiance sums in [`FrameSamples::sums`]: the parts of a
+    /// render split by sample index store them, so that merged parts add up bit for bit.
+    pub keep_sums: bool,
+    /// Sum of this frame's radiance samples per pixel, row-major (empty unless `keep_sums`).
+    pub sums: Vec<Vec3>,
 }
 
 /// Running sums over frames; reset whenever the scene or the settings change.
@@ -232,18 +239,136 @@ pub struct Accumulation {
     pub width: u32,
     /// Image height the buffer was sized for.
     pub height: u32,
-    /// Sum of all radiance samples per pixel (f64 so that long runs do not lose precision).
-    pub sums: Vec<DVec3>,
-    /// Samples accumulated per pixel.
+    /// Sum of all radiance samples per pixel.
+    pub sums: Sums<Vec3>,
+    /// Samples accumulated per pixel: kept only for adaptive sampling, where pixels differ
+    /// (empty otherwise: every pixel has `spp`). [`Accumulation::count`] reads either.
     pub counts: Vec<u32>,
-    /// Sum of squared sample luminance per pixel.
+    /// Sum of squared sample luminance per pixel: kept only for adaptive sampling (empty
+    /// otherwise), as nothing else reads it.
     pub sq_sums: Vec<f64>,
-    /// Per-pixel AOV sums (empty unless `RenderSettings::aovs`), in f64.
-    pub aovs: Vec<[f64; AOV_FLOATS]>,
+    /// Per-pixel AOV sums (empty unless `RenderSettings::aovs`), of the radiance sums' kind.
+    pub aovs: Sums<AovValues>,
     /// Samples per pixel accumulated so far (every pixel has the same count).
     pub spp: u32,
     /// How many times the buffer has been reset.
     pub resets: u64,
+}
+
+/// Which per-pixel buffers an [`Accumulation`] keeps besides its sums.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct AccumulationLayout {
+    /// The first frame completes the render: the sums start as [`Sums::OneFrame`].
+    pub one_frame: bool,
+    /// Adaptive sampling: per-pixel counts and squared sums.
+    pub adaptive: bool,
+}
+
+/// Per-pixel sums: f32 while they hold one frame (what an f64 sum of that frame holds,
+/// exactly: 0 + x rounds alike in both), f64 once frames add up (a sum of frames in f32 would
+/// round differently, and the image would depend on how the samples were split into frames).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Sums<T: Widen> {
+    /// One frame's sums.
+    OneFrame(Vec<T>),
+    /// Sums over frames.
+    Frames(Vec<T::Wide>),
+}
+
+/// A per-pixel f32 value and its f64 counterpart.
+pub trait Widen: Copy {
+    /// The same value in f64.
+    type Wide: Copy;
+    /// Converts exactly.
+    fn widen(self) -> Self::Wide;
+}
+
+impl Widen for Vec3 {
+    type Wide = DVec3;
+    fn widen(self) -> DVec3 {
+        self.as_dvec3()
+    }
+}
+
+impl Widen for AovValues {
+    type Wide = [f64; AOV_FLOATS];
+    fn widen(self) -> [f64; AOV_FLOATS] {
+        self.map(f64::from)
+    }
+}
+
+impl<T: Widen> Default for Sums<T> {
+    fn default() -> Self {
+        Sums::Frames(Vec::new())
+    }
+}
+
+impl<T: Widen> Sums<T> {
+    /// Number of pixels.
+    pub fn len(&self) -> usize {
+        match self {
+            Sums::OneFrame(v) => v.len(),
+            Sums::Frames(v) => v.len(),
+        }
+    }
+
+    /// Whether there are no pixels.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Pixel `i`'s sum.
+    #[inline]
+    pub fn get(&self, i: usize) -> T::Wide {
+        match self {
+            Sums::OneFrame(v) => v[i].widen(),
+            Sums::Frames(v) => v[i],
+        }
+    }
+
+    /// Bytes the sums hold.
+    pub fn bytes(&self) -> usize {
+        match self {
+            Sums::OneFrame(v) => size_of_val(&v[..]),
+            Sums::Frames(v) => size_of_val(&v[..]),
+        }
+    }
+
+    /// The f64 sums, widened first from one frame's f32 (exactly), for more frames to add to.
+    pub fn frames_mut(&mut self) -> &mut Vec<T::Wide> {
+        if let Sums::OneFrame(v) = self {
+            *self = Sums::Frames(v.iter().map(|s| s.widen()).collect());
+        }
+        match self {
+            Sums::Frames(v) => v,
+            Sums::OneFrame(_) => unreachable!("widened above"),
+        }
+    }
+
+    /// Empties the sums and sizes them for `n` pixels of zero, f32 if `one_frame`, reusing the
+    /// buffer there is when it is of that kind (progressive views reset often).
+    fn reset(&mut self, n: usize, one_frame: bool, zero: T, wide_zero: T::Wide) {
+        match (&mut *self, one_frame) {
+            (Sums::OneFrame(v), true) => {
+                v.clear();
+                v.resize(n, zero);
+            }
+            (Sums::Frames(v), false) => {
+                v.clear();
+                v.resize(n, wide_zero);
+            }
+            (_, true) => *self = Sums::OneFrame(vec![zero; n]),
+            (_, false) => *self = Sums::Frames(vec![wide_zero; n]),
+        }
+    }
+
+    /// Sizes the sums for `n` pixels of zero, of the kind they are, if they are not.
+    pub fn size(&mut self, n: usize, zero: T, wide_zero: T::Wide) {
+        match self {
+            Sums::OneFrame(v) => v.resize(n, zero),
+            Sums::Frames(v) => v.resize(n, wide_zero),
+        }
+    }
 }
 
 /// Luminance (Rec. 709) of linear RGB.
@@ -252,29 +377,37 @@ pub fn luminance(c: Vec3) -> f32 {
     c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
 }
 
+/// Standard error of a pixel's mean luminance from the sum, count and sum of squared
+/// luminance of its samples (∞ below 2 samples).
+#[inline]
+pub fn standard_error(sum: DVec3, count: u32, sq_sum: f64) -> f64 {
+    let n = count as f64;
+    if n < 2.0 {
+        return f64::INFINITY;
+    }
+    let mean = luminance(sum.as_vec3()) as f64 / n;
+    let var = ((sq_sum / n - mean * mean) * n / (n - 1.0)).max(0.0);
+    (var / n).sqrt()
+}
+
 impl Accumulation {
-    /// Standard error of pixel `i`'s mean luminance from its samples so far (∞ below 2).
+    /// Standard error of pixel `i`'s mean luminance from its samples so far (∞ below 2
+    /// samples, and without squared sums: a render that is not adaptive keeps none).
     pub fn standard_error(&self, i: usize) -> f64 {
-        let n = self.counts[i] as f64;
-        if n < 2.0 {
-            return f64::INFINITY;
-        }
-        let mean = luminance(self.sums[i].as_vec3()) as f64 / n;
-        let var = ((self.sq_sums[i] / n - mean * mean) * n / (n - 1.0)).max(0.0);
-        (var / n).sqrt()
+        self.sq_sums.get(i).map_or(f64::INFINITY, |&sq_sum| standard_error(self.sums.get(i), self.count(i), sq_sum))
     }
 
     /// Samples taken in all, and the samples uniform sampling would need for the same RMS of
     /// the pixels' standard errors (N = mean variance / RMS², the same N in every pixel).
     pub fn samples_against_uniform(&self) -> (u64, f64) {
         let (mut taken, mut var_sum, mut err2_sum, mut n) = (0u64, 0.0f64, 0.0f64, 0usize);
-        for i in 0..self.counts.len() {
+        for i in 0..self.sums.len() {
             let e = self.standard_error(i);
             if !e.is_finite() {
                 continue;
             }
-            taken += self.counts[i] as u64;
-            var_sum += e * e * self.counts[i] as f64;
+            taken += self.count(i) as u64;
+            var_sum += e * e * self.count(i) as f64;
             err2_sum += e * e;
             n += 1;
         }
@@ -288,27 +421,40 @@ impl Accumulation {
     /// Whether adaptive sampling has retired pixel `i` for target error `e`.
     #[inline]
     pub fn pixel_done(&self, i: usize, target: Option<f32>) -> bool {
-        target.is_some_and(|e| self.counts[i] >= RenderSettings::ADAPTIVE_MIN_SPP && self.standard_error(i) <= e as f64)
+        target.is_some_and(|e| self.count(i) >= RenderSettings::ADAPTIVE_MIN_SPP && self.standard_error(i) <= e as f64)
     }
 
-    /// Empties the buffer and sizes it for `width × height`.
-    pub fn reset(&mut self, width: u32, height: u32) {
+    /// Samples pixel `i` has accumulated.
+    #[inline]
+    pub fn count(&self, i: usize) -> u32 {
+        self.counts.get(i).copied().unwrap_or(self.spp)
+    }
+
+    /// Bytes its per-pixel buffers hold.
+    pub fn buffer_bytes(&self) -> usize {
+        self.sums.bytes() + size_of_val(&self.counts[..]) + size_of_val(&self.sq_sums[..]) + self.aovs.bytes()
+    }
+
+    /// Empties the buffers and sizes those `layout` keeps for `width × height` (AOV sums are
+    /// sized by the first frame that makes them).
+    pub fn reset(&mut self, width: u32, height: u32, layout: AccumulationLayout) {
         let n = width as usize * height as usize;
         self.width = width;
         self.height = height;
-        self.sums.clear();
-        self.sums.resize(n, DVec3::ZERO);
+        self.sums.reset(n, layout.one_frame, Vec3::ZERO, DVec3::ZERO);
+        self.aovs.reset(0, layout.one_frame, [0.0; AOV_FLOATS], [0.0; AOV_FLOATS]);
+        let adaptive = if layout.adaptive { n } else { 0 };
         self.counts.clear();
-        self.counts.resize(n, 0);
+        self.counts.resize(adaptive, 0);
         self.sq_sums.clear();
-        self.sq_sums.resize(n, 0.0);
-        self.aovs.clear();
+        self.sq_sums.resize(adaptive, 0.0);
         self.spp = 0;
         self.resets += 1;
     }
 }
 
-/// The resolved image: linear radiance and its 8-bit sRGB encoding.
+/// The resolved image: linear radiance (its 8-bit sRGB encoding is made when asked for,
+/// [`Image::srgb8`]: only PNG output and the window need it).
 #[derive(Resource, Clone, Debug, Default, PartialEq)]
 pub struct Image {
     /// Width in pixels.
@@ -317,8 +463,6 @@ pub struct Image {
     pub height: u32,
     /// Mean radiance per pixel, linear RGB, row-major, top row first. Always finite.
     pub linear: Vec<Vec3>,
-    /// The same image clamped to \[0, 1\] and sRGB-encoded, 3 bytes per pixel.
-    pub srgb: Vec<u8>,
     /// Per-pixel AOV means (empty unless `RenderSettings::aovs`). Always finite.
     pub aovs: Vec<AovValues>,
 }
@@ -340,6 +484,22 @@ impl Image {
                 })
                 .collect(),
         )
+    }
+
+    /// Bytes its per-pixel buffers hold.
+    pub fn buffer_bytes(&self) -> usize {
+        size_of_val(&self.linear[..]) + size_of_val(&self.aovs[..])
+    }
+
+    /// The image clamped to \[0, 1\] and sRGB-encoded, 3 bytes per pixel, row-major.
+    pub fn srgb8(&self) -> Vec<u8> {
+        let mut srgb = vec![0; 3 * self.linear.len()];
+        srgb.par_chunks_mut(3).zip(self.linear.par_iter()).for_each(|(srgb, linear)| {
+            for (c, v) in srgb.iter_mut().zip(linear.to_array()) {
+                *c = linear_to_srgb8(v);
+            }
+        });
+        srgb
     }
 
     /// Linear radiance at pixel (x, y).

@@ -189,7 +189,7 @@ pub fn update_bvh(
     // sample target that flips the choice renders what a fresh render to that target would.
     if rebake && stats.reset.is_none() {
         let (width, height) = (accumulation.width, accumulation.height);
-        accumulation.reset(width, height);
+        accumulation.reset(width, height, settings.accumulation_layout());
         stats.reset = Some("the shared meshes' baking changed with max_spp".into());
     }
     let structural = !cache.built_once || !added.is_empty() || removed.any() || rebake;

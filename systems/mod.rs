@@ -5,9 +5,10 @@
 //! 1. [`scene_changes`]: detect changed entities/settings, validate them, reset accumulation.
 //! 2. [`bvh`]: rebuild the BVH only when geometry changed.
 //! 3. [`sample_sets`]: regenerate sample sets only when sampler settings changed.
-//! 4. [`trace`]: tile-parallel AO + direct tracing of this frame's samples.
-//! 5. [`accumulate`]: add the frame's samples to the running sums.
-//! 6. [`resolve`]: average into the linear and sRGB images.
+//! 4. [`trace`]: tile-parallel AO + direct tracing of this frame's samples, each tile's
+//!    samples added to its pixels' running sums.
+//! 5. [`accumulate`]: count the frame's samples per pixel.
+//! 6. [`resolve`]: average into the linear image.
 
 pub mod accumulate;
 pub mod animation;

@@ -1,4 +1,4 @@
-//! Stage 6: averages the accumulated sums into the linear image and its 8-bit sRGB encoding.
+//! Stage 6: averages the accumulated sums into the linear image.
 //! Runs only when the accumulation changed. No NaN or Inf can reach a pixel.
 
 use std::time::Instant;
@@ -9,7 +9,6 @@ use rayon::prelude::*;
 
 use crate::{
     resources::{AOV_FLOATS, Accumulation, Image},
-    srgb::linear_to_srgb8,
     stats::FrameStats,
 };
 
@@ -27,26 +26,19 @@ pub fn resolve_into(accumulation: &Accumulation, image: &mut Image) {
     image.width = accumulation.width;
     image.height = accumulation.height;
     image.linear.resize(n, Vec3::ZERO);
-    image.srgb.resize(3 * n, 0);
-    image
-        .linear
-        .par_iter_mut()
-        .zip(image.srgb.par_chunks_mut(3))
-        .zip(accumulation.sums.par_iter().zip(accumulation.counts.par_iter()))
-        .for_each(|((linear, srgb), (sum, &count))| {
-            let mean = if count > 0 { (*sum / count as f64).as_vec3() } else { Vec3::ZERO };
-            *linear = if mean.is_finite() { mean } else { Vec3::ZERO };
-            for (c, v) in srgb.iter_mut().zip(linear.to_array()) {
-                *c = linear_to_srgb8(v);
-            }
-        });
+    image.linear.par_iter_mut().enumerate().for_each(|(i, linear)| {
+        let count = accumulation.count(i);
+        let mean = if count > 0 { (accumulation.sums.get(i) / count as f64).as_vec3() } else { Vec3::ZERO };
+        *linear = if mean.is_finite() { mean } else { Vec3::ZERO };
+    });
     image.aovs.clear();
     if accumulation.aovs.len() == n {
-        image.aovs.par_extend(accumulation.aovs.par_iter().zip(accumulation.counts.par_iter()).map(|(sum, &count)| {
+        image.aovs.par_extend((0..n).into_par_iter().map(|i| {
+            let count = accumulation.count(i);
             let mut mean = [0.0f32; AOV_FLOATS];
             if count > 0 {
-                for (m, s) in mean.iter_mut().zip(sum) {
-                    let v = (*s / count as f64) as f32;
+                for (m, s) in mean.iter_mut().zip(accumulation.aovs.get(i)) {
+                    let v = (s / count as f64) as f32;
                     *m = if v.is_finite() { v } else { 0.0 };
                 }
             }

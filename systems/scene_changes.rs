@@ -172,8 +172,8 @@ pub fn detect_scene_changes(
         problems.view = validate_view(&settings, &cameras, &lights);
         // Never allocate for settings that were refused (e.g. an absurd image size).
         match settings.validate() {
-            Ok(()) => accumulation.reset(settings.width, settings.height),
-            Err(_) => accumulation.reset(0, 0),
+            Ok(()) => accumulation.reset(settings.width, settings.height, settings.accumulation_layout()),
+            Err(_) => accumulation.reset(0, 0, Default::default()),
         }
     }
     let note = match &cause {

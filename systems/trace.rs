@@ -1,19 +1,23 @@
 //! Stage 4: traces this frame's samples, tile-parallel with rayon. Each pixel sample is a
 //! primary ray, then every registered light group shades the hit (one AO ray per occluder, one
 //! shadow ray per light that can light the point); every random number comes from (pixel, sample index, dimension), so the image does
-//! not depend on tile order or thread count.
+//! not depend on tile order or thread count. Each tile adds its samples straight into its own
+//! pixels of [`Accumulation`] as it completes: no image-sized frame buffer exists.
 
 use std::time::Instant;
 
 use bevy_ecs::prelude::*;
-use glam::{Vec2, Vec3, Vec3A};
+use glam::{DVec3, Vec2, Vec3, Vec3A};
 use rayon::prelude::*;
 
 use crate::{
     camera::{ActiveCamera, CameraRays, Cameras},
     geometry::{SceneGeometry, TraversalCounts, accel::AlphaCounts, counters},
     integrator::{LightGroup, LightRegistry, SampleResult, Scene, Tracer},
-    resources::{AOV_FLOATS, Accumulation, AovValues, FrameSamples, RenderSettings, SceneProblems, luminance},
+    resources::{
+        AOV_FLOATS, Accumulation, AovValues, FrameSamples, RenderSettings, SceneProblems, Sums, luminance,
+        standard_error,
+    },
     sampling::{SampleSets, dims},
     stats::{FrameStats, RayCounts, TraceSplit, cycle_count, cycles_since, query_timed_pixel, timed_pixel},
 };
@@ -27,28 +31,41 @@ struct Tile {
     y1: u32,
 }
 
-/// What one tile produced.
+/// What tiles counted while they traced (their samples went into the accumulation).
+#[derive(Default)]
 struct TileResult {
-    sums: Vec<Vec3>,
-    counts: Vec<u32>,
-    sq_sums: Vec<f32>,
-    aovs: Vec<AovValues>,
     rays: RayCounts,
     split: TraceSplit,
     traversal: TraversalCounts,
     alpha: AlphaCounts,
     nonfinite: u64,
+    /// Pixels that got samples.
+    active: usize,
+}
+
+impl TileResult {
+    /// Both tiles' counts (integers: the totals do not depend on the order tiles finish in).
+    fn merge(mut self, other: TileResult) -> TileResult {
+        self.rays.add(&other.rays);
+        self.split.add(&other.split);
+        self.traversal.add(&other.traversal);
+        self.alpha.add(&other.alpha);
+        self.nonfinite += other.nonfinite;
+        self.active += other.active;
+        self
+    }
 }
 
 /// Traces `samples_per_frame` samples per pixel (fewer once the target spp is near) into
-/// [`FrameSamples`]; traces nothing when the scene is invalid or has converged.
+/// [`Accumulation`] (the accumulate stage then counts them); traces nothing when the scene is
+/// invalid or has converged.
 #[allow(clippy::too_many_arguments)]
 pub fn trace(
     settings: Res<RenderSettings>,
     geometry: Res<SceneGeometry>,
     sets: Res<SampleSets>,
     problems: Res<SceneProblems>,
-    accumulation: Res<Accumulation>,
+    mut accumulation: ResMut<Accumulation>,
     cameras: Cameras,
     lights: Res<LightRegistry>,
     mut frame: ResMut<FrameSamples>,
@@ -77,7 +94,6 @@ pub fn trace(
         ray_offset: settings.ray_offset,
     };
 
-    let tiles = tiles(settings.width, settings.height, settings.tile_size);
     let job = Job {
         width: settings.width,
         first_sample: settings.first_sample,
@@ -86,51 +102,40 @@ pub fn trace(
         aovs: settings.aovs,
         adaptive: settings.target_error.is_some(),
     };
-    let acc = &*accumulation;
-    let target = settings.target_error;
-    let results: Vec<TileResult> = match camera {
-        ActiveCamera::Pinhole(c) => tiles.par_iter().map(|t| trace_tile(&scene, &c, *t, &job, acc, target)).collect(),
-        ActiveCamera::ThinLens(c) => tiles.par_iter().map(|t| trace_tile(&scene, &c, *t, &job, acc, target)).collect(),
-        ActiveCamera::Orthographic(c) => {
-            tiles.par_iter().map(|t| trace_tile(&scene, &c, *t, &job, acc, target)).collect()
-        }
-    };
-
-    let frame = &mut *frame;
-    frame.sums.resize(settings.pixel_count(), Vec3::ZERO);
-    frame.counts.resize(settings.pixel_count(), 0);
-    frame.sq_sums.resize(settings.pixel_count(), 0.0);
-    frame.aovs.resize(if settings.aovs { settings.pixel_count() } else { 0 }, [0.0; AOV_FLOATS]);
-    frame.samples_per_pixel = count;
-    frame.active_pixels = results.iter().map(|r| r.counts.iter().filter(|&&c| c > 0).count()).sum();
-    let mut rays = RayCounts::default();
-    let mut split = TraceSplit::default();
-    let mut traversal = TraversalCounts::default();
-    let mut alpha = AlphaCounts::default();
-    for (tile, result) in tiles.iter().zip(&results) {
-        let w = (tile.x1 - tile.x0) as usize;
-        for (row, y) in (tile.y0..tile.y1).enumerate() {
-            let dst = (y * settings.width + tile.x0) as usize;
-            let src = row * w..(row + 1) * w;
-            frame.sums[dst..dst + w].copy_from_slice(&result.sums[src.clone()]);
-            frame.counts[dst..dst + w].copy_from_slice(&result.counts[src.clone()]);
-            frame.sq_sums[dst..dst + w].copy_from_slice(&result.sq_sums[src]);
-            if settings.aovs {
-                frame.aovs[dst..dst + w].copy_from_slice(&result.aovs[row * w..(row + 1) * w]);
-            }
-        }
-        rays.add(&result.rays);
-        split.add(&result.split);
-        traversal.add(&result.traversal);
-        alpha.add(&result.alpha);
-        stats.nonfinite_samples += result.nonfinite;
+    let n = settings.pixel_count();
+    let acc = &mut *accumulation;
+    debug_assert_eq!(acc.sums.len(), n, "the accumulation is sized for the settings");
+    if acc.spp > 0 {
+        // A second frame: one frame's f32 sums become f64 before it adds to them.
+        acc.sums.frames_mut();
+        acc.aovs.frames_mut();
     }
+    if job.aovs && acc.aovs.len() != n {
+        acc.aovs.size(n, [0.0; AOV_FLOATS], [0.0; AOV_FLOATS]);
+    }
+    let frame = &mut *frame;
+    frame.sums.clear();
+    if frame.keep_sums {
+        frame.sums.resize(n, Vec3::ZERO);
+    }
+    let (size, target) = (settings.tile_size, settings.target_error);
+    let bands = bands(acc, &mut frame.sums, settings.width, size);
+    let tiles = bands.len() * settings.width.div_ceil(size) as usize;
+    let result = match camera {
+        ActiveCamera::Pinhole(c) => trace_bands(&scene, &c, bands, &job, target, size),
+        ActiveCamera::ThinLens(c) => trace_bands(&scene, &c, bands, &job, target, size),
+        ActiveCamera::Orthographic(c) => trace_bands(&scene, &c, bands, &job, target, size),
+    };
+    frame.samples_per_pixel = count;
+    frame.active_pixels = result.active;
+    let TileResult { rays, split, traversal, alpha, nonfinite, .. } = result;
+    stats.nonfinite_samples += nonfinite;
     stats.rays = rays;
     stats.trace_split = split;
     stats.traversal = traversal;
     stats.alpha = alpha;
     stats.samples_traced = count;
-    let note = format!("{} tiles, {count} spp, {}", tiles.len(), lights.summary());
+    let note = format!("{tiles} tiles, {count} spp, {}", lights.summary());
     stats.record("trace", start.elapsed(), note);
 }
 
@@ -141,15 +146,185 @@ fn all_finite(v: Vec3A) -> bool {
     (v * 0.0).cmpeq(Vec3A::ZERO).all()
 }
 
-/// Tiles covering the image in row-major order.
-fn tiles(width: u32, height: u32, size: u32) -> Vec<Tile> {
-    let mut tiles = Vec::new();
-    for y0 in (0..height).step_by(size as usize) {
-        for x0 in (0..width).step_by(size as usize) {
-            tiles.push(Tile { x0, y0, x1: (x0 + size).min(width), y1: (y0 + size).min(height) });
+/// The pixels one tile owns: a slice per row of each per-pixel buffer (no rows for a buffer
+/// the render does not keep), cut from the image's buffers so that tiles write in parallel.
+struct TilePixels<'a> {
+    tile: Tile,
+    width: u32,
+    /// Samples every pixel has when the accumulation keeps no per-pixel counts.
+    spp: u32,
+    one_frame_sums: Vec<&'a mut [Vec3]>,
+    sums: Vec<&'a mut [DVec3]>,
+    counts: Vec<&'a mut [u32]>,
+    sq_sums: Vec<&'a mut [f64]>,
+    one_frame_aovs: Vec<&'a mut [AovValues]>,
+    aovs: Vec<&'a mut [[f64; AOV_FLOATS]]>,
+    frame_sums: Vec<&'a mut [Vec3]>,
+}
+
+impl TilePixels<'_> {
+    /// Row and column inside the tile of image pixel `i`.
+    #[inline]
+    fn at(&self, i: usize) -> (usize, usize) {
+        let (x, y) = (i as u32 % self.width, i as u32 / self.width);
+        ((y - self.tile.y0) as usize, (x - self.tile.x0) as usize)
+    }
+
+    /// Samples pixel `i` has accumulated.
+    #[inline]
+    fn count(&self, i: usize) -> u32 {
+        let (r, c) = self.at(i);
+        self.counts.get(r).map_or(self.spp, |row| row[c])
+    }
+
+    /// Whether adaptive sampling has retired pixel `i` for target error `e` (as
+    /// [`Accumulation::pixel_done`]).
+    #[inline]
+    fn pixel_done(&self, i: usize, target: Option<f32>) -> bool {
+        let (r, c) = self.at(i);
+        target.is_some_and(|e| {
+            let sum = self.sums.get(r).map_or_else(|| self.one_frame_sums[r][c].as_dvec3(), |row| row[c]);
+            self.count(i) >= RenderSettings::ADAPTIVE_MIN_SPP
+                && standard_error(sum, self.count(i), self.sq_sums[r][c]) <= e as f64
+        })
+    }
+
+    /// Adds the tile's frame samples, row-major over the tile, to its pixels.
+    fn add(&mut self, sums: &[Vec3], counts: &[u32], sq_sums: &[f32], aovs: &[AovValues]) {
+        let w = (self.tile.x1 - self.tile.x0) as usize;
+        // 0 + x rounds alike in f32 and f64: one frame's f32 sum is the f64 sum's value.
+        fold(&mut self.one_frame_sums, sums, w, |s, a| *s += *a);
+        fold(&mut self.sums, sums, w, |s, a| *s += a.as_dvec3());
+        fold(&mut self.counts, counts, w, |s, a| *s += a);
+        fold(&mut self.sq_sums, sq_sums, w, |s, a| *s += *a as f64);
+        fold(&mut self.one_frame_aovs, aovs, w, |s, a| s.iter_mut().zip(a).for_each(|(s, a)| *s += *a));
+        fold(&mut self.aovs, aovs, w, |s, a| s.iter_mut().zip(a).for_each(|(s, a)| *s += *a as f64));
+        fold(&mut self.frame_sums, sums, w, |s, a| *s = *a);
+    }
+}
+
+/// Applies `f` to each pixel of `rows` and its value in `values` (row-major, `w` per row).
+fn fold<T, U>(rows: &mut [&mut [T]], values: &[U], w: usize, f: impl Fn(&mut T, &U)) {
+    for (row, values) in rows.iter_mut().zip(values.chunks(w)) {
+        row.iter_mut().zip(values).for_each(|(d, v)| f(d, v));
+    }
+}
+
+/// `size` rows of each per-pixel buffer (empty: a buffer the render does not keep).
+struct Band<'a> {
+    y0: u32,
+    y1: u32,
+    spp: u32,
+    one_frame_sums: &'a mut [Vec3],
+    sums: &'a mut [DVec3],
+    counts: &'a mut [u32],
+    sq_sums: &'a mut [f64],
+    one_frame_aovs: &'a mut [AovValues],
+    aovs: &'a mut [[f64; AOV_FLOATS]],
+    frame_sums: &'a mut [Vec3],
+}
+
+impl<'a> Band<'a> {
+    /// The band's tiles, left to right, `size` pixels wide.
+    fn tiles(self, width: u32, size: u32) -> Vec<TilePixels<'a>> {
+        let mut one_frame_sums = tile_rows(self.one_frame_sums, width, size);
+        let mut sums = tile_rows(self.sums, width, size);
+        let mut counts = tile_rows(self.counts, width, size);
+        let mut sq_sums = tile_rows(self.sq_sums, width, size);
+        let mut one_frame_aovs = tile_rows(self.one_frame_aovs, width, size);
+        let mut aovs = tile_rows(self.aovs, width, size);
+        let mut frame_sums = tile_rows(self.frame_sums, width, size);
+        (0..width.div_ceil(size))
+            .map(|i| TilePixels {
+                tile: Tile { x0: i * size, y0: self.y0, x1: ((i + 1) * size).min(width), y1: self.y1 },
+                width,
+                spp: self.spp,
+                one_frame_sums: one_frame_sums.next().unwrap_or_default(),
+                sums: sums.next().unwrap_or_default(),
+                counts: counts.next().unwrap_or_default(),
+                sq_sums: sq_sums.next().unwrap_or_default(),
+                one_frame_aovs: one_frame_aovs.next().unwrap_or_default(),
+                aovs: aovs.next().unwrap_or_default(),
+                frame_sums: frame_sums.next().unwrap_or_default(),
+            })
+            .collect()
+    }
+}
+
+/// Cuts the accumulation's buffers and the frame's kept sums into bands of `size` rows.
+fn bands<'a>(acc: &'a mut Accumulation, frame_sums: &'a mut [Vec3], width: u32, size: u32) -> Vec<Band<'a>> {
+    let height = (acc.sums.len() / width as usize) as u32;
+    let (len, count) = (width as usize * size as usize, height.div_ceil(size) as usize);
+    let (one_frame_sums, sums): (&mut [Vec3], &mut [DVec3]) = match &mut acc.sums {
+        Sums::OneFrame(v) => (v, &mut []),
+        Sums::Frames(v) => (&mut [], v),
+    };
+    let mut one_frame_sums = split(one_frame_sums, len, count);
+    let mut sums = split(sums, len, count);
+    let mut counts = split(&mut acc.counts, len, count);
+    let mut sq_sums = split(&mut acc.sq_sums, len, count);
+    let (one_frame_aovs, aovs): (&mut [AovValues], &mut [[f64; AOV_FLOATS]]) = match &mut acc.aovs {
+        Sums::OneFrame(v) => (v, &mut []),
+        Sums::Frames(v) => (&mut [], v),
+    };
+    let mut one_frame_aovs = split(one_frame_aovs, len, count);
+    let mut aovs = split(aovs, len, count);
+    let mut frame = split(frame_sums, len, count);
+    (0..count as u32)
+        .filter_map(|b| {
+            Some(Band {
+                y0: b * size,
+                y1: ((b + 1) * size).min(height),
+                spp: acc.spp,
+                one_frame_sums: one_frame_sums.next()?,
+                sums: sums.next()?,
+                counts: counts.next()?,
+                sq_sums: sq_sums.next()?,
+                one_frame_aovs: one_frame_aovs.next()?,
+                aovs: aovs.next()?,
+                frame_sums: frame.next()?,
+            })
+        })
+        .collect()
+}
+
+/// `buffer` in `count` chunks of `len` (empty ones for an empty buffer).
+fn split<T>(buffer: &mut [T], len: usize, count: usize) -> impl Iterator<Item = &mut [T]> {
+    buffer.chunks_mut(len).chain(std::iter::repeat_with(|| -> &mut [T] { &mut [] })).take(count)
+}
+
+/// A band's rows cut at the tile edges: each tile's row slices, left to right (nothing for an
+/// empty band).
+fn tile_rows<T>(band: &mut [T], width: u32, size: u32) -> impl Iterator<Item = Vec<&mut [T]>> {
+    let mut tiles: Vec<Vec<&mut [T]>> = Vec::new();
+    for row in band.chunks_mut(width as usize) {
+        tiles.resize_with(width.div_ceil(size) as usize, Vec::new);
+        for (tile, piece) in tiles.iter_mut().zip(row.chunks_mut(size as usize)) {
+            tile.push(piece);
         }
     }
-    tiles
+    tiles.into_iter()
+}
+
+/// Traces every band's tiles in parallel; a band is cut into its tiles only when a thread
+/// reaches it, so that the row slices of only the bands in flight exist at once.
+fn trace_bands<C: CameraRays + Sync>(
+    scene: &Scene,
+    camera: &C,
+    bands: Vec<Band>,
+    job: &Job,
+    target: Option<f32>,
+    size: u32,
+) -> TileResult {
+    bands
+        .into_par_iter()
+        .map(|band| {
+            band.tiles(job.width, size)
+                .into_par_iter()
+                .map(|mut pixels| trace_tile(scene, camera, &mut pixels, job, target))
+                .reduce(TileResult::default, TileResult::merge)
+        })
+        .reduce(TileResult::default, TileResult::merge)
 }
 
 /// What every tile of this frame traces.
@@ -163,14 +338,15 @@ struct Job {
     adaptive: bool,
 }
 
+/// Traces one tile and adds its samples to its pixels (`acc`).
 fn trace_tile<C: CameraRays>(
     scene: &Scene,
     camera: &C,
-    tile: Tile,
+    acc: &mut TilePixels,
     job: &Job,
-    acc: &Accumulation,
     target: Option<f32>,
 ) -> TileResult {
+    let tile = acc.tile;
     // Counts from this thread's earlier work are not this tile's.
     counters::take();
     AlphaCounts::take();
@@ -198,7 +374,7 @@ fn trace_tile<C: CameraRays>(
                 let pixel = y * job.width + x;
                 if !acc.pixel_done(pixel as usize, target) {
                     camera_rays.push(camera.ray(x, y, Vec2::splat(0.5), Vec2::ZERO));
-                    row_pixels.push((pixel, job.first_sample.wrapping_add(acc.counts[pixel as usize])));
+                    row_pixels.push((pixel, job.first_sample.wrapping_add(acc.count(pixel as usize))));
                     timed += u64::from(timed_pixel(pixel));
                 }
             }
@@ -222,7 +398,7 @@ fn trace_tile<C: CameraRays>(
             let mut aov = [0.0; AOV_FLOATS];
             // A pixel's samples are numbered 0, 1, … (from `first_sample` for a part of a
             // render) whatever the others do (adaptive sampling retires pixels independently).
-            let first = job.first_sample.wrapping_add(acc.counts[pixel as usize]);
+            let first = job.first_sample.wrapping_add(acc.count(pixel as usize));
             let count = if acc.pixel_done(pixel as usize, target) { 0 } else { job.count };
             if count == 0 {
                 sums.push(sum);
@@ -335,7 +511,9 @@ fn trace_tile<C: CameraRays>(
         }
     }
     let (traversal, alpha) = (counters::take(), AlphaCounts::take());
-    TileResult { sums, counts, sq_sums, aovs, rays: tracer.rays, split: tracer.split, traversal, alpha, nonfinite }
+    acc.add(&sums, &counts, &sq_sums, &aovs);
+    let active = counts.iter().filter(|&&c| c > 0).count();
+    TileResult { rays: tracer.rays, split: tracer.split, traversal, alpha, nonfinite, active }
 }
 
 #[cfg(test)]

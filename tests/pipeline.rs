@@ -56,7 +56,7 @@ fn a_64x64_frame_renders_in_memory() {
     let stats = r.run_frame().unwrap();
     assert_eq!(stats.spp, 4);
     let img = r.image();
-    assert_eq!((img.width, img.height, img.linear.len(), img.srgb.len()), (64, 64, 4096, 3 * 4096));
+    assert_eq!((img.width, img.height, img.linear.len(), img.srgb8().len()), (64, 64, 4096, 3 * 4096));
     assert!(img.linear.iter().all(|p| p.is_finite() && p.min_element() >= 0.0));
     // A real picture: the sky, lit surfaces and AO-darkened contact regions all present.
     let luminance: Vec<f32> = img.linear.iter().map(|p| p.dot(Vec3::new(0.2126, 0.7152, 0.0722))).collect();

@@ -52,7 +52,7 @@ fn render_reference(spp: u32, spf: u32) -> Vec<u32> {
         ..Default::default()
     });
     r.render(spp).unwrap();
-    r.image().srgb.chunks_exact(3).map(|c| display::pack(c[0], c[1], c[2])).collect()
+    r.image().srgb8().chunks_exact(3).map(|c| display::pack(c[0], c[1], c[2])).collect()
 }
 
 fn camera(v: &Viewer) -> Camera {

@@ -524,19 +524,15 @@ fn write_outputs(
     args: &RenderArgs,
 ) -> Result<(), HemiError> {
     let layered = !args.aov.is_empty() && !args.aov_files;
-    let encode = |path: &std::path::Path| {
-        crate::layers::layered_exr(image, &args.aov)
-            .map_err(|e| HemiError::Io { path: path.to_path_buf(), message: format!("cannot encode: {e}") })
-    };
     if layered && is_exr(out) {
-        return file.write_bytes(&encode(out)?);
+        return file.write_layered(image, &args.aov);
     }
     file.write_picture(image, picture)?;
     if args.aov_files {
         return write_aovs(image, out, &args.aov);
     }
     for (_, path) in aov_outputs(out, args) {
-        OutputFile::create(&path)?.write_bytes(&encode(&path)?)?;
+        OutputFile::create(&path)?.write_layered(image, &args.aov)?;
     }
     Ok(())
 }

@@ -3,6 +3,7 @@
 
 use font8x8::legacy::BASIC_LEGACY;
 use glam::Vec3;
+use rayon::prelude::*;
 
 use crate::{
     look::{Look, Tonemap},
@@ -73,15 +74,15 @@ pub fn unpack(p: u32) -> [u8; 3] {
 /// image at exposure 0 is the image's own sRGB encoding, byte for byte what `hemi render`
 /// writes; AOVs not (yet) accumulated show the beauty image.
 pub fn encode(image: &Image, display: &Display) -> Vec<u32> {
-    let n = image.width as usize * image.height as usize;
     let scale = 2f32.powf(display.exposure);
     let aov = match display.buffer {
         Buffer::Aov(a) => image.aov(a).map(|px| (a, px)),
         Buffer::Beauty => None,
     };
     match aov {
-        None if display.exposure == 0.0 && display.tonemap == Tonemap::None && image.srgb.len() == 3 * n => {
-            image.srgb.chunks_exact(3).map(|c| pack(c[0], c[1], c[2])).collect()
+        // The image's 8-bit encoding, made here for the window (the image keeps none).
+        None if display.exposure == 0.0 && display.tonemap == Tonemap::None => {
+            image.linear.par_iter().map(|&c| encode_linear(c)).collect()
         }
         None => {
             let look = Look { exposure: display.exposure, tonemap: display.tonemap };
