@@ -199,6 +199,11 @@ fn a_corrupt_or_missing_image_is_one_warning_naming_it_and_the_factor_is_used() 
     let scene = gltf::load(&path).unwrap();
     assert_eq!(scene.warnings.len(), 1, "{:?}", scene.warnings);
     assert!(scene.warnings[0].contains("image 0 ('gone.png')"), "{}", scene.warnings[0]);
+    // Read for its geometry alone (as peer scenes are), the file's images are never opened.
+    let geometry = gltf::load_with(&path, &gltf::LoadOptions { geometry_only: true, ..Default::default() }).unwrap();
+    assert!(geometry.warnings.is_empty(), "{:?}", geometry.warnings);
+    assert!(geometry.meshes[0][0].surface.is_none());
+    assert_eq!(geometry.meshes[0][0].mesh.positions, scene.meshes[0][0].mesh.positions);
     // The shared assets without their images load with warnings.
     let boombox = gltf::load(Path::new("../shared/assets/BoomBox/glTF/BoomBox.gltf")).unwrap();
     assert!(boombox.warnings.iter().any(|w| w.contains("BoomBox_baseColor.png")), "{:?}", boombox.warnings);

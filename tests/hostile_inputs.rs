@@ -261,7 +261,7 @@ fn buffer_uris_stay_in_the_models_folder_unless_allowed() {
         assert_eq!(e.lines().count(), 1);
     }
     // Opting in reaches the file one folder up, but a device is still no file.
-    let allow = LoadOptions { allow_external_uris: true };
+    let allow = LoadOptions { allow_external_uris: true, ..Default::default() };
     box_json["buffers"][0]["uri"] = json!("../outside.bin");
     let path = write(&sub, "box.gltf", &box_json);
     assert!(gltf::load(&path).unwrap_err().to_string().contains("leads outside"));

@@ -24,7 +24,8 @@ pub(super) struct InfoArgs {
 }
 
 pub(super) fn info(args: InfoArgs) -> Result<(), HemiError> {
-    let summary = summarize(&args.file, &LoadOptions { allow_external_uris: args.allow_external_uris })?;
+    let summary =
+        summarize(&args.file, &LoadOptions { allow_external_uris: args.allow_external_uris, ..Default::default() })?;
     let text = if args.json { format!("{summary:#}\n") } else { human(&summary) };
     super::console::out(&text)
 }

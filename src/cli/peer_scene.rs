@@ -165,7 +165,7 @@ impl PeerScene {
         }
         let mut warnings = Vec::new();
         for mesh in &self.meshes {
-            let scene = gltf::load_with(mesh, &self.load_options)?;
+            let scene = gltf::load_with(mesh, &LoadOptions { geometry_only: true, ..self.load_options })?;
             warnings.extend(scene.warnings.iter().map(|w| format!("{}: {w}", mesh.display())));
             scene.spawn(world, &SpawnOptions { geometry_only: true, ..Default::default() })?;
         }

@@ -205,7 +205,7 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
         OutputFile::create(path)?;
     }
     args.shot.check()?;
-    let load_options = LoadOptions { allow_external_uris: args.allow_external_uris };
+    let load_options = LoadOptions { allow_external_uris: args.allow_external_uris, ..Default::default() };
     let peer = match &args.shot.scene {
         Some(path) if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("json")) => {
             if args.shot.camera.is_some() || args.shot.animation.is_some() || args.frames.is_some() {

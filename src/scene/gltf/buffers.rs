@@ -24,6 +24,9 @@ pub struct LoadOptions {
     /// leading out). Off by default: a downloaded model cannot make hemi read `/etc/passwd` as
     /// mesh data. Devices, pipes and files over [`MAX_FILE_BYTES`] are refused either way.
     pub allow_external_uris: bool,
+    /// Read the geometry alone (what a geometry-only spawn keeps, as peer scenes are spawned):
+    /// no surfaces, so no texture is decoded and no texture coordinates or colours are read.
+    pub geometry_only: bool,
 }
 
 /// Reads a whole regular file of at most `limit` bytes (and at most the size it had when
