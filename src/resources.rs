@@ -377,6 +377,13 @@ pub fn luminance(c: Vec3) -> f32 {
     c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
 }
 
+/// Whether adaptive sampling retires a pixel of `count` samples for target error `target`:
+/// enough samples, and the standard error of their mean (`error`, asked only then) at most it.
+#[inline]
+pub fn retired(count: u32, error: impl FnOnce() -> f64, target: f32) -> bool {
+    count >= RenderSettings::ADAPTIVE_MIN_SPP && error() <= target as f64
+}
+
 /// Standard error of a pixel's mean luminance from the sum, count and sum of squared
 /// luminance of its samples (∞ below 2 samples).
 #[inline]
@@ -421,7 +428,7 @@ impl Accumulation {
     /// Whether adaptive sampling has retired pixel `i` for target error `e`.
     #[inline]
     pub fn pixel_done(&self, i: usize, target: Option<f32>) -> bool {
-        target.is_some_and(|e| self.count(i) >= RenderSettings::ADAPTIVE_MIN_SPP && self.standard_error(i) <= e as f64)
+        target.is_some_and(|e| retired(self.count(i), || self.standard_error(i), e))
     }
 
     /// Samples pixel `i` has accumulated.

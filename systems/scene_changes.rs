@@ -100,27 +100,22 @@ impl SceneWatch<'_, '_> {
     /// value (a transform, sphere, plane, cuboid or surface) did; every watch is brought up to
     /// date so that no change is seen twice.
     fn first_change(&mut self) -> (Option<String>, bool) {
+        // Each watch's first change, and whether its component is a shape value the BVH reads
+        // (meshes are compared by pointer and count on their own: see `update_bvh`).
         let changes = [
-            (short_type_name::<Transform>(), self.transform.first_change()),
-            (short_type_name::<Sphere>(), self.sphere.first_change()),
-            (short_type_name::<Plane>(), self.plane.first_change()),
-            (short_type_name::<Cuboid>(), self.cuboid.first_change()),
-            (short_type_name::<TriangleMesh>(), self.mesh.first_change()),
-            (short_type_name::<Matte>(), self.matte.first_change()),
-            (short_type_name::<Surface>(), self.surface.first_change()),
-            (short_type_name::<Camera>(), self.camera.first_change()),
-            (short_type_name::<OrthographicCamera>(), self.orthographic.first_change()),
-            (short_type_name::<ThinLensCamera>(), self.lens.first_change()),
+            (short_type_name::<Transform>(), true, self.transform.first_change()),
+            (short_type_name::<Sphere>(), true, self.sphere.first_change()),
+            (short_type_name::<Plane>(), true, self.plane.first_change()),
+            (short_type_name::<Cuboid>(), true, self.cuboid.first_change()),
+            (short_type_name::<TriangleMesh>(), false, self.mesh.first_change()),
+            (short_type_name::<Matte>(), false, self.matte.first_change()),
+            (short_type_name::<Surface>(), true, self.surface.first_change()),
+            (short_type_name::<Camera>(), false, self.camera.first_change()),
+            (short_type_name::<OrthographicCamera>(), false, self.orthographic.first_change()),
+            (short_type_name::<ThinLensCamera>(), false, self.lens.first_change()),
         ];
-        let shape_types = [
-            short_type_name::<Transform>(),
-            short_type_name::<Sphere>(),
-            short_type_name::<Plane>(),
-            short_type_name::<Cuboid>(),
-            short_type_name::<Surface>(),
-        ];
-        let shapes = changes.iter().any(|(c, e)| e.is_some() && shape_types.contains(c));
-        let first = changes.into_iter().find_map(|(c, e)| Some((c, e?))).map(|(component, (entity, removed))| {
+        let shapes = changes.iter().any(|&(_, shape, change)| shape && change.is_some());
+        let first = changes.into_iter().find_map(|(c, _, e)| Some((c, e?))).map(|(component, (entity, removed))| {
             let what = describe_change(component, entity, self.names.get(entity).ok());
             format!("{what} {}", if removed { "was removed" } else { "changed" })
         });

@@ -15,7 +15,7 @@ use crate::{
     geometry::{SceneGeometry, TraversalCounts, accel::AlphaCounts, counters},
     integrator::{LightGroup, LightRegistry, SampleResult, Scene, Tracer},
     resources::{
-        AOV_FLOATS, Accumulation, AovValues, FrameSamples, RenderSettings, SceneProblems, Sums, luminance,
+        AOV_FLOATS, Accumulation, AovValues, FrameSamples, RenderSettings, SceneProblems, Sums, luminance, retired,
         standard_error,
     },
     sampling::{SampleSets, dims},
@@ -184,8 +184,7 @@ impl TilePixels<'_> {
         let (r, c) = self.at(i);
         target.is_some_and(|e| {
             let sum = self.sums.get(r).map_or_else(|| self.one_frame_sums[r][c].as_dvec3(), |row| row[c]);
-            self.count(i) >= RenderSettings::ADAPTIVE_MIN_SPP
-                && standard_error(sum, self.count(i), self.sq_sums[r][c]) <= e as f64
+            retired(self.count(i), || standard_error(sum, self.count(i), self.sq_sums[r][c]), e)
         })
     }
 

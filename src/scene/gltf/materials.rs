@@ -53,20 +53,19 @@ impl<'a> Textures<'a> {
         Textures { doc, buffers, base, options, read: HashMap::new(), warned: HashSet::new() }
     }
 
-    /// Whether the file is read for its geometry alone ([`buffers::LoadOptions::geometry_only`]).
-    pub(super) fn geometry_only(&self) -> bool {
-        self.options.geometry_only
-    }
-
     /// The surface of primitive `p`, or `None` when it has nothing that varies (no usable
     /// texture, no vertex colours) and no alpha that can let a ray through: such a primitive
-    /// renders as a plain `Matte` mesh, exactly as before textures were read.
+    /// renders as a plain `Matte` mesh, exactly as before textures were read. Always `None`
+    /// for a file read for its geometry alone ([`buffers::LoadOptions::geometry_only`]).
     pub(super) fn surface(
         &mut self,
         p: &::gltf::Primitive,
         vertices: usize,
         warnings: &mut Vec<String>,
     ) -> Result<Option<Surface>, String> {
+        if self.options.geometry_only {
+            return Ok(None);
+        }
         let material = p.material();
         let pbr = material.pbr_metallic_roughness();
         let alpha = pbr.base_color_factor()[3];

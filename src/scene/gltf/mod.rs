@@ -557,7 +557,7 @@ fn read_primitive(
         }
         targets.push(offsets.into_iter().map(Vec3::from).collect());
     }
-    let surface = if textures.geometry_only() { None } else { textures.surface(p, mesh.positions.len(), warnings)? };
+    let surface = textures.surface(p, mesh.positions.len(), warnings)?;
     Ok(Some(Primitive { mesh: Arc::new(mesh), material, surface, influences, targets: Arc::new(targets) }))
 }
 
