@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Runs hemi, native Embree 3 (C++, ../shared/peers/native: the best of its stream and packet
-# modes), Embree 4 (embreex) and Mitsuba 3 (llvm_ad_rgb) on the same peer scenes, one after the
-# other in one run, and prints AO-ray throughput, render time and the ratios.
+# modes, with its default fast triangle test and with RTC_SCENE_FLAG_ROBUST, its watertight one,
+# the guarantee hemi's triangles give), Embree 4 (embreex) and Mitsuba 3 (llvm_ad_rgb) on the same
+# peer scenes, one after the other in one run, and prints AO-ray throughput, render time and the
+# ratios.
 #
 #   scripts/compare-peers.sh [--spp N] [--threads N] [--rounds N] [--split] [SCENE ...]   (default: all five)
 #
@@ -29,7 +31,7 @@ while [ $# -gt 0 ]; do
         --threads) threads="$2"; shift 2 ;;
         --rounds) rounds="$2"; shift 2 ;;
         --split) split=1; shift ;;
-        -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,19p' "$0"; exit 0 ;;
         *) scenes+=("$1"); shift ;;
     esac
 done
@@ -45,7 +47,7 @@ hemi="$root/target/release/hemi"
 out="$(mktemp -d)"
 json() { python3 -c "import json,sys; d=json.loads(sys.stdin.read().strip().splitlines()[-1]); print($1)"; }
 
-printf '%-13s %5s | %-49s | %-12s | %-28s | %-28s | %s\n' scene spp "hemi: s, AO Mrays/s (trace, kernel, queries)" "native: AO" "embree: s, AO Mrays/s" "mitsuba: s, AO Mrays/s" "hemi kernel/native, hemi/mitsuba (kernel, trace), hemi/embree (trace)"
+printf '%-13s %5s | %-49s | %-19s | %-28s | %-28s | %s\n' scene spp "hemi: s, AO Mrays/s (trace, kernel, queries)" "native: AO, robust" "embree: s, AO Mrays/s" "mitsuba: s, AO Mrays/s" "hemi kernel/native, /native robust, hemi/mitsuba (kernel, trace), hemi/embree (trace)"
 for _ in $(seq "$rounds"); do
 for s in "${scenes[@]}"; do
     "$hemi" render "$peers_src/scenes/$s.json" --spp "$spp" --threads "$threads" --out "$out/$s.png" \
@@ -56,6 +58,8 @@ for s in "${scenes[@]}"; do
     h_aoq=$(json "round(d['total']['ao_query_mrays_per_s'],2)" < "$out/$s.json")
     n_line=$(native_best "$s" "$spp" "$threads" --repeat 3 || true)
     n_ao=$(echo "$n_line" | json "d['ao_mrays_s']" 2>/dev/null || echo nan)
+    r_line=$(native_best "$s" "$spp" "$threads" --repeat 3 --robust || true)
+    r_ao=$(echo "$r_line" | json "d['ao_mrays_s']" 2>/dev/null || echo nan)
     e_line=$(cd "$work" && .venv/bin/python embree_ao.py "$peers_src/scenes/$s.json" --spp "$spp" --threads "$threads" --out "$out/$s.embree" 2>/dev/null | tail -1 || true)
     if [ -n "$e_line" ] && e_s=$(echo "$e_line" | json "d['render_s']" 2>/dev/null); then
         e_ao=$(echo "$e_line" | json "d['ao_incl_gen_mrays_s']")
@@ -71,9 +75,9 @@ for s in "${scenes[@]}"; do
         echo "compare-peers: mitsuba failed on $s (run mitsuba_ao.py by hand to see why)" >&2
         m_s=nan; m_ao=nan
     fi
-    ratio=$(python3 -c "print(f'{$h_aok/$n_ao:.2f}x, {$h_aok/$m_ao:.2f}x, {$h_ao/$m_ao:.2f}x, {$h_ao/$e_ao:.2f}x')" 2>/dev/null || echo "-")
-    printf '%-13s %5s | %10s s %12s %12s %12s | %12s | %10s s %12s       | %10s s %12s       | %s\n' "$s" "$spp" "$h_s" "$h_ao" "$h_aok" "$h_aoq" "$n_ao" "$e_s" "$e_ao" "$m_s" "$m_ao" "$ratio"
-    echo "$s $h_s $h_ao $h_aok $h_aoq $e_s $e_ao $m_s $m_ao $n_ao" >> "$out/runs.txt"
+    ratio=$(python3 -c "print(f'{$h_aok/$n_ao:.2f}x, {$h_aok/$r_ao:.2f}x, {$h_aok/$m_ao:.2f}x, {$h_ao/$m_ao:.2f}x, {$h_ao/$e_ao:.2f}x')" 2>/dev/null || echo "-")
+    printf '%-13s %5s | %10s s %12s %12s %12s | %9s %9s | %10s s %12s       | %10s s %12s       | %s\n' "$s" "$spp" "$h_s" "$h_ao" "$h_aok" "$h_aoq" "$n_ao" "$r_ao" "$e_s" "$e_ao" "$m_s" "$m_ao" "$ratio"
+    echo "$s $h_s $h_ao $h_aok $h_aoq $e_s $e_ao $m_s $m_ao $n_ao $r_ao" >> "$out/runs.txt"
     if [ "$split" = 1 ]; then
         # The scene with 1e-7-long AO rays (mesh paths made absolute), then both kernels' seconds on
         # it beside those of the run above.
@@ -108,12 +112,12 @@ for line in open(sys.argv[1]):
 def spread(xs):
     xs = [x for x in xs if math.isfinite(x)]
     return f"{statistics.median(xs):.2f}x ({min(xs):.2f}-{max(xs):.2f})" if xs else "-"
-print(f"{'scene':13s} | {'kernel / native':18s} | {'kernel / mitsuba':18s} | runs >= 1 | {'trace / mitsuba':18s} | {'queries / mitsuba':18s} | "
+print(f"{'scene':13s} | {'kernel / native':18s} | {'kernel / robust':18s} | {'kernel / mitsuba':18s} | runs >= 1 | {'trace / mitsuba':18s} | {'queries / mitsuba':18s} | "
       f"{'hemi s / mitsuba s':18s} | {'trace / embree':18s}")
 for name, rows in runs.items():
-    h_s, h_ao, h_aok, h_aoq, e_s, e_ao, m_s, m_ao, n_ao = zip(*rows)
+    h_s, h_ao, h_aok, h_aoq, e_s, e_ao, m_s, m_ao, n_ao, r_ao = zip(*rows)
     kernel = [k / m for k, m in zip(h_aok, m_ao)]
-    print(f"{name:13s} | {spread([k / n for k, n in zip(h_aok, n_ao)]):18s} | {spread(kernel):18s} | {sum(k >= 1 for k in kernel):2d} of {len(rows):<3d} | "
+    print(f"{name:13s} | {spread([k / n for k, n in zip(h_aok, n_ao)]):18s} | {spread([k / r for k, r in zip(h_aok, r_ao)]):18s} | {spread(kernel):18s} | {sum(k >= 1 for k in kernel):2d} of {len(rows):<3d} | "
           f"{spread([t / m for t, m in zip(h_ao, m_ao)]):18s} | {spread([q / m for q, m in zip(h_aoq, m_ao)]):18s} | "
           f"{spread([h / m for h, m in zip(h_s, m_s)]):18s} | {spread([t / e for t, e in zip(h_ao, e_ao)]):18s}")
 PY
@@ -124,6 +128,7 @@ echo "the part Mitsuba's number times), from cycle counts of every sixteenth pix
 echo "part of that in the AO rays' BVH queries alone (traversal and triangle tests; no sampling, set-up or sums;"
 echo "timed in a quarter of those pixels);"
 echo "native = native Embree 3's ao_mrays_s (AO rays over its AO phase, generation included), best of --stream, --packet 8 and 16;"
+echo "robust = the same with --robust (RTC_SCENE_FLAG_ROBUST: watertight triangle tests and conservative traversal, as hemi's);"
 echo "embree = ao_incl_gen_mrays_s (numpy ray generation + occlusion); mitsuba = ao_mrays_s (whole AO kernel, warm run)."
 if [ "$split" = 1 ]; then
     echo "AO kernel ms with rays 1e-7 long ('stub': sampling, set-up, sums, the walk to the origin's nodes) and"
