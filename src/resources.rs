@@ -1,6 +1,7 @@
 //! Resources: render settings and the buffers that carry a frame from tracing to the image.
 
 use bevy_ecs::prelude::Resource;
+use bytemuck::Zeroable;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
@@ -51,6 +52,13 @@ pub struct RenderSettings {
     /// that is safe at any scale; a peer scene sets its `ao.epsilon`, so that hemi traces the
     /// rays of the peers' contract (`o = p + ε·n`).
     pub ray_offset: f32,
+    /// When a frame completes the sample target and the sums hold that one frame (f32, every
+    /// pixel at the same count: [`AccumulationLayout::one_frame`], not adaptive), the image takes
+    /// their memory: resolve divides them in place instead of filling a second buffer, so a
+    /// finished render holds one per-pixel buffer, not two. The accumulation is then spent: a
+    /// later frame starts it anew (raising `max_spp` renders again from the first sample). For
+    /// renders that end at their target, as `hemi render` does; the default keeps the sums.
+    pub release_sums: bool,
 }
 
 impl Default for RenderSettings {
@@ -71,6 +79,7 @@ impl Default for RenderSettings {
             aovs: false,
             target_error: None,
             ray_offset: 0.0,
+            release_sums: false,
         }
     }
 }
@@ -88,7 +97,7 @@ impl RenderSettings {
     /// The most samples per pixel a render may ask for (`--spp`, a peer scene's `ao.samples`).
     pub const MAX_SPP: u32 = 1_000_000;
 
-    /// Largest image hemi accepts, in pixels (8192 × 4096); buffers take 24 to 48 bytes each (192 with AOVs).
+    /// Largest image hemi accepts, in pixels (8192 × 4096); buffers take 12 to 48 bytes each (192 with AOVs).
     pub const MAX_PIXELS: u64 = 1 << 25;
 
     /// A one-line description of the first unusable setting.
@@ -276,9 +285,9 @@ pub enum Sums<T: Widen> {
 }
 
 /// A per-pixel f32 value and its f64 counterpart.
-pub trait Widen: Copy {
+pub trait Widen: Copy + Zeroable {
     /// The same value in f64.
-    type Wide: Copy;
+    type Wide: Copy + Zeroable;
     /// Converts exactly.
     fn widen(self) -> Self::Wide;
 }
@@ -347,18 +356,18 @@ impl<T: Widen> Sums<T> {
 
     /// Empties the sums and sizes them for `n` pixels of zero, f32 if `one_frame`, reusing the
     /// buffer there is when it is of that kind (progressive views reset often).
-    fn reset(&mut self, n: usize, one_frame: bool, zero: T, wide_zero: T::Wide) {
+    fn reset(&mut self, n: usize, one_frame: bool) {
         match (&mut *self, one_frame) {
-            (Sums::OneFrame(v), true) => {
-                v.clear();
-                v.resize(n, zero);
+            (Sums::OneFrame(v), true) => zeros(v, n),
+            (Sums::Frames(v), false) => zeros(v, n),
+            (_, true) => {
+                *self = Sums::default();
+                *self = Sums::OneFrame(bytemuck::zeroed_vec(n));
             }
-            (Sums::Frames(v), false) => {
-                v.clear();
-                v.resize(n, wide_zero);
+            (_, false) => {
+                *self = Sums::default();
+                *self = Sums::Frames(bytemuck::zeroed_vec(n));
             }
-            (_, true) => *self = Sums::OneFrame(vec![zero; n]),
-            (_, false) => *self = Sums::Frames(vec![wide_zero; n]),
         }
     }
 
@@ -368,6 +377,19 @@ impl<T: Widen> Sums<T> {
             Sums::OneFrame(v) => v.resize(n, zero),
             Sums::Frames(v) => v.resize(n, wide_zero),
         }
+    }
+}
+
+/// Empties `v` and sizes it to `n` zeros: in its own memory where that holds them, else in
+/// fresh zeroed pages, which become resident only as frames write them, so that a buffer reset
+/// before the BVH build does not sit in memory beside the build's temporaries.
+fn zeros<T: Zeroable + Clone>(v: &mut Vec<T>, n: usize) {
+    if v.capacity() >= n {
+        v.clear();
+        v.resize(n, T::zeroed());
+    } else {
+        *v = Vec::new();
+        *v = bytemuck::zeroed_vec(n);
     }
 }
 
@@ -437,6 +459,12 @@ impl Accumulation {
         self.counts.get(i).copied().unwrap_or(self.spp)
     }
 
+    /// Whether the finished image took the sums ([`RenderSettings::release_sums`]): the next
+    /// frame must start the accumulation anew.
+    pub fn spent(&self) -> bool {
+        self.sums.len() != self.width as usize * self.height as usize
+    }
+
     /// Bytes its per-pixel buffers hold.
     pub fn buffer_bytes(&self) -> usize {
         self.sums.bytes() + size_of_val(&self.counts[..]) + size_of_val(&self.sq_sums[..]) + self.aovs.bytes()
@@ -448,13 +476,11 @@ impl Accumulation {
         let n = width as usize * height as usize;
         self.width = width;
         self.height = height;
-        self.sums.reset(n, layout.one_frame, Vec3::ZERO, DVec3::ZERO);
-        self.aovs.reset(0, layout.one_frame, [0.0; AOV_FLOATS], [0.0; AOV_FLOATS]);
+        self.sums.reset(n, layout.one_frame);
+        self.aovs.reset(0, layout.one_frame);
         let adaptive = if layout.adaptive { n } else { 0 };
-        self.counts.clear();
-        self.counts.resize(adaptive, 0);
-        self.sq_sums.clear();
-        self.sq_sums.resize(adaptive, 0.0);
+        zeros(&mut self.counts, adaptive);
+        zeros(&mut self.sq_sums, adaptive);
         self.spp = 0;
         self.resets += 1;
     }

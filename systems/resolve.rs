@@ -8,15 +8,66 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::{
-    resources::{AOV_FLOATS, Accumulation, Image},
+    resources::{AOV_FLOATS, Accumulation, Image, RenderSettings, Sums},
     stats::FrameStats,
 };
 
-/// Writes [`Image`] from [`Accumulation`].
-pub fn resolve(accumulation: Res<Accumulation>, mut image: ResMut<Image>, mut stats: ResMut<FrameStats>) {
+/// Writes [`Image`] from [`Accumulation`], in the sums' own memory where the settings let the
+/// finished image take it ([`RenderSettings::release_sums`]).
+pub fn resolve(
+    mut accumulation: ResMut<Accumulation>,
+    settings: Res<RenderSettings>,
+    mut image: ResMut<Image>,
+    mut stats: ResMut<FrameStats>,
+) {
     let start = Instant::now();
-    resolve_into(&accumulation, &mut image);
-    stats.record("resolve", start.elapsed(), format!("{} spp", accumulation.spp));
+    let note = if releases_sums(&accumulation, &settings) {
+        release_into(&mut accumulation, &mut image);
+        format!("{} spp, in the sums' memory", accumulation.spp)
+    } else {
+        resolve_into(&accumulation, &mut image);
+        format!("{} spp", accumulation.spp)
+    };
+    stats.record("resolve", start.elapsed(), note);
+}
+
+/// Whether the image takes the sums: the settings ask for it, the sums hold one frame at one
+/// count per pixel (f32, not adaptive) and that frame completed the target.
+fn releases_sums(accumulation: &Accumulation, settings: &RenderSettings) -> bool {
+    settings.release_sums
+        && matches!(accumulation.sums, Sums::OneFrame(_))
+        && accumulation.counts.is_empty()
+        && accumulation.spp > 0
+        && settings.target_spp().is_some_and(|target| accumulation.spp >= target)
+}
+
+/// [`resolve_into`]'s image, divided in place in the one-frame sums, which the image then
+/// owns (the accumulation is left spent, [`Accumulation::spent`]): the same values, as a
+/// pixel's mean is its f32 sum widened and divided in f64 either way.
+fn release_into(accumulation: &mut Accumulation, image: &mut Image) {
+    let count = f64::from(accumulation.spp);
+    image.width = accumulation.width;
+    image.height = accumulation.height;
+    // The last image goes before the sums become the next: never both at once.
+    image.linear = Vec::new();
+    image.aovs = Vec::new();
+    let Sums::OneFrame(mut linear) = std::mem::take(&mut accumulation.sums) else {
+        unreachable!("checked by releases_sums")
+    };
+    linear.par_iter_mut().for_each(|s| {
+        let mean = (s.as_dvec3() / count).as_vec3();
+        *s = if mean.is_finite() { mean } else { Vec3::ZERO };
+    });
+    if let Sums::OneFrame(mut aovs) = std::mem::take(&mut accumulation.aovs)
+        && aovs.len() == linear.len()
+    {
+        aovs.as_flattened_mut().par_iter_mut().for_each(|s| {
+            let v = (f64::from(*s) / count) as f32;
+            *s = if v.is_finite() { v } else { 0.0 };
+        });
+        image.aovs = aovs;
+    }
+    image.linear = linear;
 }
 
 /// Averages `accumulation` into `image` (resized to it): what every frame's resolve does, for

@@ -124,9 +124,10 @@ impl SceneWatch<'_, '_> {
 }
 
 /// The settings as they bear on the image: the sample target only says when to stop, so
-/// raising it continues the accumulation.
+/// raising it continues the accumulation, and releasing the sums only says where the finished
+/// image is kept.
 fn image_settings(settings: &RenderSettings) -> RenderSettings {
-    RenderSettings { max_spp: None, ..settings.clone() }
+    RenderSettings { max_spp: None, release_sums: false, ..settings.clone() }
 }
 
 /// Validates camera, lights and settings; resets the accumulation when anything changed: a
@@ -158,6 +159,8 @@ pub fn detect_scene_changes(
         Some("the render settings changed".to_string())
     } else if accumulation.width != settings.width || accumulation.height != settings.height {
         Some("the image size changed".to_string())
+    } else if accumulation.spent() {
+        Some("the finished image took the sums (release_sums)".to_string())
     } else if settings.max_spp.is_some_and(|max| accumulation.spp > max) {
         Some(format!("max_spp fell below the {} spp accumulated", accumulation.spp))
     } else {

@@ -12,6 +12,10 @@ const H: u32 = 20;
 const PIXELS: usize = (W * H) as usize;
 
 fn renderer(spf: u32, target_error: Option<f32>, aovs: bool) -> Renderer {
+    renderer_releasing(spf, target_error, aovs, false)
+}
+
+fn renderer_releasing(spf: u32, target_error: Option<f32>, aovs: bool, release_sums: bool) -> Renderer {
     let s = RenderSettings {
         width: W,
         height: H,
@@ -19,6 +23,7 @@ fn renderer(spf: u32, target_error: Option<f32>, aovs: bool) -> Renderer {
         samples_per_set: 8,
         target_error,
         aovs,
+        release_sums,
         ..Default::default()
     };
     Renderer::with_default_scene(s)
@@ -83,4 +88,52 @@ fn one_frames_f32_sums_give_the_image_of_f64_sums() {
         assert_eq!(frames.spp(), 16);
         assert!(one_frame.image() == frames.image(), "aovs {aovs}: two frames' images differ");
     }
+}
+
+/// A finished one-frame render whose image takes the sums' memory has the image of one that
+/// keeps them, bit for bit, and holds one per-pixel buffer; its spent accumulation starts anew,
+/// so that raising the target gives the image of a fresh render to it.
+#[test]
+fn an_image_that_takes_the_sums_is_the_image_of_one_that_keeps_them() {
+    for aovs in [false, true] {
+        let mut kept = renderer(8, None, aovs);
+        kept.render(8).unwrap();
+        let mut released = renderer_releasing(8, None, aovs, true);
+        let bytes = pixel_bytes(&mut released, 8);
+        assert!(released.image() == kept.image(), "aovs {aovs}: images differ");
+        assert_eq!(released.image().linear.len(), PIXELS);
+        assert_eq!(released.image().aovs.len(), if aovs { PIXELS } else { 0 });
+        // The means alone: 12 bytes, and 48 for the AOVs.
+        assert_eq!(bytes, PIXELS * if aovs { 12 + 48 } else { 12 });
+        let acc = released.world().resource::<Accumulation>();
+        assert!(acc.spent() && acc.sums.is_empty() && acc.aovs.is_empty());
+        assert!(released.converged(), "the render reached its target");
+
+        released.settings_mut().max_spp = Some(16);
+        released.run_frame().unwrap();
+        assert!(released.stats().reset.as_deref().is_some_and(|r| r.contains("took the sums")));
+        assert_eq!(released.spp(), 8, "the first frame after release starts anew");
+        released.render(16).unwrap();
+        let mut fresh = renderer(8, None, aovs);
+        fresh.render(16).unwrap();
+        assert!(released.image() == fresh.image(), "aovs {aovs}: the render after release differs");
+    }
+}
+
+/// Sums the image may not take stay where they are: several frames (f64), adaptive counts,
+/// and a one-frame render that has not reached its target.
+#[test]
+fn sums_of_frames_or_of_adaptive_renders_stay_with_the_accumulation() {
+    let mut frames = renderer_releasing(4, None, false, true);
+    frames.render(8).unwrap();
+    let acc = frames.world().resource::<Accumulation>();
+    assert!(!acc.spent() && matches!(acc.sums, Sums::Frames(ref v) if v.len() == PIXELS));
+
+    let mut adaptive = renderer_releasing(32, Some(0.05), false, true);
+    adaptive.render(32).unwrap();
+    assert!(!adaptive.world().resource::<Accumulation>().spent());
+
+    let mut untargeted = renderer_releasing(8, None, false, true);
+    untargeted.run_frame().unwrap();
+    assert!(!untargeted.world().resource::<Accumulation>().spent());
 }

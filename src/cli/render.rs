@@ -236,6 +236,8 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
         // Coverage (alpha) is accumulated with the AOVs.
         aovs: !args.aov.is_empty() || args.shot.transparent(),
         target_error: args.target_error,
+        // Every image ends at its target; a part of a split render keeps its frames' sums.
+        release_sums: args.sample_range.is_none(),
         ..Default::default()
     };
     settings.validate().map_err(HemiError::Usage)?;

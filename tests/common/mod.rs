@@ -25,6 +25,7 @@ pub fn settings(width: u32, height: u32, spp: u32, sampler: SamplerKind) -> Rend
         aovs: false,
         target_error: None,
         ray_offset: 0.0,
+        release_sums: false,
     }
 }
 
