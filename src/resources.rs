@@ -55,9 +55,10 @@ pub struct RenderSettings {
     /// When a frame completes the sample target and the sums hold that one frame (f32, every
     /// pixel at the same count: [`AccumulationLayout::one_frame`], not adaptive), the image takes
     /// their memory: resolve divides them in place instead of filling a second buffer, so a
-    /// finished render holds one per-pixel buffer, not two. The accumulation is then spent: a
-    /// later frame starts it anew (raising `max_spp` renders again from the first sample). For
-    /// renders that end at their target, as `hemi render` does; the default keeps the sums.
+    /// finished render holds one per-pixel buffer, not two. The accumulation is then spent: the
+    /// image stays while nothing changes, and a frame that asks for more samples starts it anew
+    /// (raising `max_spp` renders again from the first sample). For renders that end at their
+    /// target, as `hemi render` does; the default keeps the sums.
     pub release_sums: bool,
 }
 
@@ -459,8 +460,8 @@ impl Accumulation {
         self.counts.get(i).copied().unwrap_or(self.spp)
     }
 
-    /// Whether the finished image took the sums ([`RenderSettings::release_sums`]): the next
-    /// frame must start the accumulation anew.
+    /// Whether the finished image took the sums ([`RenderSettings::release_sums`]): a frame
+    /// that asks for more samples starts the accumulation anew.
     pub fn spent(&self) -> bool {
         self.sums.len() != self.width as usize * self.height as usize
     }

@@ -21,8 +21,11 @@ pub fn resolve(
     mut stats: ResMut<FrameStats>,
 ) {
     let start = Instant::now();
-    let note = if releases_sums(&accumulation, &settings) {
-        release_into(&mut accumulation, &mut image);
+    let note = if accumulation.spent() {
+        format!("{} spp, kept: the image holds the finished sums", accumulation.spp)
+    } else if releases_sums(&accumulation, &settings) {
+        // Not a change to the accumulation: its samples are the image's now.
+        release_into(accumulation.bypass_change_detection(), &mut image);
         format!("{} spp, in the sums' memory", accumulation.spp)
     } else {
         resolve_into(&accumulation, &mut image);

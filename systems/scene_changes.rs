@@ -133,7 +133,8 @@ fn image_settings(settings: &RenderSettings) -> RenderSettings {
 /// Validates camera, lights and settings; resets the accumulation when anything changed: a
 /// component's value (not a write of the same value), an entity or component removed, a light,
 /// a setting other than `max_spp`, or `max_spp` lowered below the samples already taken (so
-/// that the image is the one a fresh render to that target gives).
+/// that the image is the one a fresh render to that target gives); and when more samples are
+/// asked of sums the finished image took.
 #[allow(clippy::too_many_arguments)]
 pub fn detect_scene_changes(
     mut watch: SceneWatch,
@@ -159,7 +160,7 @@ pub fn detect_scene_changes(
         Some("the render settings changed".to_string())
     } else if accumulation.width != settings.width || accumulation.height != settings.height {
         Some("the image size changed".to_string())
-    } else if accumulation.spent() {
+    } else if accumulation.spent() && settings.target_spp().is_none_or(|target| target > accumulation.spp) {
         Some("the finished image took the sums (release_sums)".to_string())
     } else if settings.max_spp.is_some_and(|max| accumulation.spp > max) {
         Some(format!("max_spp fell below the {} spp accumulated", accumulation.spp))

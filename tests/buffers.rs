@@ -109,6 +109,12 @@ fn an_image_that_takes_the_sums_is_the_image_of_one_that_keeps_them() {
         assert!(acc.spent() && acc.sums.is_empty() && acc.aovs.is_empty());
         assert!(released.converged(), "the render reached its target");
 
+        // Nothing changed: the next frame traces nothing and the image stays.
+        let image = released.image().clone();
+        released.run_frame().unwrap();
+        assert_eq!(released.stats().reset, None);
+        assert_eq!(released.spp(), 8);
+        assert!(released.image() == &image, "the image stays");
         released.settings_mut().max_spp = Some(16);
         released.run_frame().unwrap();
         assert!(released.stats().reset.as_deref().is_some_and(|r| r.contains("took the sums")));
