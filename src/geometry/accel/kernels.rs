@@ -438,34 +438,13 @@ impl<L: KernelLanes, F: Fn(usize) -> Ray> Kernel<L> for InstanceLanes<'_, L, F> 
         if inst.identity {
             return L::compiled(isa, BlasLanesOf { blas, tree, in_lanes: lanes, ray, live: entered, stack });
         }
-        if L::WIDTH == 8 {
-            let (local, live) = local_rays::<8>(inst, ray, entered);
-            L::compiled(isa, BlasLanes { blas, tree, rays: &local, live, stack })
-        } else {
-            let (local, live) = local_rays::<16>(inst, ray, entered);
-            L::compiled(isa, BlasLanes { blas, tree, rays: &local, live, stack })
+        let (local, live) = inst.local_lanes(lanes, entered);
+        if live == 0 {
+            return 0;
         }
+        let ray = |k| local.ray(k);
+        L::compiled(isa, BlasLanesOf { blas, tree, in_lanes: &local, ray, live, stack })
     }
-}
-
-/// The rays of lanes `entered` (`ray(k)` for lane k) in `inst`'s frame, and the lanes
-/// [`Instance::local_ray`] gives one for; lanes not traced keep a copy of a traced ray: they only
-/// fill the packet.
-#[cfg(target_arch = "x86_64")]
-#[inline(always)]
-fn local_rays<const N: usize>(inst: &Instance, ray: &impl Fn(usize) -> Ray, entered: u32) -> ([Ray; N], u32) {
-    let mut local = [ray(entered.trailing_zeros() as usize); N];
-    let mut live = 0;
-    let mut each = entered;
-    while each != 0 {
-        let k = each.trailing_zeros() as usize;
-        each &= each - 1;
-        if let Some((moved, _)) = inst.local_ray(&ray(k)) {
-            local[k] = moved;
-            live |= 1 << k;
-        }
-    }
-    (local, live)
 }
 
 /// The lanes of `lanes` whose ray (`ray(k)` for lane k) `blocks`, asked one ray at a time.
