@@ -413,7 +413,8 @@ impl<L: PacketLanes> Kernel<L> for TopLoneRay<'_> {
 /// instance `inst` blocks: as one packet in the instance's frame (or the packet itself, for an
 /// identity transform) where its BLAS takes packets and at least [`PACKET_MIN_LANES`] rays
 /// reach it. Fewer would go on alone from the packet's first node after the packet's set-up
-/// (its transpose, box and constants) for nothing, so that few rays trace faster one by one.
+/// (its move into the instance's frame, box and constants) for nothing, so that few rays
+/// trace faster one by one.
 #[cfg(target_arch = "x86_64")]
 struct InstanceLanes<'a, L, F> {
     scene: &'a SceneGeometry,
