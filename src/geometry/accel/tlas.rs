@@ -105,10 +105,10 @@ impl Instance {
         let mut local = *world;
         let mut o_err = [zero; 3];
         if self.translation_only {
-            for a in 0..3 {
-                let t = m.translation[a];
-                local.origin[a] = world.origin[a].add(L::splat(isa, t));
-                o_err[a] = world.origin[a].abs().add(L::splat(isa, t.abs())).mul(L::splat(isa, gamma(1)));
+            let moves = world.origin.iter().zip(m.translation.to_array());
+            for ((origin, err), (&o, t)) in local.origin.iter_mut().zip(&mut o_err).zip(moves) {
+                *origin = o.add(L::splat(isa, t));
+                *err = o.abs().add(L::splat(isa, t.abs())).mul(L::splat(isa, gamma(1)));
             }
         } else {
             let cols = [m.matrix3.x_axis, m.matrix3.y_axis, m.matrix3.z_axis];
@@ -133,8 +133,8 @@ impl Instance {
         let len2 = dot3(&d, &d);
         let dt = zero.select(len2.gt(zero), dot3(&[d[0].abs(), d[1].abs(), d[2].abs()], &o_err).div(len2));
         local.tmax = world.tmax.sub(dt);
-        for a in 0..3 {
-            local.origin[a] = local.origin[a].add(d[a].mul(dt));
+        for (origin, d) in local.origin.iter_mut().zip(d) {
+            *origin = origin.add(d.mul(dt));
         }
         let live = L::bits(local.tmax.gt(zero)) & entered;
         (local, live)
