@@ -23,6 +23,13 @@ pub(crate) struct RayLanes<L> {
 }
 
 impl<L: Lanes> RayLanes<L> {
+    /// Lane `k`'s ray, its floats read out of the lanes.
+    #[inline(always)]
+    pub(crate) fn ray(&self, k: usize) -> Ray {
+        let v = |a: &[L; 3]| Vec3A::new(a[0].lane(k), a[1].lane(k), a[2].lane(k));
+        Ray { origin: v(&self.origin), dir: v(&self.dir), inv_dir: v(&self.inv_dir), tmax: self.tmax.lane(k) }
+    }
+
     /// A box holding every point within `bounds` of the segments (origin to `tmax` along the
     /// direction) of the lanes of `live`, and their origins, grown by 2⁻¹⁸ of its largest
     /// coordinate (as split triangles' boxes are): far more than the rounding of its corners

@@ -413,7 +413,8 @@ impl<L: PacketLanes> Kernel<L> for TopLoneRay<'_> {
 /// instance `inst` blocks: as one packet in the instance's frame (or the packet itself, for an
 /// identity transform) where its BLAS takes packets and at least [`PACKET_MIN_LANES`] rays
 /// reach it. Fewer would go on alone from the packet's first node after the packet's set-up
-/// (its transpose, box and constants) for nothing, so that few rays trace faster one by one.
+/// (its move into the instance's frame, box and constants) for nothing, so that few rays
+/// trace faster one by one.
 #[cfg(target_arch = "x86_64")]
 struct InstanceLanes<'a, L, F> {
     scene: &'a SceneGeometry,
@@ -438,34 +439,13 @@ impl<L: KernelLanes, F: Fn(usize) -> Ray> Kernel<L> for InstanceLanes<'_, L, F> 
         if inst.identity {
             return L::compiled(isa, BlasLanesOf { blas, tree, in_lanes: lanes, ray, live: entered, stack });
         }
-        if L::WIDTH == 8 {
-            let (local, live) = local_rays::<8>(inst, ray, entered);
-            L::compiled(isa, BlasLanes { blas, tree, rays: &local, live, stack })
-        } else {
-            let (local, live) = local_rays::<16>(inst, ray, entered);
-            L::compiled(isa, BlasLanes { blas, tree, rays: &local, live, stack })
+        let (local, live) = inst.local_lanes(lanes, entered);
+        if live == 0 {
+            return 0;
         }
+        let ray = |k| local.ray(k);
+        L::compiled(isa, BlasLanesOf { blas, tree, in_lanes: &local, ray, live, stack })
     }
-}
-
-/// The rays of lanes `entered` (`ray(k)` for lane k) in `inst`'s frame, and the lanes
-/// [`Instance::local_ray`] gives one for; lanes not traced keep a copy of a traced ray: they only
-/// fill the packet.
-#[cfg(target_arch = "x86_64")]
-#[inline(always)]
-fn local_rays<const N: usize>(inst: &Instance, ray: &impl Fn(usize) -> Ray, entered: u32) -> ([Ray; N], u32) {
-    let mut local = [ray(entered.trailing_zeros() as usize); N];
-    let mut live = 0;
-    let mut each = entered;
-    while each != 0 {
-        let k = each.trailing_zeros() as usize;
-        each &= each - 1;
-        if let Some((moved, _)) = inst.local_ray(&ray(k)) {
-            local[k] = moved;
-            live |= 1 << k;
-        }
-    }
-    (local, live)
 }
 
 /// The lanes of `lanes` whose ray (`ray(k)` for lane k) `blocks`, asked one ray at a time.
