@@ -6,7 +6,9 @@
 //! ([`PlacedLight::cosine_run`]) can go from sample points to packets in one pass instead
 //! ([`DirectionRays::add_cosine`]), and where its samples are whole correlated multi-jittered
 //! patterns it needs no sort: the patterns' columns give each sample's quadrant of azimuth
-//! ([`QuadrantPattern`](crate::sampling::cmj::QuadrantPattern)).
+//! ([`QuadrantPattern`](crate::sampling::cmj::QuadrantPattern)). A cosine run of one sample
+//! at each of many points (jittered camera hits) is set up in lanes point by point
+//! ([`DirectionRays::add_cosine_points`]).
 //!
 //! [`PlacedLight::sample_directions`]: crate::light::PlacedLight::sample_directions
 //! [`PlacedLight::cosine_run`]: crate::light::PlacedLight::cosine_run
