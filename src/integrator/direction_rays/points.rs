@@ -60,8 +60,9 @@ impl PointColumns {
         fill(bx, points, |p| p.spawn().sides().1.x);
         fill(by, points, |p| p.spawn().sides().1.y);
         fill(bz, points, |p| p.spawn().sides().1.z);
+        let bits = |v: Vec3A| v.to_array().map(f32::to_bits);
         debug_assert!(
-            points.iter().all(|p| Vec3A::from(p.frame().w) == p.spawn().normal()),
+            points.iter().all(|p| bits(p.frame().w.into()) == bits(p.spawn().normal())),
             "frames around the normal"
         );
         self.lit.clear();
