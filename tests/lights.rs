@@ -481,9 +481,12 @@ enum Blockers {
     Instances,
 }
 
-/// The occluder's bulk paths (rays made in lanes, sorted or in quadrant order, whole-run sums)
-/// trace the same rays as its per-sample path and give the same bits, except the beauty image
-/// of shared hits, which sums each pixel's samples as a whole: the same up to rounding.
+/// The occluder's bulk paths (rays made in lanes, sorted or in quadrant order, whole-run sums,
+/// and, for jittered hits, one sample at each of a pixel's points, set up in lanes) trace the
+/// same rays as its per-sample path and give the same bits, except the beauty image of shared
+/// hits, which sums each pixel's samples as a whole: the same up to rounding. For every other
+/// occluder the plane reflects no ambient light, so the beauty image skips its points (no AO
+/// ray) beside the blockers' within one pixel's run.
 #[test]
 fn the_occluder_s_bulk_path_matches_the_per_sample_path() {
     let occluders = [
@@ -513,14 +516,15 @@ fn the_occluder_s_bulk_path_matches_the_per_sample_path() {
                 // Shared and jittered hits, with and without AOVs (the beauty image alone takes
                 // its own path).
                 let mut shared = Vec::new();
-                for (jitter, aovs) in [(false, false), (false, true), (true, false)] {
+                let plane = if k % 2 == 0 { Matte { ka: 0.0, ..white() } } else { white() };
+                for (jitter, aovs) in [(false, false), (false, true), (true, false), (true, true)] {
                     let render = |per_sample: bool| {
                         let base = settings(12, 10, spp, sampler);
                         let settings = RenderSettings { jitter, aovs, samples_per_set: set, ..base };
                         let mut r = Renderer::new(settings);
                         r.add_light::<PerSampleOccluder>();
                         let w = r.world_mut();
-                        w.spawn((Plane::default(), white()));
+                        w.spawn((Plane::default(), plane));
                         match blockers {
                             Blockers::Sphere => {
                                 w.spawn((Sphere { radius: 0.5 }, Transform::from_xyz(0.0, 0.5, 0.0), white()));

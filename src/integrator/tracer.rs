@@ -4,7 +4,7 @@
 use glam::{Vec2, Vec3, Vec3A};
 
 use super::{
-    direction_rays::DirectionRays,
+    direction_rays::{CosinePoint, DirectionRays},
     light_groups::{LightGroup, RunSum},
     sample::{PrimaryHit, SampleOut, SampleResult},
 };
@@ -12,6 +12,7 @@ use crate::{
     components::Matte,
     geometry::{Ray, RayOrder, SceneGeometry, SpawnOrigins, SurfaceHit},
     light::{DirectionRun, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term},
+    math::Onb,
     sampling::{SampleSets, dims},
     stats::{RayCounts, TraceSplit, cycle_count, cycles_since},
 };
@@ -32,13 +33,13 @@ pub struct Scene<'a> {
 }
 
 impl Scene<'_> {
-    /// Camera hit `hit` in `pixel` ready to be lit: its shading point (material from the
-    /// scene, frame turned or mirrored for the pixel by [`SampleSets::frame_symmetry`]) and where its shadow
-    /// rays start, [`Scene::ray_offset`] or more off the surface.
-    #[inline]
-    fn lit_point(&self, hit: &SurfaceHit, pixel: u32) -> (ShadingPoint, SpawnOrigins) {
+    /// Camera hit `hit` ready to be lit: its shading point (material from the scene, frame
+    /// turned or mirrored by `symmetry`, its pixel's [`SampleSets::frame_symmetry`]) and where
+    /// its shadow rays start, [`Scene::ray_offset`] or more off the surface.
+    #[inline(always)]
+    fn lit_point(&self, hit: &SurfaceHit, symmetry: Option<u32>) -> (ShadingPoint, SpawnOrigins) {
         let mut at = ShadingPoint::new(hit.p, hit.normal, self.material(hit));
-        if let Some(k) = self.sets.frame_symmetry(pixel) {
+        if let Some(k) = symmetry {
             at.frame = at.frame.symmetry(k);
         }
         (at, hit.spawn_origins(self.ray_offset))
@@ -46,7 +47,7 @@ impl Scene<'_> {
 
     /// The material at camera hit `hit`: its object's, with the colour of a textured surface
     /// (texture and vertex colours at the hit) multiplied in.
-    #[inline]
+    #[inline(always)]
     fn material(&self, hit: &SurfaceHit) -> Matte {
         let mut material = self.geometry.objects[hit.object as usize].material;
         if let Some(surface) = self.geometry.surface_of(hit) {
@@ -127,11 +128,24 @@ pub struct RunPoint {
 }
 
 impl RunPoint {
-    /// The point `j` of a run or row: camera hit `hit` ([`Scene::lit_point`]), sample `sample`
-    /// of `pixel`.
-    fn new(scene: &Scene, hit: &SurfaceHit, j: usize, pixel: u32, sample: u32) -> Self {
-        let (at, spawn) = scene.lit_point(hit, pixel);
+    /// The point `j` of a run or row: camera hit `hit` ([`Scene::lit_point`] under the pixel's
+    /// `symmetry`), sample `sample` of `pixel`.
+    #[inline(always)]
+    fn new(scene: &Scene, hit: &SurfaceHit, j: usize, (pixel, symmetry): (u32, Option<u32>), sample: u32) -> Self {
+        let (at, spawn) = scene.lit_point(hit, symmetry);
         RunPoint { j: j as u32, pixel, sample, at, spawn }
+    }
+}
+
+impl CosinePoint for RunPoint {
+    #[inline(always)]
+    fn frame(&self) -> &Onb {
+        &self.at.frame
+    }
+
+    #[inline(always)]
+    fn spawn(&self) -> &SpawnOrigins {
+        &self.spawn
     }
 }
 
@@ -167,6 +181,8 @@ impl Tracer {
     ) {
         let mut points = std::mem::take(&mut self.points);
         points.clear();
+        // One pixel: one symmetry for all its points.
+        let pixel = (pixel, scene.sets.frame_symmetry(pixel));
         for (j, (o, hit)) in out.iter_mut().zip(hits).enumerate() {
             let Some(primary) = hit else {
                 *o = SampleResult { radiance: scene.background, ..Default::default() };
@@ -256,7 +272,7 @@ impl Tracer {
         // A plain loop: through `filter_map` each point was copied by a call to memcpy.
         for (j, (&(pixel, sample), hit)) in pixels.iter().zip(hits).enumerate() {
             let Some(PrimaryHit { hit, .. }) = hit else { continue };
-            points.push(RunPoint::new(scene, hit, j, pixel, sample));
+            points.push(RunPoint::new(scene, hit, j, (pixel, scene.sets.frame_symmetry(pixel)), sample));
         }
         // The row's cycles, kept apart and then scaled to the timed pixels' share.
         // A row's shadow rays go in few queries: each is timed when any pixel is.
@@ -314,7 +330,7 @@ impl Tracer {
         skip_black: bool,
         out: &mut O,
     ) {
-        let (at, spawn) = scene.lit_point(&primary.hit, pixel);
+        let (at, spawn) = scene.lit_point(&primary.hit, scene.sets.frame_symmetry(pixel));
         out.start(primary, &at.material);
         let sample = (pixel, first, out.len());
         self.shade_groups(scene, (&at, &spawn), sample, skip_black, false, |term, reflectance, arriving, _| {
@@ -329,7 +345,7 @@ impl Tracer {
     /// rays as [`Tracer::shade`]; the sum may differ from adding its samples in the last bits.
     #[inline]
     pub fn shade_sum(&mut self, scene: &Scene, primary: &PrimaryHit, pixel: u32, first: u32, count: u32) -> Vec3A {
-        let (at, spawn) = scene.lit_point(&primary.hit, pixel);
+        let (at, spawn) = scene.lit_point(&primary.hit, scene.sets.frame_symmetry(pixel));
         let mut radiance = Vec3A::ZERO;
         let sample = (pixel, first, count as usize);
         self.shade_groups(scene, (&at, &spawn), sample, true, true, |_, reflectance, arriving, sum| {
@@ -479,9 +495,23 @@ impl Tracer {
                 let start = (dim - dims::LIGHTS) as usize * run.stride;
                 &run.values[start..start + P::DIMS as usize * run.stride]
             };
+            let lit = |p: &RunPoint| !(skip_black && P::TERM.reflectance(&p.at.material).max_element() <= 0.0);
+            // A cosine run over the points in one pass, where the CPU and scene allow.
+            if let Some(terms) = light.cosine_run().filter(|_| P::DIMS > 0) {
+                let u = |p: &RunPoint| columns[p.j as usize];
+                let (geometry, rays) = (scene.geometry, &mut self.direction_rays);
+                rays.timing = self.timing_queries;
+                if let Some((traced, cycles)) =
+                    rays.add_cosine_points(geometry, &mut self.stack, points, u, lit, &terms, arriving)
+                {
+                    self.rays.count(P::TERM, traced);
+                    self.split.add_queries(P::TERM, cycles);
+                    continue;
+                }
+            }
             drawn.clear();
             drawn.extend(points.iter().map(|p| {
-                if skip_black && P::TERM.reflectance(&p.at.material).max_element() <= 0.0 {
+                if !lit(p) {
                     return None;
                 }
                 let u = if P::DIMS == 0 {

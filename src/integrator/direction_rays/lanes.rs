@@ -153,7 +153,7 @@ impl DirectionRays {
 /// samples (lanes past its end are dropped).
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-fn add_group<L: Lanes>(x: L, y: L, z: L, sums: &mut [Vec3A]) {
+pub(super) fn add_group<L: Lanes>(x: L, y: L, z: L, sums: &mut [Vec3A]) {
     if sums.len() == L::WIDTH {
         L::add_to(x, y, z, sums);
     } else {

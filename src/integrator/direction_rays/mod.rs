@@ -6,7 +6,9 @@
 //! ([`PlacedLight::cosine_run`]) can go from sample points to packets in one pass instead
 //! ([`DirectionRays::add_cosine`]), and where its samples are whole correlated multi-jittered
 //! patterns it needs no sort: the patterns' columns give each sample's quadrant of azimuth
-//! ([`QuadrantPattern`](crate::sampling::cmj::QuadrantPattern)).
+//! ([`QuadrantPattern`](crate::sampling::cmj::QuadrantPattern)). A cosine run of one sample
+//! at each of many points (jittered camera hits) is set up in lanes point by point
+//! ([`DirectionRays::add_cosine_points`]).
 //!
 //! [`PlacedLight::sample_directions`]: crate::light::PlacedLight::sample_directions
 //! [`PlacedLight::cosine_run`]: crate::light::PlacedLight::cosine_run
@@ -15,8 +17,10 @@
 mod cosine;
 #[cfg(target_arch = "x86_64")]
 mod lanes;
+#[cfg(target_arch = "x86_64")]
+mod points;
 
-use glam::{BVec3A, Vec3A};
+use glam::{BVec3A, Vec2, Vec3A};
 
 #[cfg(target_arch = "x86_64")]
 use crate::sampling::{cmj::Cmj, cosine_table::CosineTable};
@@ -104,9 +108,20 @@ pub(crate) struct DirectionRays {
     /// A cosine run's blocked samples, bit k of entry g for sample 16g + k.
     #[cfg(target_arch = "x86_64")]
     dark: Vec<u32>,
+    /// The shading points of a cosine run over many points, as columns.
+    #[cfg(target_arch = "x86_64")]
+    points: points::PointColumns,
     /// Whether [`DirectionRays::add`] times its scene query (in the pixels whose queries the
     /// tracer times, [`crate::stats::query_timed_pixel`]).
     pub(crate) timing: bool,
+}
+
+/// A shading point of a cosine run over many points ([`DirectionRays::add_cosine_points`]).
+pub(crate) trait CosinePoint {
+    /// The point's shading frame (its `w` the normal of its [`CosinePoint::spawn`]).
+    fn frame(&self) -> &Onb;
+    /// Where its rays start.
+    fn spawn(&self) -> &SpawnOrigins;
 }
 
 /// The light a clear sample of weight `w` brings (per channel) and the floor a blocked one
@@ -200,6 +215,39 @@ impl DirectionRays {
             return Some(<crate::simd::Avx512 as crate::simd::Lanes>::compiled(isa, kernel));
         }
         let _ = (geometry, stack, spawn, frame, sets, pixel, first, dim, terms, arriving, sum);
+        None
+    }
+
+    /// [`DirectionRays::add_cosine`] for one sample at each of many points (a pixel's camera
+    /// hits when each sample has its own): point `points[i]` draws sample point `u(p)`
+    /// (mapped as [`cosine_power_hemisphere`](crate::sampling::warp::cosine_power_hemisphere)
+    /// with e = 1 maps it) into `arriving[i]`, where `lit(p)` (elsewhere no ray, nothing added).
+    /// The same rays, answers and light as [`DirectionRays::add`] gives each point's sample,
+    /// set up in lanes and traced as packets by quadrant, where the scene's packets are sixteen
+    /// wide. `None`, having done nothing, elsewhere, and in scenes with alpha-tested meshes (as
+    /// for [`DirectionRays::add_cosine`]).
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn add_cosine_points<P: CosinePoint>(
+        &mut self,
+        geometry: &SceneGeometry,
+        stack: &mut Vec<(u32, f32)>,
+        points: &[P],
+        u: impl Fn(&P) -> Vec2,
+        lit: impl Fn(&P) -> bool,
+        terms: &DirectionTerms,
+        arriving: &mut [Vec3A],
+    ) -> Option<(u64, u64)> {
+        debug_assert_eq!(points.len(), arriving.len(), "one sample per point");
+        #[cfg(target_arch = "x86_64")]
+        if geometry.packet_lanes() == 16
+            && !geometry.has_alpha()
+            && let Some(isa) = crate::simd::HasAvx512::allowed()
+        {
+            self.points.gather(points, u, lit);
+            let kernel = points::PointsRun { rays: self, geometry, stack, terms, arriving };
+            return Some(<crate::simd::Avx512 as crate::simd::Lanes>::compiled(isa, kernel));
+        }
+        let _ = (geometry, stack, points, u, lit, terms, arriving);
         None
     }
 

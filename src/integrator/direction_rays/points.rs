@@ -1,0 +1,227 @@
+//! Cosine runs over many shading points: one sample at each of a pixel's camera hits (jittered
+//! or lens rays), its direction and ray set up in lanes, and the rays traced in packets by the
+//! quadrant of their local direction.
+
+use glam::{Vec2, Vec3A};
+
+use super::{
+    CosinePoint, DirectionRays, clear_and_floor,
+    lanes::{PassLanes, add_group, occluded_lanes},
+    quadrant_lanes, quadrant_starts,
+};
+use crate::{
+    geometry::{accel::SceneGeometry, lanes::RayLanes},
+    light::DirectionTerms,
+    sampling::warp::cosine_hemisphere_lanes,
+    simd::{CompressLanes, Kernel},
+};
+
+/// Columns of [`PointColumns`]: the sample point (2), the frame's u, v and w (9; w is the
+/// normal whose side picks a ray's origin), and the origins in front of and behind the surface
+/// (3 + 3).
+const U: usize = 0;
+const FRAME: usize = 2;
+const NORMAL: usize = FRAME + 6;
+const FRONT: usize = 11;
+const BACK: usize = 14;
+const COLUMNS: usize = 17;
+
+/// A run of shading points as columns, one entry per point, padded to whole groups of sixteen.
+#[derive(Debug, Default)]
+pub(super) struct PointColumns {
+    columns: [Vec<f32>; COLUMNS],
+    /// Bit k of entry g: point 16g + k is lit.
+    lit: Vec<u32>,
+    /// Each point's ray origin (x, y, z).
+    origins: [Vec<f32>; 3],
+    /// Ray origins (x, y, z) in tracing order, beside the directions in `ray_dirs`.
+    ray_origins: [Vec<f32>; 3],
+}
+
+impl PointColumns {
+    /// Writes `points`, their sample points `u` and whether each is `lit`, into the columns,
+    /// a column at a time (each a plain pass over the points).
+    pub(super) fn gather<P: CosinePoint>(&mut self, points: &[P], u: impl Fn(&P) -> Vec2, lit: impl Fn(&P) -> bool) {
+        let [ux, uy, fux, fuy, fuz, fvx, fvy, fvz, fwx, fwy, fwz, fx, fy, fz, bx, by, bz] = &mut self.columns;
+        fill(ux, points, |p| u(p).x);
+        fill(uy, points, |p| u(p).y);
+        fill(fux, points, |p| p.frame().u.x);
+        fill(fuy, points, |p| p.frame().u.y);
+        fill(fuz, points, |p| p.frame().u.z);
+        fill(fvx, points, |p| p.frame().v.x);
+        fill(fvy, points, |p| p.frame().v.y);
+        fill(fvz, points, |p| p.frame().v.z);
+        fill(fwx, points, |p| p.frame().w.x);
+        fill(fwy, points, |p| p.frame().w.y);
+        fill(fwz, points, |p| p.frame().w.z);
+        fill(fx, points, |p| p.spawn().sides().0.x);
+        fill(fy, points, |p| p.spawn().sides().0.y);
+        fill(fz, points, |p| p.spawn().sides().0.z);
+        fill(bx, points, |p| p.spawn().sides().1.x);
+        fill(by, points, |p| p.spawn().sides().1.y);
+        fill(bz, points, |p| p.spawn().sides().1.z);
+        let bits = |v: Vec3A| v.to_array().map(f32::to_bits);
+        debug_assert!(
+            points.iter().all(|p| bits(p.frame().w.into()) == bits(p.spawn().normal())),
+            "frames around the normal"
+        );
+        self.lit.clear();
+        self.lit
+            .extend(points.chunks(16).map(|c| c.iter().enumerate().fold(0, |m, (k, p)| m | u32::from(lit(p)) << k)));
+    }
+}
+
+/// Sets `column` to `value` of each of `points`, padded with 0.5 to a whole group of sixteen.
+#[inline(always)]
+fn fill<P>(column: &mut Vec<f32>, points: &[P], value: impl Fn(&P) -> f32) {
+    column.clear();
+    column.extend(points.iter().map(value));
+    column.resize(points.len().next_multiple_of(16), 0.5);
+}
+
+/// [`DirectionRays::add_cosine_points_lanes`] as a kernel over the lane type.
+pub(super) struct PointsRun<'a> {
+    pub(super) rays: &'a mut DirectionRays,
+    pub(super) geometry: &'a SceneGeometry,
+    pub(super) stack: &'a mut Vec<(u32, f32)>,
+    pub(super) terms: &'a DirectionTerms,
+    pub(super) arriving: &'a mut [Vec3A],
+}
+
+impl<L: PassLanes + CompressLanes> Kernel<L> for PointsRun<'_> {
+    type Output = (u64, u64);
+    #[inline(always)]
+    fn run(self, isa: L::Isa) -> (u64, u64) {
+        let PointsRun { rays, geometry, stack, terms, arriving } = self;
+        rays.add_cosine_points_lanes::<L>(isa, geometry, stack, terms, arriving)
+    }
+}
+
+impl DirectionRays {
+    /// [`DirectionRays::add_cosine_points`] in lanes that compress, the points already in
+    /// `points`: each group of `L::WIDTH` points' directions ([`cosine_hemisphere_lanes`], then
+    /// each point's own frame) and origins (each point's side of its surface) made in lanes,
+    /// sorted by lane compression into the quadrants of their local directions (the pixel's
+    /// points share a frame up to the little its normal turns across the pixel, so a quadrant
+    /// is one quarter of the hemisphere nearly everywhere), and traced as packets of
+    /// consecutive rays. Each point gets the ray, answer and light of [`DirectionRays::add`].
+    #[inline(always)]
+    pub(super) fn add_cosine_points_lanes<L: PassLanes + CompressLanes>(
+        &mut self,
+        isa: L::Isa,
+        geometry: &SceneGeometry,
+        stack: &mut Vec<(u32, f32)>,
+        terms: &DirectionTerms,
+        arriving: &mut [Vec3A],
+    ) -> (u64, u64) {
+        let w = L::WIDTH;
+        debug_assert_eq!(w, 16, "the columns hold points in groups of sixteen");
+        let n = arriving.len();
+        let groups = n.div_ceil(w);
+        // Every sample has weight 1: one clear value and one floor for all.
+        let (clear, floor) = clear_and_floor(terms, 1.0);
+        self.dark.clear();
+        self.dark.resize(groups, 0);
+        let (mut traced, mut cycles) = (0, 0);
+        let points = &mut self.points;
+        if clear.cmpne(floor).any() {
+            let [.., dx, dy, dz] = &mut self.samples;
+            let [ox, oy, oz] = &mut points.origins;
+            for column in [&mut *dx, &mut *dy, &mut *dz, &mut *ox, &mut *oy, &mut *oz] {
+                column.resize(groups * w, 0.0);
+            }
+            let zero = L::splat(isa, 0.0);
+            self.groups.clear();
+            let mut count = [0u32; 4];
+            for g in 0..groups {
+                let at = g * w;
+                let c = |k: usize| L::load(isa, &points.columns[k][at..]);
+                let local = cosine_hemisphere_lanes(c(U), c(U + 1));
+                // The frame's `to_world`, u·x + v·y + w·z, and `SpawnOrigins::towards`'s side
+                // test, x·n.x + y·n.y + z·n.z: the scalar code's products and sums.
+                let d = [0, 1, 2].map(|a| {
+                    let (fu, fv, fw) = (c(FRAME + a), c(FRAME + 3 + a), c(FRAME + 6 + a));
+                    fu.mul(local[0]).add(fv.mul(local[1])).add(fw.mul(local[2]))
+                });
+                let side = d[0].mul(c(NORMAL)).add(d[1].mul(c(NORMAL + 1))).add(d[2].mul(c(NORMAL + 2)));
+                let behind = side.lt(zero);
+                for (a, column) in [&mut *dx, &mut *dy, &mut *dz].into_iter().enumerate() {
+                    d[a].store(&mut column[at..]);
+                }
+                for (a, column) in [&mut *ox, &mut *oy, &mut *oz].into_iter().enumerate() {
+                    c(FRONT + a).select(behind, c(BACK + a)).store(&mut column[at..]);
+                }
+                let valid = ((1u32 << (n - at).min(w)) - 1) & points.lit[g];
+                let negative = [L::bits(local[0].lt(zero)), L::bits(local[1].lt(zero))];
+                let masks = quadrant_lanes(valid, negative);
+                for (count, lanes) in count.iter_mut().zip(masks) {
+                    *count += lanes.count_ones();
+                }
+                self.groups.push(masks);
+            }
+            let mut cursor;
+            (cursor, traced) = quadrant_starts(count);
+            for column in self.ray_dirs.iter_mut().chain(&mut points.ray_origins) {
+                column.resize(traced, 0.0);
+            }
+            self.ray_samples.resize(traced, 0);
+            let [.., dx, dy, dz] = &self.samples;
+            let [ox, oy, oz] = &points.origins;
+            let ([rx, ry, rz], [qx, qy, qz]) = (&mut self.ray_dirs, &mut points.ray_origins);
+            let mut to_columns = [rx, ry, rz, qx, qy, qz];
+            for (g, masks) in self.groups.iter().enumerate() {
+                let at = g * w;
+                for (cursor, &lanes) in cursor.iter_mut().zip(masks) {
+                    if lanes == 0 {
+                        continue;
+                    }
+                    let to = *cursor as usize;
+                    for (from, to_column) in [dx, dy, dz, ox, oy, oz].into_iter().zip(to_columns.iter_mut()) {
+                        L::load(isa, &from[at..]).compress_store(lanes, &mut to_column[to..]);
+                    }
+                    L::compress_indices(isa, at as u32, lanes, &mut self.ray_samples[to..]);
+                    *cursor += lanes.count_ones();
+                }
+            }
+            // Packets of `L::WIDTH` consecutive rays, each query timed (when timing) as
+            // `DirectionRays::trace` times the whole call.
+            stack.clear();
+            let one = L::splat(isa, 1.0);
+            for p in (0..traced).step_by(w) {
+                let live = (1u32 << (traced - p).min(w)) - 1;
+                let (hit, took) = {
+                    let load = |c: &[f32]| L::load_partial(isa, &c[p..traced]);
+                    let d = self.ray_dirs.each_ref().map(|c| load(c));
+                    let lanes = RayLanes {
+                        origin: points.ray_origins.each_ref().map(|c| load(c)),
+                        dir: d,
+                        inv_dir: [one.div(d[0]), one.div(d[1]), one.div(d[2])],
+                        tmax: L::splat(isa, terms.max_distance),
+                    };
+                    occluded_lanes(geometry, stack, &lanes, live, self.timing)
+                };
+                cycles += took;
+                let mut each = hit;
+                while each != 0 {
+                    let j = self.ray_samples[p + each.trailing_zeros() as usize] as usize;
+                    each &= each - 1;
+                    self.dark[j / w] |= 1 << (j % w);
+                }
+            }
+        }
+        // Lit points get the clear value or the floor; the others −0, which adds nothing.
+        let pick = |clear: f32, floor: f32, dark: L::Mask, unlit: L::Mask| {
+            L::splat(isa, clear).select(dark, L::splat(isa, floor)).select(unlit, L::splat(isa, -0.0))
+        };
+        for ((sums, &dark), &lit) in arriving.chunks_mut(w).zip(&self.dark).zip(&points.lit) {
+            let (dark, unlit) = (L::mask(isa, dark), L::mask(isa, !lit));
+            add_group(
+                pick(clear.x, floor.x, dark, unlit),
+                pick(clear.y, floor.y, dark, unlit),
+                pick(clear.z, floor.z, dark, unlit),
+                sums,
+            );
+        }
+        (traced as u64, cycles)
+    }
+}
