@@ -6,7 +6,7 @@ use glam::Vec3A;
 use super::{
     DirectionRays, QuadrantOut, QuadrantPasses, clear_and_floor,
     lanes::{PassLanes, add_clear_or_floor, along, occluded_lanes, spawned_lanes, to_world},
-    quadrant_lanes, quadrant_starts,
+    mark_blocked, quadrant_lanes, quadrant_starts, scatter_by_quadrant,
 };
 use crate::{
     geometry::{accel::SceneGeometry, hit::SpawnOrigins},
@@ -98,26 +98,14 @@ impl DirectionRays {
                 }
                 self.groups.push(masks);
             }
-            let mut cursor;
+            let cursor;
             (cursor, traced) = quadrant_starts(count);
             for column in &mut self.ray_dirs {
                 column.resize(traced, 0.0);
             }
             self.ray_samples.resize(traced, 0);
-            for (g, masks) in self.groups.iter().enumerate() {
-                let at = g * w;
-                for (cursor, &lanes) in cursor.iter_mut().zip(masks) {
-                    if lanes == 0 {
-                        continue;
-                    }
-                    let to = *cursor as usize;
-                    for (from, to_column) in [&*dx, &*dy, &*dz].into_iter().zip(&mut self.ray_dirs) {
-                        L::load(isa, &from[at..]).compress_store(lanes, &mut to_column[to..]);
-                    }
-                    L::compress_indices(isa, at as u32, lanes, &mut self.ray_samples[to..]);
-                    *cursor += lanes.count_ones();
-                }
-            }
+            let to = self.ray_dirs.each_mut().map(|c| c.as_mut_slice());
+            scatter_by_quadrant::<L, 3>(isa, &self.groups, cursor, [dx, dy, dz], to, &mut self.ray_samples);
             // Packets of `L::WIDTH` consecutive rays, as `RayOrder::Grouped` cuts them, each
             // query timed (when timing) as `DirectionRays::trace` times the whole call.
             stack.clear();
@@ -131,12 +119,7 @@ impl DirectionRays {
                     occluded_lanes(geometry, stack, &lanes, live, self.timing)
                 };
                 cycles += took;
-                let mut each = hit;
-                while each != 0 {
-                    let j = self.ray_samples[p + each.trailing_zeros() as usize] as usize;
-                    each &= each - 1;
-                    self.dark[j / w] |= 1 << (j % w);
-                }
+                mark_blocked(&mut self.dark, &self.ray_samples, p, hit, w);
             }
         }
         for (sums, &dark) in arriving.chunks_mut(w).zip(&self.dark) {

@@ -58,6 +58,50 @@ fn quadrant_starts(count: [u32; 4]) -> ([u32; 4], usize) {
     (start, at as usize)
 }
 
+/// Puts a run's rays in tracing order: each group's lanes, quadrant by quadrant (`groups`,
+/// its [`QuadrantLanes`]), compressed from the `from` columns (one value per sample) into the
+/// `to` columns at that quadrant's cursor (from [`quadrant_starts`]), with each ray's sample in
+/// `ray_samples`.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn scatter_by_quadrant<L: lanes::PassLanes + crate::simd::CompressLanes, const C: usize>(
+    isa: L::Isa,
+    groups: &[QuadrantLanes],
+    mut cursor: [u32; 4],
+    from: [&[f32]; C],
+    mut to: [&mut [f32]; C],
+    ray_samples: &mut [u32],
+) {
+    for (g, masks) in groups.iter().enumerate() {
+        let at = g * L::WIDTH;
+        for (cursor, &lanes) in cursor.iter_mut().zip(masks) {
+            if lanes == 0 {
+                continue;
+            }
+            let first = *cursor as usize;
+            for (from, to) in from.iter().zip(to.iter_mut()) {
+                L::load(isa, &from[at..]).compress_store(lanes, &mut to[first..]);
+            }
+            L::compress_indices(isa, at as u32, lanes, &mut ray_samples[first..]);
+            *cursor += lanes.count_ones();
+        }
+    }
+}
+
+/// Marks in `dark` (bit `j % width` of entry `j / width` for sample `j`) the samples whose
+/// rays, those of the packet starting at `first` in tracing order (`ray_samples`: each ray's
+/// sample), `hit` says are blocked.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn mark_blocked(dark: &mut [u32], ray_samples: &[u32], first: usize, hit: u32, width: usize) {
+    let mut each = hit;
+    while each != 0 {
+        let j = ray_samples[first + each.trailing_zeros() as usize] as usize;
+        each &= each - 1;
+        dark[j / width] |= 1 << (j % width);
+    }
+}
+
 /// [`QuadrantLanes`] from the lanes that need a ray and those negative along each tangent.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]

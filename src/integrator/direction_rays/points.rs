@@ -7,7 +7,7 @@ use glam::{Vec2, Vec3A};
 use super::{
     CosinePoint, DirectionRays, clear_and_floor,
     lanes::{PassLanes, add_group, occluded_lanes},
-    quadrant_lanes, quadrant_starts,
+    mark_blocked, quadrant_lanes, quadrant_starts, scatter_by_quadrant,
 };
 use crate::{
     geometry::{accel::SceneGeometry, lanes::RayLanes},
@@ -159,7 +159,7 @@ impl DirectionRays {
                 }
                 self.groups.push(masks);
             }
-            let mut cursor;
+            let cursor;
             (cursor, traced) = quadrant_starts(count);
             for column in self.ray_dirs.iter_mut().chain(&mut points.ray_origins) {
                 column.resize(traced, 0.0);
@@ -168,21 +168,9 @@ impl DirectionRays {
             let [.., dx, dy, dz] = &self.samples;
             let [ox, oy, oz] = &points.origins;
             let ([rx, ry, rz], [qx, qy, qz]) = (&mut self.ray_dirs, &mut points.ray_origins);
-            let mut to_columns = [rx, ry, rz, qx, qy, qz];
-            for (g, masks) in self.groups.iter().enumerate() {
-                let at = g * w;
-                for (cursor, &lanes) in cursor.iter_mut().zip(masks) {
-                    if lanes == 0 {
-                        continue;
-                    }
-                    let to = *cursor as usize;
-                    for (from, to_column) in [dx, dy, dz, ox, oy, oz].into_iter().zip(to_columns.iter_mut()) {
-                        L::load(isa, &from[at..]).compress_store(lanes, &mut to_column[to..]);
-                    }
-                    L::compress_indices(isa, at as u32, lanes, &mut self.ray_samples[to..]);
-                    *cursor += lanes.count_ones();
-                }
-            }
+            let to = [rx, ry, rz, qx, qy, qz].map(|c| c.as_mut_slice());
+            let from = [dx, dy, dz, ox, oy, oz].map(|c| c.as_slice());
+            scatter_by_quadrant::<L, 6>(isa, &self.groups, cursor, from, to, &mut self.ray_samples);
             // Packets of `L::WIDTH` consecutive rays, each query timed (when timing) as
             // `DirectionRays::trace` times the whole call.
             stack.clear();
@@ -201,12 +189,7 @@ impl DirectionRays {
                     occluded_lanes(geometry, stack, &lanes, live, self.timing)
                 };
                 cycles += took;
-                let mut each = hit;
-                while each != 0 {
-                    let j = self.ray_samples[p + each.trailing_zeros() as usize] as usize;
-                    each &= each - 1;
-                    self.dark[j / w] |= 1 << (j % w);
-                }
+                mark_blocked(&mut self.dark, &self.ray_samples, p, hit, w);
             }
         }
         // Lit points get the clear value or the floor; the others −0, which adds nothing.
