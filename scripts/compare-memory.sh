@@ -6,8 +6,8 @@
 #
 #   scripts/compare-memory.sh [--spp N] [--threads N] [--rounds N] [--hemi BIN] [SCENE ...]
 #
-# Defaults: 1 spp, 2 threads, 3 rounds, target/release/hemi, and the scenes dragon,
-# many_spheres and sponza. The native bench is built on first use (scripts/native-embree.sh).
+# Defaults: 1 spp, 2 threads, 3 rounds, target/release/hemi, and all five peer scenes. The
+# native bench is built on first use (scripts/native-embree.sh).
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 peers_src="$root/../shared/peers"
@@ -26,7 +26,7 @@ while [ $# -gt 0 ]; do
         *) scenes+=("$1"); shift ;;
     esac
 done
-[ ${#scenes[@]} -gt 0 ] || scenes=(dragon many_spheres sponza)
+[ ${#scenes[@]} -gt 0 ] || scenes=(dragon many_spheres sponza sphere_plane cornell)
 for n in "$spp" "$threads" "$rounds"; do
     [[ "$n" =~ ^[1-9][0-9]*$ ]] || { echo "compare-memory: '$n' is not a positive whole number" >&2; exit 2; }
 done
