@@ -96,6 +96,14 @@ pub(crate) trait Lanes: Copy {
     fn compiled_apart<K: Kernel<Self>>(isa: Self::Isa, kernel: K) -> K::Output;
 }
 
+/// The dot product of two vectors of lanes, `a₀b₀ + a₁b₁ + a₂b₂` summed in that order (as
+/// glam's `Vec3A::dot`), so that each lane has the scalar code's bits.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub(crate) fn dot3<L: Lanes>(a: &[L; 3], b: &[L; 3]) -> L {
+    a[0].mul(b[0]).add(a[1].mul(b[1])).add(a[2].mul(b[2]))
+}
+
 /// Lanes that pack the lanes of a mask together (AVX-512's compress), for sorting a vector of
 /// samples into runs by mask without a permutation table.
 pub(crate) trait CompressLanes: Lanes {

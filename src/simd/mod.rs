@@ -31,9 +31,9 @@ mod u32_lanes;
 pub(crate) use avx::Avx;
 #[cfg(target_arch = "x86_64")]
 pub(crate) use avx512::Avx512;
-#[cfg(target_arch = "x86_64")]
-pub(crate) use lanes::SampleLanes;
 pub(crate) use lanes::{CompressLanes, FusedLanes, Lanes};
+#[cfg(target_arch = "x86_64")]
+pub(crate) use lanes::{SampleLanes, dot3};
 pub(crate) use portable::Portable;
 pub(crate) use token::Plain;
 #[cfg(target_arch = "x86_64")]

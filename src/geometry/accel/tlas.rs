@@ -8,7 +8,7 @@ use crate::geometry::lanes::RayLanes;
 use crate::geometry::{hit::SurfaceHit, ray::Ray};
 use crate::math::gamma;
 #[cfg(target_arch = "x86_64")]
-use crate::simd::Lanes;
+use crate::simd::{Lanes, dot3};
 
 /// One placement of a BLAS in the world.
 #[derive(Clone, Debug)]
@@ -152,14 +152,6 @@ impl Instance {
         let normal = (self.to_local.matrix3.transpose() * hit.normal).normalize();
         SurfaceHit { t: hit.t + dt, p, p_error, normal, ..hit }
     }
-}
-
-/// The dot product of two vectors in lanes, summed in glam's order for `Vec3A::dot`:
-/// (a₀b₀ + a₁b₁) + a₂b₂.
-#[cfg(target_arch = "x86_64")]
-#[inline(always)]
-fn dot3<L: Lanes>(a: &[L; 3], b: &[L; 3]) -> L {
-    a[0].mul(b[0]).add(a[1].mul(b[1])).add(a[2].mul(b[2]))
 }
 
 #[inline(always)]

@@ -10,7 +10,7 @@ use crate::{
         accel::{KernelLanes, SceneLanes},
         lanes::{PacketLanes, RayLanes},
     },
-    simd::{Kernel, Lanes, SampleLanes},
+    simd::{Kernel, Lanes, SampleLanes, dot3},
 };
 use crate::{
     geometry::{
@@ -215,7 +215,7 @@ impl<L: PassLanes, I: Iterator<Item = u32>> Kernel<L> for QuadrantRun<'_, I> {
 pub(super) fn to_world<L: Lanes>(frame: &Onb, [x, y, z]: [L; 3]) -> [L; 3] {
     let (u, v, w) = (frame.u, frame.v, frame.w);
     let isa = x.isa();
-    let world = |a: usize| L::splat(isa, u[a]).mul(x).add(L::splat(isa, v[a]).mul(y)).add(L::splat(isa, w[a]).mul(z));
+    let world = |a: usize| dot3(&[L::splat(isa, u[a]), L::splat(isa, v[a]), L::splat(isa, w[a])], &[x, y, z]);
     [world(0), world(1), world(2)]
 }
 
@@ -288,9 +288,8 @@ fn clear_lanes<L: Lanes>(isa: L::Isa, run: &DirectionRun, terms: &DirectionTerms
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 pub(super) fn along<L: Lanes>(d: &[L; 3], t: Vec3A) -> L {
-    let [x, y, z] = *d;
-    let isa = x.isa();
-    x.mul(L::splat(isa, t.x)).add(y.mul(L::splat(isa, t.y))).add(z.mul(L::splat(isa, t.z)))
+    let isa = d[0].isa();
+    dot3(d, &[L::splat(isa, t.x), L::splat(isa, t.y), L::splat(isa, t.z)])
 }
 
 /// Group `g`'s directions: x, y and z lanes.

@@ -13,7 +13,7 @@ use crate::{
     geometry::{accel::SceneGeometry, lanes::RayLanes},
     light::DirectionTerms,
     sampling::warp::cosine_hemisphere_lanes,
-    simd::{CompressLanes, Kernel},
+    simd::{CompressLanes, Kernel, dot3},
 };
 
 /// Columns of [`PointColumns`]: the sample point (2), the frame's u, v and w (9; w is the
@@ -139,11 +139,8 @@ impl DirectionRays {
                 let local = cosine_hemisphere_lanes(c(U), c(U + 1));
                 // The frame's `to_world`, u·x + v·y + w·z, and `SpawnOrigins::towards`'s side
                 // test, x·n.x + y·n.y + z·n.z: the scalar code's products and sums.
-                let d = [0, 1, 2].map(|a| {
-                    let (fu, fv, fw) = (c(FRAME + a), c(FRAME + 3 + a), c(FRAME + 6 + a));
-                    fu.mul(local[0]).add(fv.mul(local[1])).add(fw.mul(local[2]))
-                });
-                let side = d[0].mul(c(NORMAL)).add(d[1].mul(c(NORMAL + 1))).add(d[2].mul(c(NORMAL + 2)));
+                let d = [0, 1, 2].map(|a| dot3(&[c(FRAME + a), c(FRAME + 3 + a), c(FRAME + 6 + a)], &local));
+                let side = dot3(&d, &[c(NORMAL), c(NORMAL + 1), c(NORMAL + 2)]);
                 let behind = side.lt(zero);
                 for (a, column) in [&mut *dx, &mut *dy, &mut *dz].into_iter().enumerate() {
                     d[a].store(&mut column[at..]);
