@@ -4,7 +4,7 @@
 use std::time::Instant;
 
 use bevy_ecs::prelude::*;
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::{
@@ -57,17 +57,11 @@ fn release_into(accumulation: &mut Accumulation, image: &mut Image) {
     let Sums::OneFrame(mut linear) = std::mem::take(&mut accumulation.sums) else {
         unreachable!("checked by releases_sums")
     };
-    linear.par_iter_mut().for_each(|s| {
-        let mean = (s.as_dvec3() / count).as_vec3();
-        *s = if mean.is_finite() { mean } else { Vec3::ZERO };
-    });
+    linear.par_iter_mut().for_each(|s| *s = mean(s.as_dvec3(), count));
     if let Sums::OneFrame(mut aovs) = std::mem::take(&mut accumulation.aovs)
         && aovs.len() == linear.len()
     {
-        aovs.as_flattened_mut().par_iter_mut().for_each(|s| {
-            let v = (f64::from(*s) / count) as f32;
-            *s = if v.is_finite() { v } else { 0.0 };
-        });
+        aovs.as_flattened_mut().par_iter_mut().for_each(|s| *s = aov_mean(f64::from(*s), count));
         image.aovs = aovs;
     }
     image.linear = linear;
@@ -82,21 +76,34 @@ pub fn resolve_into(accumulation: &Accumulation, image: &mut Image) {
     image.linear.resize(n, Vec3::ZERO);
     image.linear.par_iter_mut().enumerate().for_each(|(i, linear)| {
         let count = accumulation.count(i);
-        let mean = if count > 0 { (accumulation.sums.get(i) / count as f64).as_vec3() } else { Vec3::ZERO };
-        *linear = if mean.is_finite() { mean } else { Vec3::ZERO };
+        *linear = if count > 0 { mean(accumulation.sums.get(i), count as f64) } else { Vec3::ZERO };
     });
     image.aovs.clear();
     if accumulation.aovs.len() == n {
         image.aovs.par_extend((0..n).into_par_iter().map(|i| {
             let count = accumulation.count(i);
-            let mut mean = [0.0f32; AOV_FLOATS];
+            let mut means = [0.0f32; AOV_FLOATS];
             if count > 0 {
-                for (m, s) in mean.iter_mut().zip(accumulation.aovs.get(i)) {
-                    let v = (s / count as f64) as f32;
-                    *m = if v.is_finite() { v } else { 0.0 };
+                for (m, s) in means.iter_mut().zip(accumulation.aovs.get(i)) {
+                    *m = aov_mean(s, count as f64);
                 }
             }
-            mean
+            means
         }));
     }
+}
+
+/// A pixel's mean radiance from its sum and its (nonzero) sample count, divided in f64; black
+/// where that is not finite.
+#[inline]
+fn mean(sum: DVec3, count: f64) -> Vec3 {
+    let mean = (sum / count).as_vec3();
+    if mean.is_finite() { mean } else { Vec3::ZERO }
+}
+
+/// One AOV float's mean from its sum and its (nonzero) sample count, as [`mean`] makes it.
+#[inline]
+fn aov_mean(sum: f64, count: f64) -> f32 {
+    let mean = (sum / count) as f32;
+    if mean.is_finite() { mean } else { 0.0 }
 }
