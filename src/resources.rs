@@ -373,10 +373,10 @@ impl<T: Widen> Sums<T> {
     }
 
     /// Sizes the sums for `n` pixels of zero, of the kind they are, if they are not.
-    pub fn size(&mut self, n: usize, zero: T, wide_zero: T::Wide) {
+    pub fn size(&mut self, n: usize) {
         match self {
-            Sums::OneFrame(v) => v.resize(n, zero),
-            Sums::Frames(v) => v.resize(n, wide_zero),
+            Sums::OneFrame(v) => v.resize(n, T::zeroed()),
+            Sums::Frames(v) => v.resize(n, T::Wide::zeroed()),
         }
     }
 }

@@ -111,7 +111,7 @@ pub fn trace(
         acc.aovs.frames_mut();
     }
     if job.aovs && acc.aovs.len() != n {
-        acc.aovs.size(n, [0.0; AOV_FLOATS], [0.0; AOV_FLOATS]);
+        acc.aovs.size(n);
     }
     let frame = &mut *frame;
     frame.sums.clear();
