@@ -5,7 +5,10 @@ use bytemuck::Zeroable;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
-use crate::{sampling::SamplerKind, srgb::linear_to_srgb8};
+use crate::{
+    sampling::{SampleRuns, SamplerKind},
+    srgb::linear_to_srgb8,
+};
 
 /// What to render and how.
 #[derive(Resource, Clone, Debug, PartialEq)]
@@ -100,6 +103,22 @@ impl RenderSettings {
 
     /// Largest image hemi accepts, in pixels (8192 × 4096); buffers take 12 to 48 bytes each (192 with AOVs).
     pub const MAX_PIXELS: u64 = 1 << 25;
+
+    /// How this render's runs of samples at a shading point fall on its sample sets' passes:
+    /// one sample per point with jittered pixels (each sample its own camera hit); else whole
+    /// passes where every frame takes whole passes and every pixel takes every frame's samples
+    /// (no adaptive sampling).
+    pub fn sample_runs(&self) -> SampleRuns {
+        let set = self.samples_per_set.max(1);
+        let whole = self.target_error.is_none()
+            && self.samples_per_frame.is_multiple_of(set)
+            && self.first_sample.is_multiple_of(set);
+        match (self.jitter, whole) {
+            (true, _) => SampleRuns::OnePerPoint,
+            (false, true) => SampleRuns::WholePasses,
+            (false, false) => SampleRuns::Partial,
+        }
+    }
 
     /// A one-line description of the first unusable setting.
     pub fn validate(&self) -> Result<(), String> {

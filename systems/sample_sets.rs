@@ -10,11 +10,15 @@ use crate::{resources::RenderSettings, sampling::SampleSets, stats::FrameStats};
 pub fn update_sample_sets(settings: Res<RenderSettings>, mut sets: ResMut<SampleSets>, mut stats: ResMut<FrameStats>) {
     let start = Instant::now();
     let s = &*settings;
-    let note = if sets.matches(s.sampler, s.samples_per_set, s.seed, s.width, s.height) {
+    let runs = s.sample_runs();
+    let note = if sets.matches(s.sampler, s.samples_per_set, s.seed, (s.width, s.height), runs) {
         "unchanged".to_string()
     } else {
-        *sets = SampleSets::generate(s.sampler, s.samples_per_set, s.seed, s.width, s.height);
-        let tabled = if sets.has_cosine_table() { ", their cosine directions tabled" } else { "" };
+        *sets = SampleSets::generate_for(s.sampler, s.samples_per_set, s.seed, s.width, s.height, runs);
+        let tabled = match sets.cosine_table_order() {
+            Some(order) => format!(", their cosine directions tabled in {order} order"),
+            None => String::new(),
+        };
         format!("generated {} sets of {} {} samples{tabled}", sets.num_sets(), sets.set_size(), sets.kind().name())
     };
     stats.record("sample_sets", start.elapsed(), note);

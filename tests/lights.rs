@@ -500,13 +500,16 @@ fn the_occluder_s_bulk_path_matches_the_per_sample_path() {
     // sixteen lanes, and a partial one of each. Correlated multi-jittered sets take the
     // occluder's one-pass paths for cosine runs where the CPU has AVX2 or AVX-512: with sets
     // of 16 and 37 samples a run spans three passes, the first and last partial (with
-    // AVX-512, rays sorted into quadrants); with 32 it is two whole passes and with sets of 64
-    // one (rays made in the patterns' quadrant order, a packet of sixteen spanning the
-    // quadrants of a set of 16 and holding one quadrant of a set of 64, a packet of eight
-    // spanning two quadrants of a set of 16 and holding half of one of a set of 64).
+    // AVX-512, directions copied from the table in sample order and sorted into quadrants);
+    // with sets of 24 and 48 samples two whole passes of a set without quadrants (the same);
+    // with 32 it is two whole passes and with sets of 64 one (rays made in the patterns'
+    // quadrant order, a packet of sixteen spanning the quadrants of a set of 16 and holding
+    // one quadrant of a set of 64, a packet of eight spanning two quadrants of a set of 16 and
+    // holding half of one of a set of 64).
     let samplers = [
         (SamplerKind::MultiJittered, 37, 37),
         (SamplerKind::CorrelatedMultiJittered, 16, 37),
+        (SamplerKind::CorrelatedMultiJittered, 24, 48),
         (SamplerKind::CorrelatedMultiJittered, 16, 32),
         (SamplerKind::CorrelatedMultiJittered, 64, 64),
     ];

@@ -1,8 +1,11 @@
 //! The cosine-weighted hemisphere directions of a pool of correlated multi-jittered patterns,
-//! worked out once with the sample sets, in the order in which the occluder's quadrant packets
-//! trace them ([`QuadrantPattern`]). A pass of AO rays then loads its local directions instead
-//! of hashing, warping and taking two square roots for each: on this project's Zen 1 VM the
-//! occluder took 7–8 % less time for it.
+//! worked out once with the sample sets, in one of two orders. Where the occluder traces whole
+//! passes of patterns that split into quadrants, in the order its quadrant packets trace them
+//! ([`QuadrantPattern`]): a pass of AO rays then loads its local directions instead of hashing,
+//! warping and taking two square roots for each (on this project's Zen 1 VM the occluder took
+//! 7–8 % less time for it). Elsewhere (progressive frames and adaptive batches that take part of
+//! a pass, sets of other sizes), in sample order: a run copies its samples' directions and
+//! sorts them into quadrants itself, without computing the points.
 
 #[cfg(target_arch = "x86_64")]
 use rayon::prelude::*;
@@ -14,15 +17,27 @@ use super::{
 };
 #[cfg(target_arch = "x86_64")]
 use crate::simd::{Kernel, SampleLanes};
+#[cfg(target_arch = "x86_64")]
+use glam::Vec2;
+
+/// Which order a [`CosineTable`] keeps each pattern's directions in.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum TableOrder {
+    /// Packet by packet as the pattern's [`QuadrantPattern`] orders the slots for packets
+    /// `lanes` wide: per packet, its `lanes` x, then its y, then its z.
+    Quadrants,
+    /// Sample by sample as three columns: the pattern's n x, then its n y, then its n z.
+    Samples,
+}
 
 /// The local cosine directions (around +z) of patterns `first, first + 1, …` (`count` of
-/// them, wrapping) of a [`Cmj`] with quadrants ([`Cmj::has_quadrants`]), each pattern packet
-/// by packet as its [`QuadrantPattern`] orders the slots for packets `lanes` wide: per packet,
-/// its `lanes` x, then its y, then its z. Every direction has the bits that
-/// [`cosine_hemisphere_lanes`] gives its sample's point.
+/// them, wrapping) of a [`Cmj`], each pattern in the table's [`TableOrder`]. Every direction
+/// has the bits that [`cosine_hemisphere_lanes`] gives its sample's point.
 #[cfg(target_arch = "x86_64")]
 #[derive(Clone, Debug)]
 pub(crate) struct CosineTable {
+    order: TableOrder,
     lanes: usize,
     first: u32,
     count: u32,
@@ -55,7 +70,33 @@ impl CosineTable {
             let fill = FillPattern { cmj, p: first.wrapping_add(i as u32), out };
             crate::simd::run_in(lanes, fill);
         });
-        Some(CosineTable { lanes, first, count, per_pattern, dirs })
+        Some(CosineTable { order: TableOrder::Quadrants, lanes, first, count, per_pattern, dirs })
+    }
+
+    /// The table of `count` patterns from `first` of `n` ≤ [`CosineTable::MAX_SAMPLES`] points
+    /// in sample order, for the sixteen-lane runs that sort directions into quadrants
+    /// themselves: `None` where [`crate::simd::isa`] does not allow AVX-512, which those runs
+    /// need. Filled in parallel, each pattern on its own, as [`CosineTable::build`] fills.
+    pub(crate) fn build_in_sample_order(cmj: &Cmj, n: u32, first: u32, count: u32) -> Option<Self> {
+        if !crate::simd::avx512() || n > Self::MAX_SAMPLES {
+            return None;
+        }
+        let per_pattern = 3 * n as usize;
+        let mut dirs = vec![0.0; per_pattern * count as usize];
+        dirs.par_chunks_mut(per_pattern).enumerate().for_each(|(i, out)| {
+            let fill = FillSamples { cmj, p: first.wrapping_add(i as u32), out };
+            crate::simd::run_in(16, fill);
+        });
+        Some(CosineTable { order: TableOrder::Samples, lanes: 16, first, count, per_pattern, dirs })
+    }
+
+    /// Most points per pattern that a table in sample order is kept for: as many as the
+    /// largest patterns with quadrants (12 MiB for 4096 patterns).
+    pub(crate) const MAX_SAMPLES: u32 = 256;
+
+    /// The order the directions are kept in.
+    pub(crate) fn order(&self) -> TableOrder {
+        self.order
     }
 
     /// The packet width the table is laid out for.
@@ -63,8 +104,8 @@ impl CosineTable {
         self.lanes
     }
 
-    /// Pattern `p`'s directions (three floats per sample, as laid out above); `p` must be one
-    /// of the table's.
+    /// Pattern `p`'s directions (three floats per sample, in the table's order); `p` must be
+    /// one of the table's.
     #[inline(always)]
     pub(crate) fn pattern(&self, p: u32) -> &[f32] {
         let i = p.wrapping_sub(self.first);
@@ -99,6 +140,46 @@ impl<L: SampleLanes> Kernel<L> for FillPattern<'_> {
             let dirs = cosine_hemisphere_lanes(x, y);
             for (axis, v) in dirs.into_iter().enumerate() {
                 v.store(&mut out[axis * width..]);
+            }
+        }
+    }
+}
+
+/// Writes pattern `p`'s directions to `out` in sample order: its n x, then its y, then its z.
+#[cfg(target_arch = "x86_64")]
+struct FillSamples<'a> {
+    cmj: &'a Cmj,
+    p: u32,
+    out: &'a mut [f32],
+}
+
+#[cfg(target_arch = "x86_64")]
+impl<L: SampleLanes> Kernel<L> for FillSamples<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn run(self, isa: L::Isa) {
+        let FillSamples { cmj, p, out } = self;
+        let n = out.len() / 3;
+        let width = L::WIDTH;
+        // The points as columns padded to whole groups (as a run's columns are padded).
+        let mut xs = vec![0.5; n.next_multiple_of(width)];
+        let mut ys = xs.clone();
+        if !cmj.fill_columns(0, p, &mut xs[..n], &mut ys[..n]) {
+            let mut points = vec![Vec2::ZERO; n];
+            cmj.fill(0, p, &mut points);
+            for ((x, y), point) in xs.iter_mut().zip(ys.iter_mut()).zip(&points) {
+                (*x, *y) = (point.x, point.y);
+            }
+        }
+        let (dx, rest) = out.split_at_mut(n);
+        let (dy, dz) = rest.split_at_mut(n);
+        let mut group = [[0.0f32; 16]; 3];
+        for at in (0..n).step_by(width) {
+            let dirs = cosine_hemisphere_lanes(L::load(isa, &xs[at..]), L::load(isa, &ys[at..]));
+            let len = (n - at).min(width);
+            for ((v, column), store) in dirs.into_iter().zip([&mut *dx, &mut *dy, &mut *dz]).zip(&mut group) {
+                v.store(&mut store[..]);
+                column[at..at + len].copy_from_slice(&store[..len]);
             }
         }
     }
@@ -154,6 +235,33 @@ mod tests {
                     got.sort_unstable();
                     expected.sort_unstable();
                     assert_eq!(got, expected, "n {n}, p {p}, {lanes} lanes");
+                }
+            }
+        }
+    }
+
+    /// A table in sample order holds, bit for bit, the direction the scalar cosine map gives
+    /// each sample ([`Cmj::sample`]) at its sample's place, for sizes with quadrants or not,
+    /// with a partial last group of sixteen or not, and pattern numbers that wrap; and is kept
+    /// for patterns of at most [`CosineTable::MAX_SAMPLES`] points where AVX-512 is allowed.
+    #[test]
+    fn a_table_in_sample_order_holds_each_sample_s_direction_in_its_place() {
+        for n in [1u32, 7, 24, 48, 64, 100, 256, 257] {
+            let cmj = Cmj::new(n);
+            let Some(table) = CosineTable::build_in_sample_order(&cmj, n, u32::MAX - 1, 4) else {
+                assert!(!crate::simd::avx512() || n > CosineTable::MAX_SAMPLES, "n {n}: no table");
+                continue;
+            };
+            assert!(n <= CosineTable::MAX_SAMPLES, "n {n}: a table");
+            assert_eq!(table.order(), TableOrder::Samples);
+            assert_eq!(table.memory_bytes(), 4 * 3 * n as usize * size_of::<f32>());
+            for p in [u32::MAX - 1, u32::MAX, 0, 1] {
+                let dirs = table.pattern(p);
+                let n = n as usize;
+                for i in 0..n {
+                    let got = [dirs[i], dirs[n + i], dirs[2 * n + i]].map(f32::to_bits);
+                    let expected = cosine_power_hemisphere(Vec2::from(cmj.sample(i as u32, p)), 1.0).dir;
+                    assert_eq!(got, expected.to_array().map(f32::to_bits), "n {n}, p {p}, sample {i}");
                 }
             }
         }

@@ -47,12 +47,27 @@ pub mod dims {
     pub const LIGHTS: u32 = 2;
 }
 
+/// How a render's runs of samples at a shading point fall on the sets' passes (samples
+/// `k·n .. (k+1)·n` of a pixel): whole passes, as a render of its whole sample target in one
+/// frame traces, or parts of them, as progressive frames and adaptive batches do; or one
+/// sample at each point, where every sample has a camera ray of its own (jittered pixels).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SampleRuns {
+    /// Every run is whole passes.
+    WholePasses,
+    /// Runs may take part of a pass.
+    Partial,
+    /// One sample at each shading point: no run to table directions for.
+    OnePerPoint,
+}
+
 /// Precomputed sets of 2-D sample points for one sampler kind and set size (or, for ZSobol,
 /// which is computed per sample, its parameters).
 #[derive(Resource, Clone, Debug)]
 pub struct SampleSets {
     kind: SamplerKind,
     n: u32,
+    runs: SampleRuns,
     num_sets: u32,
     seed: u64,
     width: u32,
@@ -82,8 +97,17 @@ impl SampleSets {
     pub const PREFERRED_SETS: u32 = 4096;
 
     /// Generates the sets for `kind` with `n` points each, fixed by `seed`, for an image
-    /// `width × height` (ZSobol orders pixels along a Morton curve of that size).
+    /// `width × height` (ZSobol orders pixels along a Morton curve of that size), for renders
+    /// that trace whole passes ([`SampleRuns::WholePasses`]).
     pub fn generate(kind: SamplerKind, n: u32, seed: u64, width: u32, height: u32) -> Self {
+        Self::generate_for(kind, n, seed, width, height, SampleRuns::WholePasses)
+    }
+
+    /// [`SampleSets::generate`] for renders whose runs of samples are `runs`, which decides the
+    /// order the occluder's cosine directions are tabled in (`cosine_table`): the quadrant
+    /// order where runs are whole passes of patterns with quadrants, else sample order. The
+    /// sets' samples are the same either way.
+    pub fn generate_for(kind: SamplerKind, n: u32, seed: u64, width: u32, height: u32, runs: SampleRuns) -> Self {
         let n = n.max(1);
         let stored = match kind {
             SamplerKind::Regular => 1,
@@ -100,12 +124,20 @@ impl SampleSets {
         let zsobol = ZSobol::new(n, width.max(height));
         let (cmj, key) = (Cmj::new(n), seed_key(seed));
         let first_pattern = (key >> 32) as u32;
-        // Only the occluder's quadrant packets read the table, in the width the CPU's packets have.
+        // Only the occluder's runs read the table: its quadrant packets in the width the CPU's
+        // packets have, or its sixteen-lane runs in sample order.
         #[cfg(target_arch = "x86_64")]
         let cosine = (kind == SamplerKind::CorrelatedMultiJittered)
             .then(|| {
                 let lanes = crate::simd::packet_lanes();
-                CosineTable::build(&cmj, n, first_pattern, Self::PREFERRED_SETS, lanes)
+                let quadrants = (runs == SampleRuns::WholePasses)
+                    .then(|| CosineTable::build(&cmj, n, first_pattern, Self::PREFERRED_SETS, lanes))
+                    .flatten();
+                quadrants.or_else(|| {
+                    (lanes == 16 && runs != SampleRuns::OnePerPoint)
+                        .then(|| CosineTable::build_in_sample_order(&cmj, n, first_pattern, Self::PREFERRED_SETS))
+                        .flatten()
+                })
             })
             .flatten();
         // Pixels share sets wherever the sets are not the pixel's own (ZSobol) or one set for
@@ -114,6 +146,7 @@ impl SampleSets {
         SampleSets {
             kind,
             n,
+            runs,
             num_sets,
             seed,
             width: width.max(1),
@@ -167,19 +200,32 @@ impl SampleSets {
         self.num_sets
     }
 
-    /// Whether the occluder's cosine directions are tabled (`cosine_table`).
-    pub fn has_cosine_table(&self) -> bool {
+    /// The order the occluder's cosine directions are tabled in (`cosine_table`): "quadrant"
+    /// or "sample"; `None` where they are not tabled.
+    pub fn cosine_table_order(&self) -> Option<&'static str> {
         #[cfg(target_arch = "x86_64")]
-        return self.cosine.is_some();
+        return self.cosine.as_ref().map(|t| match t.order() {
+            cosine_table::TableOrder::Quadrants => "quadrant",
+            cosine_table::TableOrder::Samples => "sample",
+        });
         #[cfg(not(target_arch = "x86_64"))]
-        false
+        None
     }
 
-    /// Whether these sets are the ones [`SampleSets::generate`] makes from the same arguments.
-    pub fn matches(&self, kind: SamplerKind, samples_per_set: u32, seed: u64, width: u32, height: u32) -> bool {
+    /// Whether these sets are the ones [`SampleSets::generate_for`] makes from the same
+    /// arguments (`runs` matters only where it picks the table's order).
+    pub fn matches(
+        &self,
+        kind: SamplerKind,
+        samples_per_set: u32,
+        seed: u64,
+        (width, height): (u32, u32),
+        runs: SampleRuns,
+    ) -> bool {
         let n = samples_per_set.max(1);
         let same_image = self.width == width.max(1) && self.zsobol == ZSobol::new(n, width.max(height));
-        self.kind == kind && self.n == n && self.seed == seed && same_image
+        let same_table = self.runs == runs || kind != SamplerKind::CorrelatedMultiJittered;
+        self.kind == kind && self.n == n && self.seed == seed && same_image && same_table
     }
 
     /// Bytes held by the point sets and the cosine directions' table.
@@ -240,6 +286,29 @@ impl SampleSets {
         }
     }
 
+    /// The local cosine directions (around +z) of samples `first, first + 1, …` of `pixel` in
+    /// dimension `dim`, one per element of the columns `dx`, `dy`, `dz` (same length), copied
+    /// from the table in sample order: the bits [`cosine_hemisphere_lanes`] gives the points
+    /// [`SampleSets::fill_columns`] fills. Returns false, writing nothing, where the sets keep
+    /// no such table.
+    ///
+    /// [`cosine_hemisphere_lanes`]: warp::cosine_hemisphere_lanes
+    #[cfg(target_arch = "x86_64")]
+    pub(crate) fn fill_directions(&self, pixel: u32, first: u32, dim: u32, [dx, dy, dz]: [&mut [f32]; 3]) -> bool {
+        let Some(table) = self.cosine.as_ref().filter(|t| t.order() == cosine_table::TableOrder::Samples) else {
+            return false;
+        };
+        let n = self.n as usize;
+        for (pass, i, run) in self.passes(first, dx.len()) {
+            let dirs = table.pattern(self.cmj_pattern(pixel, pass, dim));
+            let from = i as usize..i as usize + run.len();
+            for (axis, column) in [&mut *dx, &mut *dy, &mut *dz].into_iter().enumerate() {
+                column[run.clone()].copy_from_slice(&dirs[axis * n..][from.clone()]);
+            }
+        }
+        true
+    }
+
     /// Where samples `first, first + 1, …` (`len` of them) of `pixel` in dimension `dim` are
     /// whole passes of correlated multi-jittered patterns that split into quadrants
     /// ([`Cmj::has_quadrants`]) and their cosine directions are tabled: the sets' patterns, the
@@ -255,7 +324,7 @@ impl SampleSets {
     ) -> Option<(&Cmj, &CosineTable, impl Iterator<Item = u32> + '_)> {
         let n = self.n as usize;
         let whole = first.is_multiple_of(self.n) && len.is_multiple_of(n) && len > 0;
-        let table = self.cosine.as_ref().filter(|_| whole)?;
+        let table = self.cosine.as_ref().filter(|t| whole && t.order() == cosine_table::TableOrder::Quadrants)?;
         // Whole passes: each run of `passes` is one pass, from its first sample.
         let passes = self.passes(first, len).map(move |(pass, _, _)| self.cmj_pattern(pixel, pass, dim));
         Some((&self.cmj, table, passes))
@@ -449,6 +518,48 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    /// Sets for partial runs table the occluder's directions in sample order, and a run's
+    /// copy from it across passes gives, bit for bit, the cosine map of [`SampleSets::sample`]
+    /// for each of its samples; sets for whole passes table them in quadrant order where the
+    /// patterns have quadrants, in sample order where not; the order is part of what
+    /// [`SampleSets::matches`] compares, for CMJ only.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn partial_runs_copy_their_directions_from_a_table_in_sample_order() {
+        use crate::sampling::warp::cosine_power_hemisphere;
+        let cmj = SamplerKind::CorrelatedMultiJittered;
+        for n in [16u32, 48] {
+            let sets = SampleSets::generate_for(cmj, n, 9, 37, 23, SampleRuns::Partial);
+            let whole = SampleSets::generate_for(cmj, n, 9, 37, 23, SampleRuns::WholePasses);
+            assert!(sets.matches(cmj, n, 9, (37, 23), SampleRuns::Partial));
+            assert!(!sets.matches(cmj, n, 9, (37, 23), SampleRuns::WholePasses));
+            let regular = SampleSets::generate_for(SamplerKind::Regular, n, 9, 37, 23, SampleRuns::Partial);
+            assert!(regular.matches(SamplerKind::Regular, n, 9, (37, 23), SampleRuns::WholePasses));
+            if !crate::simd::avx512() {
+                assert_eq!(sets.cosine_table_order(), None, "n {n}: sixteen-lane runs only");
+                continue;
+            }
+            assert_eq!(sets.cosine_table_order(), Some("sample"), "n {n}");
+            let quadrants = n.is_power_of_two();
+            assert_eq!(whole.cosine_table_order(), Some(if quadrants { "quadrant" } else { "sample" }), "n {n}");
+            for (pixel, first, len) in [(0u32, 0u32, 40usize), (5, 7, 1), (100, 15, 33), (850, 3, 16)] {
+                let mut columns = [vec![f32::NAN; len], vec![f32::NAN; len], vec![f32::NAN; len]];
+                let [dx, dy, dz] = &mut columns;
+                assert!(sets.fill_directions(pixel, first, 4, [dx, dy, dz]));
+                for (k, index) in (first..).take(len).enumerate() {
+                    let dir = cosine_power_hemisphere(sets.sample(pixel, index, 4), 1.0).dir;
+                    let got = [columns[0][k], columns[1][k], columns[2][k]].map(f32::to_bits);
+                    assert_eq!(got, dir.to_array().map(f32::to_bits), "n {n}, pixel {pixel}, index {index}");
+                }
+            }
+            let mut column = [0.0f32; 3];
+            let [a, b, c] = column.each_mut().map(std::slice::from_mut);
+            assert_eq!(whole.fill_directions(0, 0, 4, [a, b, c]), !quadrants, "n {n}: whole passes");
+            let single = SampleSets::generate_for(cmj, n, 9, 37, 23, SampleRuns::OnePerPoint);
+            assert_eq!(single.cosine_table_order(), None, "n {n}: one sample per point");
         }
     }
 

@@ -425,7 +425,8 @@ impl Viewer {
         let world = self.renderer.world_mut();
         world.resource_mut::<RenderSettings>().bypass_change_detection().samples_per_frame = plan.spf;
         let s = world.resource::<RenderSettings>().clone();
-        let matches = |sets: &SampleSets| sets.matches(s.sampler, s.samples_per_set, s.seed, s.width, s.height);
+        let runs = s.sample_runs();
+        let matches = |sets: &SampleSets| sets.matches(s.sampler, s.samples_per_set, s.seed, (s.width, s.height), runs);
         if matches(world.resource::<SampleSets>()) {
             return;
         }
@@ -434,7 +435,13 @@ impl Viewer {
         let cached = self.sets.iter().position(matches).map(|i| self.sets.remove(i));
         let fresh = cached.unwrap_or_else(|| SampleSets::generate(crate::sampling::SamplerKind::Regular, 1, 0, 1, 1));
         if let Some(old) = world.remove_resource::<SampleSets>() {
-            if !old.matches(crate::sampling::SamplerKind::Regular, 1, 0, 1, 1) {
+            if !old.matches(
+                crate::sampling::SamplerKind::Regular,
+                1,
+                0,
+                (1, 1),
+                crate::sampling::SampleRuns::WholePasses,
+            ) {
                 self.sets.push(old);
             }
             if self.sets.len() > CACHED_SETS {

@@ -20,6 +20,20 @@ use crate::{
 };
 
 /// [`DirectionRays::add_cosine_compressed`] as a kernel over the lane type.
+/// The local directions of a cosine run's group of `L::WIDTH` samples from `at`: from the
+/// direction columns `dx`, `dy`, `dz` where they are `local` (tabled), else mapped from the
+/// sample points in `xs` and `ys`.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn local_group<L: PassLanes>(isa: L::Isa, local: bool, columns: [&[f32]; 5], at: usize) -> [L; 3] {
+    let [xs, ys, dx, dy, dz] = columns;
+    if local {
+        [L::load(isa, &dx[at..]), L::load(isa, &dy[at..]), L::load(isa, &dz[at..])]
+    } else {
+        cosine_hemisphere_lanes(L::load(isa, &xs[at..]), L::load(isa, &ys[at..]))
+    }
+}
+
 #[cfg(target_arch = "x86_64")]
 pub(super) struct CompressedRun<'a> {
     pub(super) rays: &'a mut DirectionRays,
@@ -28,6 +42,9 @@ pub(super) struct CompressedRun<'a> {
     pub(super) spawn: &'a SpawnOrigins,
     pub(super) frame: &'a Onb,
     pub(super) terms: &'a DirectionTerms,
+    /// Whether the run's local directions are already in the direction columns (else its
+    /// sample points are in the point columns).
+    pub(super) local: bool,
     pub(super) arriving: &'a mut [Vec3A],
 }
 
@@ -36,17 +53,18 @@ impl<L: PassLanes + CompressLanes> Kernel<L> for CompressedRun<'_> {
     type Output = (u64, u64);
     #[inline(always)]
     fn run(self, isa: L::Isa) -> (u64, u64) {
-        let CompressedRun { rays, geometry, stack, spawn, frame, terms, arriving } = self;
-        rays.add_cosine_compressed::<L>(isa, geometry, stack, spawn, frame, terms, arriving)
+        let CompressedRun { rays, geometry, stack, spawn, frame, terms, local, arriving } = self;
+        rays.add_cosine_compressed::<L>(isa, geometry, stack, spawn, frame, terms, local, arriving)
     }
 }
 
 impl DirectionRays {
-    /// [`DirectionRays::add_cosine`] in lanes that compress ([`CompressLanes`]), the sample
-    /// points already in `samples[0]` and `samples[1]`. Each group of `L::WIDTH` samples is
-    /// mapped to directions ([`cosine_hemisphere_lanes`]) and sorted into the quadrants of
-    /// [`DirectionRays::add_lanes`] by lane compression; packets load their lanes straight from
-    /// those columns.
+    /// [`DirectionRays::add_cosine`] in lanes that compress ([`CompressLanes`]), the local
+    /// directions already in `samples[2..5]` where `local` (tabled), else the sample points in
+    /// `samples[0]` and `samples[1]`, mapped to directions ([`cosine_hemisphere_lanes`]) a
+    /// group of `L::WIDTH` at a time. Each group is turned into the world and sorted into the
+    /// quadrants of [`DirectionRays::add_lanes`] by lane compression; packets load their lanes
+    /// straight from those columns.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
@@ -58,6 +76,7 @@ impl DirectionRays {
         spawn: &SpawnOrigins,
         frame: &Onb,
         terms: &DirectionTerms,
+        local: bool,
         arriving: &mut [Vec3A],
     ) -> (u64, u64) {
         let w = L::WIDTH;
@@ -71,6 +90,20 @@ impl DirectionRays {
         let mut cycles = 0;
         if clear.cmpne(floor).any() {
             let [xs, ys, dx, dy, dz] = &mut self.samples;
+            stack.clear();
+            if groups == 1 {
+                // One packet holds the whole run (a progressive frame's or an adaptive batch's
+                // samples): traced in sample order, as answers do not depend on the lanes'.
+                let live = (1u32 << n) - 1;
+                let lanes = spawned_lanes(
+                    to_world(frame, local_group::<L>(isa, local, [xs, ys, dx, dy, dz], 0)),
+                    spawn,
+                    terms.max_distance,
+                );
+                let (hit, took) = occluded_lanes(geometry, stack, &lanes, live, self.timing);
+                self.dark[0] = hit;
+                return self.add_run_light::<L>(isa, (clear, floor), arriving, (n as u64, took));
+            }
             for column in [&mut *dx, &mut *dy, &mut *dz] {
                 column.resize(groups * w, 0.0);
             }
@@ -83,8 +116,7 @@ impl DirectionRays {
             for g in 0..groups {
                 let at = g * w;
                 let masks = {
-                    let local = cosine_hemisphere_lanes(L::load(isa, &xs[at..]), L::load(isa, &ys[at..]));
-                    let d = to_world(frame, local);
+                    let d = to_world(frame, local_group::<L>(isa, local, [xs, ys, dx, dy, dz], at));
                     for (column, lanes) in [&mut *dx, &mut *dy, &mut *dz].into_iter().zip(d) {
                         lanes.store(&mut column[at..]);
                     }
@@ -108,7 +140,6 @@ impl DirectionRays {
             scatter_by_quadrant::<L, 3>(isa, &self.groups, cursor, [dx, dy, dz], to, &mut self.ray_samples);
             // Packets of `L::WIDTH` consecutive rays, as `RayOrder::Grouped` cuts them, each
             // query timed (when timing) as `DirectionRays::trace` times the whole call.
-            stack.clear();
             for p in (0..traced).step_by(w) {
                 let live = (1u32 << (traced - p).min(w)) - 1;
                 let (hit, took) = {
@@ -122,10 +153,24 @@ impl DirectionRays {
                 mark_blocked(&mut self.dark, &self.ray_samples, p, hit, w);
             }
         }
-        for (sums, &dark) in arriving.chunks_mut(w).zip(&self.dark) {
+        self.add_run_light::<L>(isa, (clear, floor), arriving, (traced as u64, cycles))
+    }
+
+    /// Adds each sample's light to `arriving`: `floor` where `dark` marks it blocked, else
+    /// `clear`; passes `counts` (rays traced, cycles) through.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    fn add_run_light<L: PassLanes>(
+        &self,
+        isa: L::Isa,
+        (clear, floor): (Vec3A, Vec3A),
+        arriving: &mut [Vec3A],
+        counts: (u64, u64),
+    ) -> (u64, u64) {
+        for (sums, &dark) in arriving.chunks_mut(L::WIDTH).zip(&self.dark) {
             add_clear_or_floor::<L>(isa, clear, floor, dark, sums);
         }
-        (traced as u64, cycles)
+        counts
     }
 
     /// [`DirectionRays::add_cosine`] for runs of whole passes of quadrant patterns: each

@@ -247,15 +247,22 @@ impl DirectionRays {
             && let Some(isa) = crate::simd::HasAvx512::allowed()
         {
             let n = arriving.len().next_multiple_of(16);
-            let [xs, ys, ..] = &mut self.samples;
-            xs.resize(n, 0.5);
-            ys.resize(n, 0.5);
             let len = arriving.len();
-            sets.fill_columns(pixel, first, dim, &mut xs[..len], &mut ys[..len]);
+            let [xs, ys, dx, dy, dz] = &mut self.samples;
+            for column in [&mut *dx, &mut *dy, &mut *dz] {
+                column.resize(n, 0.0);
+            }
+            // Local directions from the table where it is in sample order, else sample points.
+            let local = sets.fill_directions(pixel, first, dim, [&mut dx[..len], &mut dy[..len], &mut dz[..len]]);
+            if !local {
+                xs.resize(n, 0.5);
+                ys.resize(n, 0.5);
+                sets.fill_columns(pixel, first, dim, &mut xs[..len], &mut ys[..len]);
+            }
             if let Some(sum) = sum {
                 sum.per_sample = true;
             }
-            let kernel = cosine::CompressedRun { rays: self, geometry, stack, spawn, frame, terms, arriving };
+            let kernel = cosine::CompressedRun { rays: self, geometry, stack, spawn, frame, terms, local, arriving };
             return Some(<crate::simd::Avx512 as crate::simd::Lanes>::compiled(isa, kernel));
         }
         let _ = (geometry, stack, spawn, frame, sets, pixel, first, dim, terms, arriving, sum);
