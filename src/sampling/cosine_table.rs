@@ -16,6 +16,8 @@ use super::{
     warp::cosine_hemisphere_lanes,
 };
 #[cfg(target_arch = "x86_64")]
+use crate::geometry::huge_pages::vec_on_huge_pages;
+#[cfg(target_arch = "x86_64")]
 use crate::simd::{Kernel, SampleLanes};
 #[cfg(target_arch = "x86_64")]
 use glam::Vec2;
@@ -43,6 +45,10 @@ pub(crate) struct CosineTable {
     count: u32,
     /// Floats per pattern: three per sample.
     per_pattern: usize,
+    /// The patterns' directions from `dirs[start]`, the first float on a 64-byte boundary,
+    /// so that a pattern of a multiple of sixteen samples starts a cache line (a hint: a clone's
+    /// copy may not, and reads the same values).
+    start: usize,
     dirs: Vec<f32>,
 }
 
@@ -65,12 +71,12 @@ impl CosineTable {
             return None;
         }
         let per_pattern = 3 * n as usize;
-        let mut dirs = vec![0.0; per_pattern * count as usize];
-        dirs.par_chunks_mut(per_pattern).enumerate().for_each(|(i, out)| {
+        let (start, mut dirs) = aligned_floats(per_pattern * count as usize);
+        dirs[start..].par_chunks_mut(per_pattern).enumerate().for_each(|(i, out)| {
             let fill = FillPattern { cmj, p: first.wrapping_add(i as u32), out };
             crate::simd::run_in(lanes, fill);
         });
-        Some(CosineTable { order: TableOrder::Quadrants, lanes, first, count, per_pattern, dirs })
+        Some(CosineTable { order: TableOrder::Quadrants, lanes, first, count, per_pattern, start, dirs })
     }
 
     /// The table of `count` patterns from `first` of `n` ≤ [`CosineTable::MAX_SAMPLES`] points
@@ -82,12 +88,12 @@ impl CosineTable {
             return None;
         }
         let per_pattern = 3 * n as usize;
-        let mut dirs = vec![0.0; per_pattern * count as usize];
-        dirs.par_chunks_mut(per_pattern).enumerate().for_each(|(i, out)| {
+        let (start, mut dirs) = aligned_floats(per_pattern * count as usize);
+        dirs[start..].par_chunks_mut(per_pattern).enumerate().for_each(|(i, out)| {
             let fill = FillSamples { cmj, p: first.wrapping_add(i as u32), out };
             crate::simd::run_in(16, fill);
         });
-        Some(CosineTable { order: TableOrder::Samples, lanes: 16, first, count, per_pattern, dirs })
+        Some(CosineTable { order: TableOrder::Samples, lanes: 16, first, count, per_pattern, start, dirs })
     }
 
     /// Most points per pattern that a table in sample order is kept for: as many as the
@@ -110,13 +116,25 @@ impl CosineTable {
     pub(crate) fn pattern(&self, p: u32) -> &[f32] {
         let i = p.wrapping_sub(self.first);
         debug_assert!(i < self.count, "pattern {p} is not in the table");
-        &self.dirs[i as usize * self.per_pattern..][..self.per_pattern]
+        &self.dirs[self.start + i as usize * self.per_pattern..][..self.per_pattern]
     }
 
-    /// Bytes held by the directions.
+    /// Bytes held by the directions (with up to one cache line of alignment).
     pub(crate) fn memory_bytes(&self) -> usize {
         self.dirs.len() * size_of::<f32>()
     }
+}
+
+/// `len` zeroed floats from index `start` of the vector returned, `dirs[start]` on a 64-byte
+/// boundary, advised onto huge pages: runs read patterns all over the table, one TLB entry
+/// per 2 MiB instead of per 4 KiB.
+#[cfg(target_arch = "x86_64")]
+fn aligned_floats(len: usize) -> (usize, Vec<f32>) {
+    const LINE_FLOATS: usize = 16;
+    let mut dirs = vec_on_huge_pages(len + LINE_FLOATS);
+    dirs.resize(len + LINE_FLOATS, 0.0f32);
+    let start = dirs.as_ptr().align_offset(64).min(LINE_FLOATS);
+    (start, dirs)
 }
 
 /// Writes pattern `p`'s directions to `out`, packet by packet in the kernel's lanes.
@@ -205,7 +223,7 @@ mod tests {
                     assert!(!has, "n {n}: no table for {lanes} lanes");
                     continue;
                 };
-                assert_eq!(table.memory_bytes(), 4 * 3 * n as usize * size_of::<f32>());
+                assert_eq!(table.memory_bytes(), (4 * 3 * n as usize + 16) * size_of::<f32>());
                 for p in [u32::MAX - 1, u32::MAX, 0, 1] {
                     let dirs = table.pattern(p);
                     let mut got = Vec::new();
@@ -254,7 +272,8 @@ mod tests {
             };
             assert!(n <= CosineTable::MAX_SAMPLES, "n {n}: a table");
             assert_eq!(table.order(), TableOrder::Samples);
-            assert_eq!(table.memory_bytes(), 4 * 3 * n as usize * size_of::<f32>());
+            assert_eq!(table.memory_bytes(), (4 * 3 * n as usize + 16) * size_of::<f32>());
+            assert_eq!(table.pattern(u32::MAX - 1).as_ptr().align_offset(64), 0, "n {n}: aligned");
             for p in [u32::MAX - 1, u32::MAX, 0, 1] {
                 let dirs = table.pattern(p);
                 let n = n as usize;

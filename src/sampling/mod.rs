@@ -309,6 +309,23 @@ impl SampleSets {
         true
     }
 
+    /// Asks the CPU to start loading what [`SampleSets::fill_directions`] of the same
+    /// arguments (`len` samples) will read, so that a run issued for the next pixel finds it
+    /// in cache (a hint; no effect on results).
+    #[cfg(target_arch = "x86_64")]
+    pub(crate) fn prefetch_directions(&self, pixel: u32, first: u32, dim: u32, len: usize) {
+        let Some(table) = self.cosine.as_ref().filter(|t| t.order() == cosine_table::TableOrder::Samples) else {
+            return;
+        };
+        let n = self.n as usize;
+        for (pass, i, run) in self.passes(first, len) {
+            let dirs = table.pattern(self.cmj_pattern(pixel, pass, dim));
+            for axis in 0..3 {
+                crate::simd::prefetch_slice(&dirs[axis * n + i as usize..][..run.len()]);
+            }
+        }
+    }
+
     /// Where samples `first, first + 1, …` (`len` of them) of `pixel` in dimension `dim` are
     /// whole passes of correlated multi-jittered patterns that split into quadrants
     /// ([`Cmj::has_quadrants`]) and their cosine directions are tabled: the sets' patterns, the

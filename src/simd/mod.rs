@@ -41,6 +41,38 @@ pub(crate) use token::{Eight, HasAvx2, HasAvx512};
 #[cfg(target_arch = "x86_64")]
 pub(crate) use u32_lanes::U32Lanes;
 
+/// Asks the CPU to start loading `x`'s cache lines (a hint; no effect on results).
+#[inline(always)]
+pub(crate) fn prefetch<T>(x: &T) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        let p = (x as *const T).cast::<i8>();
+        for line in (0..std::mem::size_of::<T>()).step_by(64) {
+            // SAFETY: a prefetch never faults, and `line` stays inside `x`.
+            unsafe { std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p.add(line)) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = x;
+}
+
+/// Asks the CPU to start loading every cache line that `x`'s elements touch (a hint).
+#[inline(always)]
+pub(crate) fn prefetch_slice<T>(x: &[T]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        let p = x.as_ptr().cast::<i8>();
+        let bytes = std::mem::size_of_val(x);
+        // The first byte of each line from the slice's start, and its last byte's line.
+        for at in (0..bytes).step_by(64).chain(bytes.checked_sub(1)) {
+            // SAFETY: a prefetch never faults, and `at` stays inside `x`.
+            unsafe { std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p.add(at)) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = x;
+}
+
 /// The time-stamp counter, read once every earlier instruction has completed (LFENCE), so that
 /// work issued before a reading is not counted after it.
 #[cfg(target_arch = "x86_64")]

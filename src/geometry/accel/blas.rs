@@ -28,9 +28,9 @@ use crate::geometry::{
     ray::{Ray, Shear},
     shapes::Triangle,
     tri4::{RayTri4, Tri4},
-    wide_bvh::{NodeTest, WideBvh, prefetch},
+    wide_bvh::{NodeTest, WideBvh},
 };
-use crate::simd::{Kernel, Lanes};
+use crate::simd::{Kernel, Lanes, prefetch};
 #[cfg(target_arch = "x86_64")]
 use crate::simd::{packet_lanes, run_in};
 

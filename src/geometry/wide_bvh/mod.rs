@@ -27,21 +27,6 @@ use obvhs::aabb::Aabb;
 use super::ray::Ray;
 use crate::{math::gamma, simd::Lanes};
 
-/// Asks the CPU to start loading `x`'s cache lines (a hint; no effect on results).
-#[inline(always)]
-pub(crate) fn prefetch<T>(x: &T) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        let p = (x as *const T).cast::<i8>();
-        for line in (0..std::mem::size_of::<T>()).step_by(64) {
-            // SAFETY: a prefetch never faults, and `line` stays inside `x`.
-            unsafe { std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p.add(line)) };
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = x;
-}
-
 /// Leaf references on the closest-hit stack: `LEAF | (node << 3) | slot`.
 const LEAF: u32 = 1 << 31;
 

@@ -1,10 +1,11 @@
 //! Packet traversal: rays in SIMD lanes sharing one walk of an eight-wide tree.
 
-use super::{NEAR_START, Node, NodeTest, RayBox, WideBvh, far_scale, plane_rows, prefetch};
+use super::{NEAR_START, Node, NodeTest, RayBox, WideBvh, far_scale, plane_rows};
 use crate::geometry::{
     counters::{Event, count},
     ray::Ray,
 };
+use crate::simd::prefetch;
 #[cfg(target_arch = "x86_64")]
 use crate::{
     geometry::lanes::RayLanes,

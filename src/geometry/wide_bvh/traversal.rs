@@ -1,10 +1,11 @@
 //! Single-ray traversal: any hit and closest hit, front to back.
 
-use super::{LEAF, NodeTest, RayBox, WideBvh, far_scale, prefetch};
+use super::{LEAF, NodeTest, RayBox, WideBvh, far_scale};
 use crate::geometry::{
     counters::{Event, count},
     ray::Ray,
 };
+use crate::simd::prefetch;
 
 /// Each traversal takes the node test's token (`test`), which proves the CPU may run it.
 impl<const W: usize> WideBvh<W> {

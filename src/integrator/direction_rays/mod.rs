@@ -254,7 +254,11 @@ impl DirectionRays {
             }
             // Local directions from the table where it is in sample order, else sample points.
             let local = sets.fill_directions(pixel, first, dim, [&mut dx[..len], &mut dy[..len], &mut dz[..len]]);
-            if !local {
+            if local {
+                // Pixels of a row come one after the other: the next one's directions load
+                // while this one's rays are traced.
+                sets.prefetch_directions(pixel.wrapping_add(1), first, dim, len);
+            } else {
                 xs.resize(n, 0.5);
                 ys.resize(n, 0.5);
                 sets.fill_columns(pixel, first, dim, &mut xs[..len], &mut ys[..len]);
