@@ -226,36 +226,53 @@ crate::simd::multiversion! {
         let to_unit = |bits: u32| (bits as f32 * (1.0 / 4_294_967_296.0)).min(super::ONE_MINUS_EPSILON);
         let odd = log2_spp & 1 == 1;
         // Per digit below the pixel's: the digits above it (a Morton index shifted right,
-        // below 2^62, so never u64::MAX) and their hash; entry 0 is the low bit's when `odd`.
-        let mut above = [(u64::MAX, 0u64); 17];
+        // below 2^62, so never u64::MAX), their hash and the permutation that hash picks,
+        // packed two bits a digit; entry 0 is the low bit's when `odd`.
+        let mut above = [(u64::MAX, 0u64, 0u8); 17];
         let mut hashed = |level: usize, key: u64| {
-            let (k, h) = &mut above[level];
+            let (k, h, packed) = &mut above[level];
             if *k != key {
-                (*k, *h) = (key, mix_bits(key ^ dim_key));
+                *h = mix_bits(key ^ dim_key);
+                let perm = PERMUTATIONS[((*h >> 24) % 24) as usize];
+                (*k, *packed) = (key, perm[0] | perm[1] << 2 | perm[2] << 4 | perm[3] << 6);
             }
-            *h
+            (*h, *packed)
         };
         // The pixel's high bits' Sobol' bits, reversed, for runs whose indices fit the table.
         let tabled = log2_spp <= LOW_BITS;
         let high_bits = [0, 1].map(|dim| sobol_bits(high as u32, dim).reverse_bits());
-        for (index, o) in (first..).zip(out) {
-            let morton = pixel | index as u64;
-            let mut low = 0;
-            for i in u32::from(odd)..log2_spp.div_ceil(2) {
-                let shift = 2 * i - u32::from(odd);
-                low |= permuted_digit(morton, shift, hashed(i as usize, morton >> (shift + 2)));
+        // A block of samples at a time: each sample's permuted index and Sobol' bits one by one
+        // (the digits' hashes depend on the samples before), then the scrambling and the
+        // conversion of the block in a loop of its own, which the compiler vectorises.
+        const BLOCK: usize = 64;
+        let mut reversed = [[0u32; BLOCK]; 2];
+        for (b, out) in out.chunks_mut(BLOCK).enumerate() {
+            let start = first.wrapping_add((b * BLOCK) as u32);
+            for (k, index) in (start..).take(out.len()).enumerate() {
+                let morton = pixel | index as u64;
+                let mut low = 0;
+                for i in u32::from(odd)..log2_spp.div_ceil(2) {
+                    let shift = 2 * i - u32::from(odd);
+                    // `permuted_digit`, with the permutation looked up once per key.
+                    let (_, packed) = hashed(i as usize, morton >> (shift + 2));
+                    low |= u64::from(packed >> (2 * ((morton >> shift) & 3)) & 3) << shift;
+                }
+                if odd {
+                    low |= (morton & 1) ^ (hashed(0, morton >> 1).0 & 1);
+                }
+                for (dim, column) in reversed.iter_mut().enumerate() {
+                    column[k] = if tabled {
+                        high_bits[dim] ^ LOW_SOBOL[dim][low as usize]
+                    } else {
+                        sobol_bits((high | low) as u32, dim).reverse_bits()
+                    };
+                }
             }
-            if odd {
-                low |= (morton & 1) ^ (hashed(0, morton >> 1) & 1);
+            let [xs, ys] = &reversed;
+            for ((o, &x), &y) in out.iter_mut().zip(xs).zip(ys) {
+                let (x, y) = (fast_owen_of_reversed(x, seeds.0), fast_owen_of_reversed(y, seeds.1));
+                *o = glam::Vec2::new(to_unit(x), to_unit(y));
             }
-            let reversed = if tabled {
-                [0, 1].map(|dim| high_bits[dim] ^ LOW_SOBOL[dim][low as usize])
-            } else {
-                let a = (high | low) as u32;
-                [0, 1].map(|dim| sobol_bits(a, dim).reverse_bits())
-            };
-            let [x, y] = [(reversed[0], seeds.0), (reversed[1], seeds.1)].map(|(v, seed)| to_unit(fast_owen_of_reversed(v, seed)));
-            *o = glam::Vec2::new(x, y);
         }
     }
 }
