@@ -286,6 +286,12 @@ impl SampleSets {
         }
     }
 
+    /// The cosine table, where the sets keep one in `order`.
+    #[cfg(target_arch = "x86_64")]
+    fn table_in(&self, order: cosine_table::TableOrder) -> Option<&CosineTable> {
+        self.cosine.as_ref().filter(|t| t.order() == order)
+    }
+
     /// The local cosine directions (around +z) of samples `first, first + 1, …` of `pixel` in
     /// dimension `dim`, one per element of the columns `dx`, `dy`, `dz` (same length), copied
     /// from the table in sample order: the bits [`cosine_hemisphere_lanes`] gives the points
@@ -295,7 +301,7 @@ impl SampleSets {
     /// [`cosine_hemisphere_lanes`]: warp::cosine_hemisphere_lanes
     #[cfg(target_arch = "x86_64")]
     pub(crate) fn fill_directions(&self, pixel: u32, first: u32, dim: u32, [dx, dy, dz]: [&mut [f32]; 3]) -> bool {
-        let Some(table) = self.cosine.as_ref().filter(|t| t.order() == cosine_table::TableOrder::Samples) else {
+        let Some(table) = self.table_in(cosine_table::TableOrder::Samples) else {
             return false;
         };
         let n = self.n as usize;
@@ -314,7 +320,7 @@ impl SampleSets {
     /// in cache (a hint; no effect on results).
     #[cfg(target_arch = "x86_64")]
     pub(crate) fn prefetch_directions(&self, pixel: u32, first: u32, dim: u32, len: usize) {
-        let Some(table) = self.cosine.as_ref().filter(|t| t.order() == cosine_table::TableOrder::Samples) else {
+        let Some(table) = self.table_in(cosine_table::TableOrder::Samples) else {
             return;
         };
         let n = self.n as usize;
@@ -341,7 +347,7 @@ impl SampleSets {
     ) -> Option<(&Cmj, &CosineTable, impl Iterator<Item = u32> + '_)> {
         let n = self.n as usize;
         let whole = first.is_multiple_of(self.n) && len.is_multiple_of(n) && len > 0;
-        let table = self.cosine.as_ref().filter(|t| whole && t.order() == cosine_table::TableOrder::Quadrants)?;
+        let table = self.table_in(cosine_table::TableOrder::Quadrants).filter(|_| whole)?;
         // Whole passes: each run of `passes` is one pass, from its first sample.
         let passes = self.passes(first, len).map(move |(pass, _, _)| self.cmj_pattern(pixel, pass, dim));
         Some((&self.cmj, table, passes))

@@ -19,7 +19,6 @@ use crate::{
     simd::{CompressLanes, Kernel},
 };
 
-/// [`DirectionRays::add_cosine_compressed`] as a kernel over the lane type.
 /// The local directions of a cosine run's group of `L::WIDTH` samples from `at`: from the
 /// direction columns `dx`, `dy`, `dz` where they are `local` (tabled), else mapped from the
 /// sample points in `xs` and `ys`.
@@ -34,6 +33,7 @@ fn local_group<L: PassLanes>(isa: L::Isa, local: bool, columns: [&[f32]; 5], at:
     }
 }
 
+/// [`DirectionRays::add_cosine_compressed`] as a kernel over the lane type.
 #[cfg(target_arch = "x86_64")]
 pub(super) struct CompressedRun<'a> {
     pub(super) rays: &'a mut DirectionRays,
