@@ -70,13 +70,9 @@ impl CosineTable {
         if !cmj.has_quadrants() {
             return None;
         }
-        let per_pattern = 3 * n as usize;
-        let (start, mut dirs) = aligned_floats(per_pattern * count as usize);
-        dirs[start..].par_chunks_mut(per_pattern).enumerate().for_each(|(i, out)| {
-            let fill = FillPattern { cmj, p: first.wrapping_add(i as u32), out };
-            crate::simd::run_in(lanes, fill);
-        });
-        Some(CosineTable { order: TableOrder::Quadrants, lanes, first, count, per_pattern, start, dirs })
+        Some(Self::filled(TableOrder::Quadrants, lanes, n, first, count, |p, out| {
+            crate::simd::run_in(lanes, FillPattern { cmj, p, out });
+        }))
     }
 
     /// The table of `count` patterns from `first` of `n` ≤ [`CosineTable::MAX_SAMPLES`] points
@@ -87,13 +83,29 @@ impl CosineTable {
         if !crate::simd::avx512() || n > Self::MAX_SAMPLES {
             return None;
         }
+        Some(Self::filled(TableOrder::Samples, 16, n, first, count, |p, out| {
+            crate::simd::run_in(16, FillSamples { cmj, p, out });
+        }))
+    }
+
+    /// A table of `count` patterns of `n` points from `first`, each pattern's `3n` floats
+    /// written by `fill(pattern, out)`, in parallel, each pattern on its own, so the table does
+    /// not depend on the thread count.
+    fn filled(
+        order: TableOrder,
+        lanes: usize,
+        n: u32,
+        first: u32,
+        count: u32,
+        fill: impl Fn(u32, &mut [f32]) + Sync,
+    ) -> Self {
         let per_pattern = 3 * n as usize;
         let (start, mut dirs) = aligned_floats(per_pattern * count as usize);
-        dirs[start..].par_chunks_mut(per_pattern).enumerate().for_each(|(i, out)| {
-            let fill = FillSamples { cmj, p: first.wrapping_add(i as u32), out };
-            crate::simd::run_in(16, fill);
-        });
-        Some(CosineTable { order: TableOrder::Samples, lanes: 16, first, count, per_pattern, start, dirs })
+        dirs[start..]
+            .par_chunks_mut(per_pattern)
+            .enumerate()
+            .for_each(|(i, out)| fill(first.wrapping_add(i as u32), out));
+        CosineTable { order, lanes, first, count, per_pattern, start, dirs }
     }
 
     /// Most points per pattern that a table in sample order is kept for: as many as the
