@@ -9,6 +9,13 @@ use super::{
 };
 use crate::math::gamma;
 
+/// A triangle's plane in f64 ([`Triangle::plane`]).
+#[derive(Clone, Copy, Debug)]
+pub struct TrianglePlane {
+    a: glam::DVec3,
+    n: glam::DVec3,
+}
+
 /// A triangle by its three vertices.
 #[derive(Clone, Copy, Debug)]
 pub struct Triangle {
@@ -58,17 +65,31 @@ impl Triangle {
     /// passed the sign test: the determinant, `t` from the triangle's plane, the barycentrics.
     #[inline(always)]
     pub fn finish(&self, ray: &Ray, e0: f32, e1: f32, e2: f32) -> Option<(f32, f32, f32)> {
+        self.finish_on(&self.plane(), ray, e0, e1, e2)
+    }
+
+    /// The triangle's plane in f64, as [`Triangle::finish`] uses it: a vertex and the normal
+    /// (not normalised). Differences of f32 inputs are exact in f64, so the own triangle and
+    /// coplanar neighbours share one plane.
+    #[inline(always)]
+    pub fn plane(&self) -> TrianglePlane {
+        let [a, b, c] = self.p.map(|p| p.as_dvec3());
+        TrianglePlane { a, n: (b - a).cross(c - a) }
+    }
+
+    /// [`Triangle::finish`] with the triangle's [`Triangle::plane`] worked out once for many
+    /// rays.
+    #[inline(always)]
+    pub fn finish_on(&self, plane: &TrianglePlane, ray: &Ray, e0: f32, e1: f32, e2: f32) -> Option<(f32, f32, f32)> {
         let det = e0 + e1 + e2;
         if det == 0.0 {
             return None;
         }
-        // Distance along the ray from the triangle's plane, in f64: differences of f32 inputs
-        // are exact there, so the own triangle and coplanar neighbours share one plane and a
-        // ray spawned just off the surface (by the hit's error bound) can never re-hit it.
-        // (pbrt-v4 instead rejects t below an error bound that grows with the triangle's
-        // extent, which loses true nearby hits on large triangles: biased contact AO.)
-        let [a, b, c] = self.p.map(|p| p.as_dvec3());
-        let n = (b - a).cross(c - a);
+        // Distance along the ray from the triangle's plane, in f64, so a ray spawned just off
+        // the surface (by the hit's error bound) can never re-hit it. (pbrt-v4 instead rejects
+        // t below an error bound that grows with the triangle's extent, which loses true
+        // nearby hits on large triangles: biased contact AO.)
+        let TrianglePlane { a, n } = *plane;
         let denom = n.dot(ray.dir.as_dvec3());
         if denom == 0.0 {
             return None;

@@ -200,6 +200,29 @@ impl Tri4 {
     /// bit-identical to it.
     #[inline(always)]
     pub(crate) fn edges_packet<L: Lanes>(&self, lane: usize, r: &RayTriPacket<L>) -> PacketEdges {
+        self.edge_lanes(lane, r).1
+    }
+
+    /// [`Tri4::edges_packet`], with each ray's edge functions (e0, e1, e2) written to `e`
+    /// (lane k of each at index k): for rays that pass, the values [`Triangle::intersect`]
+    /// hands to [`Triangle::finish`].
+    #[inline(always)]
+    pub(crate) fn edges_packet_with<L: Lanes>(
+        &self,
+        lane: usize,
+        r: &RayTriPacket<L>,
+        e: &mut [[f32; 16]; 3],
+    ) -> PacketEdges {
+        let (lanes, edges) = self.edge_lanes(lane, r);
+        for (lanes, out) in lanes.into_iter().zip(e) {
+            lanes.store(&mut out[..]);
+        }
+        edges
+    }
+
+    /// The edge functions of triangle `lane` against every ray of `r`, and their classes.
+    #[inline(always)]
+    fn edge_lanes<L: Lanes>(&self, lane: usize, r: &RayTriPacket<L>) -> ([L; 3], PacketEdges) {
         count(Event::PacketTriangleTest);
         let (v0, v1, v2) = (self.sheared(0, lane, r), self.sheared(1, lane, r), self.sheared(2, lane, r));
         let cross = cross_2d::<L>;
@@ -210,7 +233,7 @@ impl Tri4 {
         let pos = L::and(L::and(e[0].gt(zero), e[1].gt(zero)), e[2].gt(zero));
         let neg = L::and(L::and(e[0].lt(zero), e[1].lt(zero)), e[2].lt(zero));
         let exact = L::bits(exact);
-        PacketEdges { pass: L::bits(L::or(pos, neg)) & !exact, exact }
+        (e, PacketEdges { pass: L::bits(L::or(pos, neg)) & !exact, exact })
     }
 
     /// Vertex `v` of triangle `lane` in each ray's frame: translated to its origin, permuted so

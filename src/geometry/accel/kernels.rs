@@ -55,24 +55,33 @@ impl<L: KernelLanes> Kernel<L> for BlasClosestLanes<'_> {
         let in_lanes = L::rays(isa, rays);
         let packet = RayPacket::new(&in_lanes);
         let edges = RayTriPacket::new(&in_lanes);
+        let mut e = [[0.0f32; 16]; 3];
         let leaf = |first: u32, count: u32, lanes: u32, hits: &mut LaneHits<ClosestHit>| {
             for packet in &blas.packets[first as usize..(first + count) as usize] {
                 for (lane, &slot) in packet.slot.iter().enumerate() {
                     if slot == u32::MAX {
                         continue;
                     }
-                    let e = packet.edges_packet(lane, &edges);
-                    let mut crossing = (e.pass | e.exact) & lanes;
+                    let classes = packet.edges_packet_with(lane, &edges, &mut e);
+                    let mut crossing = (classes.pass | classes.exact) & lanes;
                     if crossing == 0 {
                         continue;
                     }
                     let tri = packet.triangle(lane);
+                    let plane = tri.plane();
                     while crossing != 0 {
                         let k = crossing.trailing_zeros() as usize;
                         crossing &= crossing - 1;
-                        // The scalar test, as the single-ray leaf finishes it.
+                        // The scalar test's end, as the single-ray leaf finishes it: from the
+                        // lane's own edge functions where they passed (the values the scalar
+                        // test computes), the whole scalar test where one is zero or NaN.
                         let ray = hits.probe(rays, k);
-                        if let Some((t, b1, b2)) = tri.intersect(&ray, &Shear::new(ray.dir)) {
+                        let found = if classes.exact & (1 << k) != 0 {
+                            tri.intersect(&ray, &Shear::new(ray.dir))
+                        } else {
+                            tri.finish_on(&plane, &ray, e[0][k], e[1][k], e[2][k])
+                        };
+                        if let Some((t, b1, b2)) = found {
                             hits.offer(k, t, (instance, slot, b1, b2));
                         }
                     }
