@@ -213,7 +213,22 @@ impl ZSobol {
 /// put back in its place.
 #[inline(always)]
 fn permuted_digit(morton: u64, shift: u32, hash: u64) -> u64 {
-    (PERMUTATIONS[((hash >> 24) % 24) as usize][((morton >> shift) & 3) as usize] as u64) << shift
+    packed_digit(packed_permutation(hash), morton, shift)
+}
+
+/// The permutation of a base-4 digit that `hash` picks, packed two bits a digit: digit d goes
+/// to bits `2d..2d + 2`.
+#[inline(always)]
+fn packed_permutation(hash: u64) -> u8 {
+    let perm = PERMUTATIONS[((hash >> 24) % 24) as usize];
+    perm[0] | perm[1] << 2 | perm[2] << 4 | perm[3] << 6
+}
+
+/// The base-4 digit of `morton` at bit `shift` under the packed permutation `packed`, put back
+/// in its place.
+#[inline(always)]
+fn packed_digit(packed: u8, morton: u64, shift: u32) -> u64 {
+    u64::from(packed >> (2 * ((morton >> shift) & 3)) & 3) << shift
 }
 
 crate::simd::multiversion! {
@@ -233,8 +248,7 @@ crate::simd::multiversion! {
             let (k, h, packed) = &mut above[level];
             if *k != key {
                 *h = mix_bits(key ^ dim_key);
-                let perm = PERMUTATIONS[((*h >> 24) % 24) as usize];
-                (*k, *packed) = (key, perm[0] | perm[1] << 2 | perm[2] << 4 | perm[3] << 6);
+                (*k, *packed) = (key, packed_permutation(*h));
             }
             (*h, *packed)
         };
@@ -255,7 +269,7 @@ crate::simd::multiversion! {
                     let shift = 2 * i - u32::from(odd);
                     // `permuted_digit`, with the permutation looked up once per key.
                     let (_, packed) = hashed(i as usize, morton >> (shift + 2));
-                    low |= u64::from(packed >> (2 * ((morton >> shift) & 3)) & 3) << shift;
+                    low |= packed_digit(packed, morton, shift);
                 }
                 if odd {
                     low |= (morton & 1) ^ (hashed(0, morton >> 1).0 & 1);
