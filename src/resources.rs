@@ -6,6 +6,7 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::{
+    geometry::RayEnd,
     sampling::{SampleRuns, SamplerKind},
     srgb::linear_to_srgb8,
 };
@@ -278,6 +279,15 @@ pub struct Accumulation {
     pub sq_sums: Vec<f64>,
     /// Per-pixel AOV sums (empty unless `RenderSettings::aovs`), of the radiance sums' kind.
     pub aovs: Sums<AovValues>,
+    /// Where each pixel's camera ray ends, kept from the first frame after a reset for the
+    /// frames after it where every sample of a pixel shares one camera ray (pixel centres, no
+    /// lens): as long as nothing resets the accumulation, the scene and camera are the ones
+    /// those rays were traced in. Empty when not kept (one-frame renders, jittered pixels, a
+    /// lens, alpha-tested meshes).
+    pub camera_ends: Vec<RayEnd>,
+    /// What each light group that draws no samples (point lights) brings to each pixel's
+    /// camera hit, kept with `camera_ends`: the groups' values pixel by pixel.
+    pub camera_light: Vec<Vec3>,
     /// Samples per pixel accumulated so far (every pixel has the same count).
     pub spp: u32,
     /// How many times the buffer has been reset.
@@ -487,7 +497,12 @@ impl Accumulation {
 
     /// Bytes its per-pixel buffers hold.
     pub fn buffer_bytes(&self) -> usize {
-        self.sums.bytes() + size_of_val(&self.counts[..]) + size_of_val(&self.sq_sums[..]) + self.aovs.bytes()
+        self.sums.bytes()
+            + size_of_val(&self.counts[..])
+            + size_of_val(&self.sq_sums[..])
+            + self.aovs.bytes()
+            + size_of_val(&self.camera_ends[..])
+            + size_of_val(&self.camera_light[..])
     }
 
     /// Empties the buffers and sizes those `layout` keeps for `width × height` (AOV sums are
@@ -501,6 +516,8 @@ impl Accumulation {
         let adaptive = if layout.adaptive { n } else { 0 };
         zeros(&mut self.counts, adaptive);
         zeros(&mut self.sq_sums, adaptive);
+        self.camera_ends = Vec::new();
+        self.camera_light = Vec::new();
         self.spp = 0;
         self.resets += 1;
     }

@@ -12,8 +12,8 @@ use rayon::prelude::*;
 
 use crate::{
     camera::{ActiveCamera, CameraRays, Cameras},
-    geometry::{SceneGeometry, TraversalCounts, accel::AlphaCounts, counters},
-    integrator::{LightGroup, LightRegistry, SampleResult, Scene, Tracer},
+    geometry::{Ray, RayEnd, SceneGeometry, TraversalCounts, accel::AlphaCounts, counters},
+    integrator::{LightGroup, LightRegistry, PrimaryHit, SampleResult, Scene, Tracer},
     resources::{
         AOV_FLOATS, Accumulation, AovValues, FrameSamples, RenderSettings, SceneProblems, Sums, luminance, retired,
         standard_error,
@@ -113,6 +113,15 @@ pub fn trace(
     if job.aovs && acc.aovs.len() != n {
         acc.aovs.size(n);
     }
+    // Frames after this one will find the camera rays' ends here, where every sample of a
+    // pixel shares its camera ray and the scene's hits have ends ([`RayEnd`]); a render that
+    // ends with this frame keeps none.
+    let shared_camera_rays = !job.jitter && !matches!(camera, ActiveCamera::ThinLens(_)) && !geometry.has_alpha();
+    let more_frames = settings.target_spp().is_none_or(|target| target > acc.spp + count);
+    if shared_camera_rays && more_frames && acc.camera_ends.len() != n {
+        acc.camera_ends = vec![RayEnd::UNKNOWN; n];
+        acc.camera_light = vec![Vec3::ZERO; n * scene.fixed_group_count()];
+    }
     let frame = &mut *frame;
     frame.sums.clear();
     if frame.keep_sums {
@@ -160,9 +169,33 @@ struct TilePixels<'a> {
     one_frame_aovs: Vec<&'a mut [AovValues]>,
     aovs: Vec<&'a mut [[f64; AOV_FLOATS]]>,
     frame_sums: Vec<&'a mut [Vec3]>,
+    /// Where each pixel's camera ray ends ([`Accumulation::camera_ends`]; no rows where it is
+    /// not kept).
+    camera_ends: Vec<&'a mut [RayEnd]>,
+    /// The light of the groups that draw no samples at those ends
+    /// ([`Accumulation::camera_light`]; no rows where it is not kept).
+    camera_light: Vec<&'a mut [Vec3]>,
 }
 
 impl TilePixels<'_> {
+    /// Row `y`'s kept camera ends and light, where the accumulation keeps them for `groups`
+    /// light groups that draw no samples.
+    fn kept_row(&mut self, y: u32, groups: usize) -> Option<KeptRow<'_>> {
+        let r = (y - self.tile.y0) as usize;
+        let ends = self.camera_ends.get_mut(r)?;
+        let light = match self.camera_light.get_mut(r) {
+            Some(light) => &mut **light,
+            None => &mut [],
+        };
+        (light.len() == ends.len() * groups).then_some(KeptRow {
+            ends,
+            light,
+            groups,
+            x0: self.tile.x0,
+            width: self.width,
+        })
+    }
+
     /// Row and column inside the tile of image pixel `i`.
     #[inline]
     fn at(&self, i: usize) -> (usize, usize) {
@@ -202,6 +235,90 @@ impl TilePixels<'_> {
     }
 }
 
+/// One row's kept camera ends and light ([`TilePixels::kept_row`]): a tile's row, from
+/// column `x0` of an image `width` wide; `groups` light values per pixel.
+struct KeptRow<'a> {
+    ends: &'a mut [RayEnd],
+    light: &'a mut [Vec3],
+    groups: usize,
+    x0: u32,
+    width: u32,
+}
+
+/// The camera rays of one row of a tile's pixels still sampled, each pixel's one ray.
+struct RowCamera<'a> {
+    rays: &'a [Ray],
+    /// Each ray's pixel and the number of its first sample this frame.
+    pixels: &'a [(u32, u32)],
+    /// Whether light is skipped where the reflectance is black (no AOVs).
+    skip_black: bool,
+    /// How many of the pixels are timed.
+    timed: u64,
+}
+
+impl RowCamera<'_> {
+    /// The row's camera hits into `hits` and what the lights that draw no samples bring to
+    /// each into `fixed` ([`Tracer::fixed_lights_row`]'s layout): taken from `kept` where an
+    /// earlier frame left them there, else traced, and kept where `kept` is given.
+    fn hits_and_light(
+        &self,
+        tracer: &mut Tracer,
+        scene: &Scene,
+        kept: Option<KeptRow>,
+        ends: &mut Vec<RayEnd>,
+        hits: &mut Vec<Option<PrimaryHit>>,
+        fixed: &mut Vec<Vec3A>,
+    ) {
+        if let Some(kept) = kept
+            && self.through_kept(tracer, scene, kept, ends, hits, fixed)
+        {
+            return;
+        }
+        tracer.primaries(scene, self.rays, hits);
+        // The lights that draw no samples, once per pixel, the row's shadow rays together.
+        tracer.fixed_lights_row(scene, self.pixels, hits, self.skip_black, self.timed, fixed);
+    }
+
+    /// [`RowCamera::hits_and_light`] through `kept`; `false` (nothing done) where the scene's
+    /// hits have no [`RayEnd`].
+    fn through_kept(
+        &self,
+        tracer: &mut Tracer,
+        scene: &Scene,
+        kept: KeptRow,
+        ends: &mut Vec<RayEnd>,
+        hits: &mut Vec<Option<PrimaryHit>>,
+        fixed: &mut Vec<Vec3A>,
+    ) -> bool {
+        let column = |pixel: u32| (pixel % kept.width - kept.x0) as usize;
+        ends.clear();
+        ends.extend(self.pixels.iter().map(|&(pixel, _)| kept.ends[column(pixel)]));
+        let known = ends.iter().all(RayEnd::is_known);
+        if !tracer.primaries_from_ends(scene, self.rays, ends, hits) {
+            return false;
+        }
+        let (n, g) = (self.pixels.len(), kept.groups);
+        if known {
+            fixed.clear();
+            fixed.resize(n * g, Vec3A::ZERO);
+        } else {
+            tracer.fixed_lights_row(scene, self.pixels, hits, self.skip_black, self.timed, fixed);
+        }
+        for (k, &(pixel, _)) in self.pixels.iter().enumerate() {
+            let c = column(pixel);
+            kept.ends[c] = ends[k];
+            for i in 0..g {
+                if known {
+                    fixed[i * n + k] = kept.light[c * g + i].into();
+                } else {
+                    kept.light[c * g + i] = fixed[i * n + k].into();
+                }
+            }
+        }
+        true
+    }
+}
+
 /// Applies `f` to each pixel of `rows` and its value in `values` (row-major, `w` per row).
 fn fold<T, U>(rows: &mut [&mut [T]], values: &[U], w: usize, f: impl Fn(&mut T, &U)) {
     for (row, values) in rows.iter_mut().zip(values.chunks(w)) {
@@ -221,6 +338,10 @@ struct Band<'a> {
     one_frame_aovs: &'a mut [AovValues],
     aovs: &'a mut [[f64; AOV_FLOATS]],
     frame_sums: &'a mut [Vec3],
+    camera_ends: &'a mut [RayEnd],
+    camera_light: &'a mut [Vec3],
+    /// Entries of `camera_light` per pixel.
+    light_groups: usize,
 }
 
 impl<'a> Band<'a> {
@@ -233,6 +354,9 @@ impl<'a> Band<'a> {
         let mut one_frame_aovs = tile_rows(self.one_frame_aovs, width, size);
         let mut aovs = tile_rows(self.aovs, width, size);
         let mut frame_sums = tile_rows(self.frame_sums, width, size);
+        let mut camera_ends = tile_rows(self.camera_ends, width, size);
+        let g = self.light_groups.max(1) as u32;
+        let mut camera_light = tile_rows(self.camera_light, width * g, size * g);
         (0..width.div_ceil(size))
             .map(|i| TilePixels {
                 tile: Tile { x0: i * size, y0: self.y0, x1: ((i + 1) * size).min(width), y1: self.y1 },
@@ -245,6 +369,8 @@ impl<'a> Band<'a> {
                 one_frame_aovs: one_frame_aovs.next().unwrap_or_default(),
                 aovs: aovs.next().unwrap_or_default(),
                 frame_sums: frame_sums.next().unwrap_or_default(),
+                camera_ends: camera_ends.next().unwrap_or_default(),
+                camera_light: camera_light.next().unwrap_or_default(),
             })
             .collect()
     }
@@ -269,6 +395,9 @@ fn bands<'a>(acc: &'a mut Accumulation, frame_sums: &'a mut [Vec3], width: u32, 
     let mut one_frame_aovs = split(one_frame_aovs, len, count);
     let mut aovs = split(aovs, len, count);
     let mut frame = split(frame_sums, len, count);
+    let light_groups = acc.camera_light.len().checked_div(acc.camera_ends.len()).unwrap_or(0);
+    let mut camera_ends = split(&mut acc.camera_ends, len, count);
+    let mut camera_light = split(&mut acc.camera_light, len * light_groups.max(1), count);
     (0..count as u32)
         .filter_map(|b| {
             Some(Band {
@@ -282,6 +411,9 @@ fn bands<'a>(acc: &'a mut Accumulation, frame_sums: &'a mut [Vec3], width: u32, 
                 one_frame_aovs: one_frame_aovs.next()?,
                 aovs: aovs.next()?,
                 frame_sums: frame.next()?,
+                camera_ends: camera_ends.next()?,
+                camera_light: camera_light.next()?,
+                light_groups,
             })
         })
         .collect()
@@ -363,7 +495,7 @@ fn trace_tile<C: CameraRays>(
     // Without jitter or lens every sample of a pixel has the same camera ray: it is traced once
     // per pixel, a row of the tile's pixels at a time (neighbouring rays travel together).
     let one_ray_per_pixel = !job.jitter && !C::USES_LENS;
-    let (mut row_hits, mut row_pixels, mut row_fixed) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut row_hits, mut row_pixels, mut row_fixed, mut row_ends) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for y in tile.y0..tile.y1 {
         if one_ray_per_pixel {
             camera_rays.clear();
@@ -377,9 +509,9 @@ fn trace_tile<C: CameraRays>(
                     timed += u64::from(timed_pixel(pixel));
                 }
             }
-            tracer.primaries(scene, &camera_rays, &mut row_hits);
-            // The lights that draw no samples, once per pixel, the row's shadow rays together.
-            tracer.fixed_lights_row(scene, &row_pixels, &row_hits, !job.aovs, timed, &mut row_fixed);
+            let row = RowCamera { rays: &camera_rays, pixels: &row_pixels, skip_black: !job.aovs, timed };
+            let kept = acc.kept_row(y, scene.fixed_group_count());
+            row.hits_and_light(&mut tracer, scene, kept, &mut row_ends, &mut row_hits, &mut row_fixed);
             // The timed pixels' part of the row's camera rays and fixed lights.
             if timed > 0 {
                 tracer.split.pixels += cycles_since(start) * timed / camera_rays.len() as u64;

@@ -1,7 +1,7 @@
 //! `Renderer::render` continues the accumulation it has, ignores writes of equal values, and
 //! fails, naming what changed, when the scene changes in every frame.
 
-use hemi::prelude::*;
+use hemi::{prelude::*, resources::Accumulation};
 
 fn small_default_scene() -> Renderer {
     let s = RenderSettings { width: 48, height: 27, samples_per_frame: 2, samples_per_set: 8, ..Default::default() };
@@ -131,4 +131,78 @@ fn a_scene_that_changes_every_frame_fails_naming_the_component_and_entity() {
     r.settings_mut().samples_per_frame = 16;
     r.schedule_mut().add_systems(flicker.in_set(FrameStage::Animate));
     assert_eq!(r.render(16).unwrap(), 1);
+}
+
+/// The default scene, tracing pixel centres two samples a frame with no sample target: frames
+/// after the first take each pixel's camera hit and point-light light from the accumulation.
+fn pixel_centre_scene(max_spp: Option<u32>) -> Renderer {
+    let s = RenderSettings {
+        width: 48,
+        height: 27,
+        samples_per_frame: 2,
+        samples_per_set: 8,
+        jitter: false,
+        max_spp,
+        ..Default::default()
+    };
+    Renderer::with_default_scene(s)
+}
+
+#[test]
+fn later_frames_take_the_kept_camera_hits_and_give_the_image_of_tracing_them_again() {
+    let mut kept = pixel_centre_scene(Some(8));
+    let mut traced = pixel_centre_scene(Some(8));
+    let pixels = 48 * 27;
+    for frame in 0..4 {
+        // Forgetting the kept ends makes the frame trace its camera rays again.
+        traced.world_mut().resource_mut::<Accumulation>().camera_ends.clear();
+        let t = traced.run_frame().unwrap().rays;
+        let k = kept.run_frame().unwrap().rays;
+        assert_eq!(t.primary, pixels, "frame {frame}: every camera ray traced");
+        assert!(t.shadow > 0, "frame {frame}: the point light's shadow rays traced");
+        let (primary, shadow) = if frame == 0 { (t.primary, t.shadow) } else { (0, 0) };
+        assert_eq!((k.primary, k.shadow), (primary, shadow), "frame {frame}: camera and point-light rays");
+        assert_eq!(k.ao, t.ao, "frame {frame}");
+    }
+    assert!(kept.image() == traced.image(), "kept camera hits change the image");
+    assert_eq!(kept.world().resource::<Accumulation>().camera_ends.len(), pixels as usize);
+
+    // A render that is one frame keeps nothing.
+    let mut one = pixel_centre_scene(Some(2));
+    one.run_frame().unwrap();
+    assert!(one.world().resource::<Accumulation>().camera_ends.is_empty());
+}
+
+#[test]
+fn kept_camera_hits_are_dropped_when_the_camera_a_shape_or_a_light_changes() {
+    fn change_camera(world: &mut World) {
+        for mut camera in world.query::<&mut Camera>().iter_mut(world) {
+            camera.eye.x += 0.3;
+        }
+    }
+    fn change_shape(world: &mut World) {
+        for mut t in world.query_filtered::<&mut Transform, With<Sphere>>().iter_mut(world) {
+            t.translation.x += 0.2;
+        }
+    }
+    fn change_light(world: &mut World) {
+        for mut light in world.query::<&mut PointLight>().iter_mut(world) {
+            light.ls *= 0.5;
+        }
+    }
+    for (what, change) in
+        [("camera", change_camera as fn(&mut World)), ("shape", change_shape), ("light", change_light)]
+    {
+        let mut changed = pixel_centre_scene(None);
+        changed.run_frame().unwrap();
+        changed.run_frame().unwrap();
+        change(changed.world_mut());
+        let rays = changed.run_frame().unwrap().rays;
+        assert_eq!(rays.primary, 48 * 27, "{what}: the camera rays traced again");
+
+        let mut fresh = pixel_centre_scene(None);
+        change(fresh.world_mut());
+        fresh.run_frame().unwrap();
+        assert!(changed.image() == fresh.image(), "{what}: the frame after the change differs from a fresh render");
+    }
 }

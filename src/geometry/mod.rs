@@ -13,7 +13,7 @@ pub mod tri4;
 pub mod wide_bvh;
 pub mod world_space;
 
-pub use accel::{Object, Prim, RayOrder, SceneGeometry, Shape};
+pub use accel::{Object, Prim, RayEnd, RayOrder, SceneGeometry, Shape};
 pub use counters::TraversalCounts;
 pub use hit::{SpawnOrigins, SurfaceHit};
 pub use ray::{Ray, Shear};

@@ -10,7 +10,7 @@ use super::{
 };
 use crate::{
     components::Matte,
-    geometry::{Ray, RayOrder, SceneGeometry, SpawnOrigins, SurfaceHit},
+    geometry::{Ray, RayEnd, RayOrder, SceneGeometry, SpawnOrigins, SurfaceHit},
     light::{DirectionRun, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term},
     math::Onb,
     sampling::{SampleSets, dims},
@@ -57,6 +57,11 @@ impl Scene<'_> {
         material
     }
 
+    /// How many light groups draw no samples ([`Scene::fixed_groups`]).
+    pub fn fixed_group_count(&self) -> usize {
+        self.fixed_groups().count()
+    }
+
     /// The light groups that draw no samples ([`LightGroup::dims`] 0: point lights), with their
     /// first sample dimension, in `lights` order.
     fn fixed_groups(&self) -> impl Iterator<Item = &(u32, &dyn LightGroup)> {
@@ -93,6 +98,10 @@ pub struct Tracer {
     row: Vec<RunPoint>,
     /// The surface hits of a run of camera rays.
     surfaces: Vec<Option<SurfaceHit>>,
+    /// The camera rays of a row whose ends were not known, and their places in the row.
+    unknown_rays: Vec<Ray>,
+    unknown_at: Vec<u32>,
+    unknown_ends: Vec<RayEnd>,
     /// Rays traced by this tracer.
     pub rays: RayCounts,
     /// Whether the pixel being traced is timed: light groups' cycles then go to `split`.
@@ -239,6 +248,45 @@ impl Tracer {
                 .zip(&self.surfaces)
                 .map(|(ray, hit)| hit.map(|hit| PrimaryHit { hit, depth: hit.t * ray.dir.length() })),
         );
+    }
+
+    /// [`Tracer::primaries`] for rays whose ends (`ends[k]` for `rays[k]`) may be known from
+    /// an earlier frame: only the rays whose end is [`RayEnd::UNKNOWN`] are traced (together,
+    /// in their order) and their ends written to `ends`; every hit is then made from its end,
+    /// the same hit bit for bit. `false` (nothing done) where the scene's hits have no
+    /// [`RayEnd`] (alpha-tested meshes).
+    pub fn primaries_from_ends(
+        &mut self,
+        scene: &Scene,
+        rays: &[Ray],
+        ends: &mut [RayEnd],
+        out: &mut Vec<Option<PrimaryHit>>,
+    ) -> bool {
+        if scene.geometry.has_alpha() {
+            return false;
+        }
+        self.unknown_rays.clear();
+        self.unknown_at.clear();
+        for (k, (ray, end)) in rays.iter().zip(ends.iter()).enumerate() {
+            if !end.is_known() {
+                self.unknown_rays.push(*ray);
+                self.unknown_at.push(k as u32);
+            }
+        }
+        if !self.unknown_rays.is_empty() {
+            self.rays.primary += self.unknown_rays.len() as u64;
+            self.unknown_ends.clear();
+            self.unknown_ends.resize(self.unknown_rays.len(), RayEnd::UNKNOWN);
+            scene.geometry.ray_ends(&self.unknown_rays, &mut self.stack, &mut self.unknown_ends);
+            for (&k, &end) in self.unknown_at.iter().zip(&self.unknown_ends) {
+                ends[k as usize] = end;
+            }
+        }
+        out.clear();
+        out.extend(rays.iter().zip(ends.iter()).map(|(ray, &end)| {
+            scene.geometry.hit_at(ray, end).map(|hit| PrimaryHit { hit, depth: hit.t * ray.dir.length() })
+        }));
+        true
     }
 
     /// The light that each group of lights drawing no samples (point lights: [`LightGroup::dims`]

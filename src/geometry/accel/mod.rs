@@ -27,7 +27,7 @@ pub(crate) use blas::subtree_depth;
 #[cfg(target_arch = "x86_64")]
 pub(crate) use kernels::{KernelLanes, SceneLanes};
 pub use ray_order::RayOrder;
-pub use scene::{BvhWork, SceneGeometry};
+pub use scene::{BvhWork, RayEnd, SceneGeometry};
 pub use tlas::Instance;
 
 use bevy_ecs::prelude::Entity;

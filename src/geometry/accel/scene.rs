@@ -284,30 +284,70 @@ impl SceneGeometry {
     /// triangle packets (straight into the one BLAS of a static scene, else through the top
     /// level), which suits runs of rays that travel together, such as one pixel's camera rays.
     pub fn intersect_many(&self, rays: &[Ray], stack: &mut Vec<(u32, f32)>, hits: &mut [Option<SurfaceHit>]) {
-        // Alpha-tested meshes take the single-ray path.
+        if self.alpha.is_some() {
+            // Alpha-tested meshes take the single-ray path.
+            for (ray, hit) in rays.iter().zip(hits) {
+                *hit = self.intersect(ray, stack);
+            }
+            return;
+        }
+        self.closest_each(rays, stack, |k, ray, end| hits[k] = self.hit_at(ray, end));
+    }
+
+    /// Where each of `rays` ends ([`RayEnd`]) into `ends` (same length), found as
+    /// [`SceneGeometry::intersect_many`] finds its hits; `false` (and nothing written) where
+    /// the scene has alpha-tested meshes, whose hits a [`RayEnd`] does not hold.
+    pub fn ray_ends(&self, rays: &[Ray], stack: &mut Vec<(u32, f32)>, ends: &mut [RayEnd]) -> bool {
+        if self.alpha.is_some() {
+            return false;
+        }
+        self.closest_each(rays, stack, |k, _, end| ends[k] = end);
+        true
+    }
+
+    /// The hit [`SceneGeometry::intersect`] finds along `ray` where it ends at `end` (found by
+    /// [`SceneGeometry::ray_ends`] for this ray), bit for bit: the surface at the closest
+    /// primitive, unless a plane is hit before it.
+    #[inline]
+    pub fn hit_at(&self, ray: &Ray, end: RayEnd) -> Option<SurfaceHit> {
+        self.hit_with_planes(ray.with_tmax(end.tmax), end.closest())
+    }
+
+    /// Calls `out(k, ray, end)` with where each `rays[k]` ends among the opaque primitives
+    /// (planes aside): in packets where the scene allows ([`SceneGeometry::camera_packets`]).
+    #[inline(always)]
+    fn closest_each(&self, rays: &[Ray], stack: &mut Vec<(u32, f32)>, mut out: impl FnMut(usize, &Ray, RayEnd)) {
         #[cfg(target_arch = "x86_64")]
         if rays.len() >= PACKET_RUN
-            && self.alpha.is_none()
             && let Some(into) = self.camera_packets()
         {
             let width = crate::simd::packet_lanes();
-            for (chunk, out) in rays.chunks(width).zip(hits.chunks_mut(width)) {
+            for (c, chunk) in rays.chunks(width).enumerate() {
                 let mut found = LaneHits::new(chunk);
                 let live = (1u32 << chunk.len()) - 1;
                 let alone = self.closest_packet(into, chunk, live, &mut found, stack) | found.tied;
-                for (k, (ray, hit)) in chunk.iter().zip(out).enumerate() {
-                    *hit = if alone & (1 << k) != 0 {
-                        self.intersect(ray, stack)
+                for (k, ray) in chunk.iter().enumerate() {
+                    let end = if alone & (1 << k) != 0 {
+                        self.ray_end(ray, stack)
                     } else {
-                        self.hit_with_planes(ray.with_tmax(found.tmax[k]), found.best[k])
+                        RayEnd::new(found.best[k], found.tmax[k])
                     };
+                    out(c * width + k, ray, end);
                 }
             }
             return;
         }
-        for (ray, hit) in rays.iter().zip(hits) {
-            *hit = self.intersect(ray, stack);
+        for (k, ray) in rays.iter().enumerate() {
+            out(k, ray, self.ray_end(ray, stack));
         }
+    }
+
+    /// Where `ray` ends among the opaque primitives, traced alone.
+    #[inline(always)]
+    fn ray_end(&self, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> RayEnd {
+        let mut ray = *ray;
+        let best = self.closest_instance(&mut ray, stack);
+        RayEnd::new(best, ray.tmax)
     }
 
     /// Where [`SceneGeometry::intersect_many`] traces packets, if anywhere: straight into the
@@ -545,5 +585,50 @@ impl TreeQuery for TopClosest<'_> {
     #[inline(always)]
     fn run<const W: usize>(self, tree: &WideBvh<W>, node_test: impl NodeTest<W>) -> Self::Output {
         self.scene.closest_through(tree, node_test, self.ray, self.stack)
+    }
+}
+
+/// Where a ray ends, in 20 bytes: the closest opaque primitive it meets (instance, slot and
+/// barycentrics) and its distance, or only the ray's own end where it meets none. Planes are
+/// not in it: [`SceneGeometry::hit_at`] tests them again (a scene has a few).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RayEnd {
+    /// The instance hit; [`RayEnd::NO_PRIMITIVE`] where none is, [`RayEnd::UNKNOWN`]'s where
+    /// the end is not known.
+    instance: u32,
+    slot: u32,
+    bary: [f32; 2],
+    tmax: f32,
+}
+
+impl RayEnd {
+    /// An end not yet found (what a cache of ends holds before it is filled).
+    pub const UNKNOWN: RayEnd = RayEnd { instance: u32::MAX - 1, slot: 0, bary: [0.0; 2], tmax: 0.0 };
+
+    const NO_PRIMITIVE: u32 = u32::MAX;
+
+    #[inline(always)]
+    fn new(best: Option<ClosestHit>, tmax: f32) -> Self {
+        match best {
+            Some((instance, slot, b1, b2)) => RayEnd { instance, slot, bary: [b1, b2], tmax },
+            None => RayEnd { instance: Self::NO_PRIMITIVE, slot: 0, bary: [0.0; 2], tmax },
+        }
+    }
+
+    /// Whether the end was found (not [`RayEnd::UNKNOWN`]).
+    #[inline(always)]
+    pub fn is_known(&self) -> bool {
+        self.instance != Self::UNKNOWN.instance
+    }
+
+    #[inline(always)]
+    fn closest(&self) -> Option<ClosestHit> {
+        (self.instance != Self::NO_PRIMITIVE).then_some((self.instance, self.slot, self.bary[0], self.bary[1]))
+    }
+}
+
+impl Default for RayEnd {
+    fn default() -> Self {
+        Self::UNKNOWN
     }
 }
