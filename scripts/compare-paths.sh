@@ -4,7 +4,8 @@
 # adaptive sampling, and (where the scene is one mesh with unbounded AO) the mesh rendered as a
 # glTF file (jittered pixels, the glTF occluder) with the peer camera given on the command line.
 # Runs alternate round by round; prints each path's medians of the AO kernel rate and of all
-# rays over the trace stage (Mrays/s, from --stats-json), and their ratios to the peer path.
+# rays over the trace stage (Mrays/s, from --stats-json), and their ratios to the peer path,
+# and the trace stage's time (ms) with the peer path's time over it.
 #
 #   scripts/compare-paths.sh [--spp N] [--threads N] [--rounds N] [BINARY] [SCENE ...]
 #
@@ -72,14 +73,16 @@ for r in range(int(rounds)):
             if done.returncode != 0:
                 sys.exit(f"compare-paths: {name} failed on {s}: {done.stderr.strip().splitlines()[-1:]}")
             total = json.load(open(stats))["total"]
-            runs.setdefault((s, name), []).append((total["ao_kernel_mrays_per_s"], total["mrays_per_s"]))
+            runs.setdefault((s, name), []).append(
+                (total["ao_kernel_mrays_per_s"], total["mrays_per_s"], 1000 * total["trace_seconds"]))
 
 print(f"{rounds} alternating rounds at {spp} spp, {threads} threads; medians in Mrays/s, ratio to the peer path in brackets")
-print(f"{'scene':13s} {'path':12s} {'AO kernel':>16s} {'all rays / trace':>18s}")
+print(f"{'scene':13s} {'path':12s} {'AO kernel':>16s} {'all rays / trace':>18s} {'trace ms':>16s}")
 for s in scenes:
     base = [statistics.median(c) for c in zip(*runs[(s, "peer")])]
     for name in paths(s):
         med = [statistics.median(c) for c in zip(*runs[(s, name)])]
-        cells = [f"{v:7.2f} ({v / b:.2f})" for v, b in zip(med, base)]
-        print(f"{s:13s} {name:12s} {cells[0]:>16s} {cells[1]:>18s}")
+        cells = [f"{v:7.2f} ({v / b:.2f})" for v, b in zip(med[:2], base[:2])]
+        cells.append(f"{med[2]:7.1f} ({base[2] / med[2]:.2f})")
+        print(f"{s:13s} {name:12s} {cells[0]:>16s} {cells[1]:>18s} {cells[2]:>16s}")
 PY
