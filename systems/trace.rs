@@ -458,6 +458,11 @@ fn trace_bands<C: CameraRays + Sync>(
         .reduce(TileResult::default, TileResult::merge)
 }
 
+/// Most samples per pixel a frame may trace for its shared hits' runs to be pooled a row at a
+/// time ([`Tracer::shade_row_sums`]): below a packet's width, a pixel's own run leaves most of
+/// its packet's lanes empty.
+const POOLED_RUN_MAX: u32 = 4;
+
 /// What every tile of this frame traces.
 struct Job {
     width: u32,
@@ -496,6 +501,9 @@ fn trace_tile<C: CameraRays>(
     // per pixel, a row of the tile's pixels at a time (neighbouring rays travel together).
     let one_ray_per_pixel = !job.jitter && !C::USES_LENS;
     let (mut row_hits, mut row_pixels, mut row_fixed, mut row_ends) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    // Small runs of shared hits, summed without per-sample values, are lit a row at a time.
+    let pooled = one_ray_per_pixel && !job.aovs && !job.adaptive && job.count <= POOLED_RUN_MAX;
+    let mut row_sums = Vec::new();
     for y in tile.y0..tile.y1 {
         if one_ray_per_pixel {
             camera_rays.clear();
@@ -512,6 +520,9 @@ fn trace_tile<C: CameraRays>(
             let row = RowCamera { rays: &camera_rays, pixels: &row_pixels, skip_black: !job.aovs, timed };
             let kept = acc.kept_row(y, scene.fixed_group_count());
             row.hits_and_light(&mut tracer, scene, kept, &mut row_ends, &mut row_hits, &mut row_fixed);
+            if pooled {
+                tracer.shade_row_sums(scene, &row_pixels, &row_hits, job.count, timed, &mut row_sums);
+            }
             // The timed pixels' part of the row's camera rays and fixed lights.
             if timed > 0 {
                 tracer.split.pixels += cycles_since(start) * timed / camera_rays.len() as u64;
@@ -561,7 +572,11 @@ fn trace_tile<C: CameraRays>(
                     // NaN survive a sum); otherwise the samples are made (and their rays traced
                     // and counted) again, one by one, and the non-finite ones dropped.
                     let quick = (!job.adaptive)
-                        .then(|| tracer.shade_sum(scene, hit, pixel, first, count) + fixed_radiance * count as f32)
+                        .then(|| {
+                            let sampled =
+                                if pooled { row_sums[k] } else { tracer.shade_sum(scene, hit, pixel, first, count) };
+                            sampled + fixed_radiance * count as f32
+                        })
                         .filter(|&t| all_finite(t));
                     let total = quick.unwrap_or_else(|| {
                         radiance.resize(count as usize, Vec3A::ZERO);

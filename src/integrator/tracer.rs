@@ -122,7 +122,9 @@ struct RunSamples {
 }
 
 /// A camera hit ready to be lit: one sample of a pixel's run of camera samples (jittered or
-/// lens rays), or one pixel of a tile's row (shared hits, for the lights that draw no samples).
+/// lens rays), one pixel of a tile's row (shared hits, for the lights that draw no samples), or
+/// one sample of a row's pooled runs ([`Tracer::shade_row_sums`]).
+#[derive(Clone, Copy)]
 pub struct RunPoint {
     /// Its place in the run or row: where its light goes, and where a run's light samples
     /// computed ahead are read.
@@ -172,6 +174,81 @@ impl Tracer {
         for (k, column) in (0..dims).zip(run.values.chunks_exact_mut(run.stride.max(1))) {
             scene.sets.fill(pixel, first, dims::LIGHTS + k, column);
         }
+    }
+
+    /// Every light dimension's samples for the samples `first..first + count` of each of
+    /// `pixels` (pixel, first), pixel after pixel: pixel i's sample s is run entry `i·count + s`.
+    fn prepare_runs(&mut self, scene: &Scene, pixels: &[(u32, u32)], count: u32) {
+        let dims = scene.lights.iter().map(|(d, g)| d + g.dims()).max().unwrap_or(dims::LIGHTS) - dims::LIGHTS;
+        let (run, n) = (&mut self.run, count as usize);
+        run.stride = pixels.len() * n;
+        run.values.resize(dims as usize * run.stride, Vec2::ZERO);
+        for (k, column) in (0..dims).zip(run.values.chunks_exact_mut(run.stride.max(1))) {
+            for (&(pixel, first), part) in pixels.iter().zip(column.chunks_exact_mut(n.max(1))) {
+                scene.sets.fill(pixel, first, dims::LIGHTS + k, part);
+            }
+        }
+    }
+
+    /// [`Tracer::shade_sum`] of the lights that draw samples for each of a row's shared camera
+    /// hits (`hits[i]`, the hit of `pixels[i]`: the pixel and its first sample this frame),
+    /// `count` samples each, into `out[i]` (zero where the camera ray escaped). The row's runs
+    /// are pooled: each light type lights all their samples in one call, as the samples of a
+    /// jittered run ([`Tracer::shade_run`]), so a cosine run's rays from neighbouring pixels
+    /// share packets, which pays where a pixel's own run would leave most lanes of its packet
+    /// empty. Each pixel's light is its samples' light added in sample order. `timed` of the
+    /// pixels are timed ([`crate::stats::timed_pixel`]): that share of the cycles goes to
+    /// `split`.
+    pub fn shade_row_sums(
+        &mut self,
+        scene: &Scene,
+        pixels: &[(u32, u32)],
+        hits: &[Option<PrimaryHit>],
+        count: u32,
+        timed: u64,
+        out: &mut Vec<Vec3A>,
+    ) {
+        out.clear();
+        out.resize(hits.len(), Vec3A::ZERO);
+        let n = count as usize;
+        if n == 0 || hits.is_empty() {
+            return;
+        }
+        self.prepare_runs(scene, pixels, count);
+        let mut points = std::mem::take(&mut self.points);
+        points.clear();
+        for (i, (&(pixel, first), hit)) in pixels.iter().zip(hits).enumerate() {
+            let Some(primary) = hit else { continue };
+            let symmetry = scene.sets.frame_symmetry(pixel);
+            let point = RunPoint::new(scene, &primary.hit, i * n, (pixel, symmetry), first);
+            points.extend((0..n).map(|s| RunPoint {
+                j: (i * n + s) as u32,
+                sample: first.wrapping_add(s as u32),
+                ..point
+            }));
+        }
+        // The row's cycles, kept apart and then scaled to the timed pixels' share.
+        let (split, timing) = (std::mem::take(&mut self.split), (self.timing, self.timing_queries));
+        (self.timing, self.timing_queries) = (timed > 0, timed > 0);
+        let mut arriving = std::mem::take(&mut self.arriving);
+        for &(first_dim, group) in scene.lights {
+            if group.dims() == 0 {
+                continue;
+            }
+            self.light_points(scene, group, first_dim, &points, true, &mut arriving);
+            let term = group.term();
+            for (run, light) in points.chunks_exact(n).zip(arriving.chunks_exact(n)) {
+                let reflectance = term.reflectance(&run[0].at.material);
+                if reflectance.max_element() > 0.0 {
+                    out[run[0].j as usize / n] += Vec3A::from(reflectance) * light.iter().sum::<Vec3A>();
+                }
+            }
+        }
+        let row = std::mem::replace(&mut self.split, split);
+        self.split.add(&row.scaled(timed, hits.len() as u64));
+        (self.timing, self.timing_queries) = timing;
+        self.arriving = arriving;
+        self.points = points;
     }
 
     /// Light reflected for the run of samples `first, first + 1, …` of `pixel` last given to
