@@ -319,6 +319,57 @@ impl RowCamera<'_> {
     }
 }
 
+/// Scratch for runs whose samples each have a camera ray of their own (jittered pixels or a
+/// lens).
+#[derive(Default)]
+struct OwnRays {
+    films: Vec<Vec2>,
+    lenses: Vec<Vec2>,
+    rays: Vec<Ray>,
+    hits: Vec<Option<PrimaryHit>>,
+    pixels: Vec<(u32, u32)>,
+}
+
+impl OwnRays {
+    /// Traces and lights the runs of `count` samples of each of `runs` (column, pixel, first
+    /// sample) in row `y` into `out`, sample s of run i at `i·count + s`: every dimension's
+    /// samples computed ahead, the camera rays traced in one call, then every hit lit by one
+    /// call per light type for all the runs ([`Tracer::shade_runs`]).
+    #[allow(clippy::too_many_arguments)]
+    fn trace<C: CameraRays>(
+        &mut self,
+        tracer: &mut Tracer,
+        scene: &Scene,
+        camera: &C,
+        job: &Job,
+        y: u32,
+        runs: &[(u32, u32, u32)],
+        count: u32,
+        out: &mut Vec<SampleResult>,
+    ) {
+        let n = count as usize;
+        self.rays.clear();
+        self.pixels.clear();
+        for &(x, pixel, first) in runs {
+            self.films.clear();
+            self.films.resize(n, Vec2::splat(0.5));
+            self.lenses.clear();
+            self.lenses.resize(n, Vec2::ZERO);
+            if job.jitter {
+                scene.sets.fill(pixel, first, dims::PIXEL, &mut self.films);
+            }
+            if C::USES_LENS {
+                scene.sets.fill(pixel, first, dims::LENS, &mut self.lenses);
+            }
+            self.rays.extend(self.films.iter().zip(&self.lenses).map(|(&film, &lens)| camera.ray(x, y, film, lens)));
+            self.pixels.push((pixel, first));
+        }
+        tracer.primaries(scene, &self.rays, &mut self.hits);
+        out.resize(self.rays.len(), SampleResult::default());
+        tracer.shade_runs(scene, &self.hits, &self.pixels, count, !job.aovs, out);
+    }
+}
+
 /// Applies `f` to each pixel of `rows` and its value in `values` (row-major, `w` per row).
 fn fold<T, U>(rows: &mut [&mut [T]], values: &[U], w: usize, f: impl Fn(&mut T, &U)) {
     for (row, values) in rows.iter_mut().zip(values.chunks(w)) {
@@ -459,9 +510,16 @@ fn trace_bands<C: CameraRays + Sync>(
 }
 
 /// Most samples per pixel a frame may trace for its shared hits' runs to be pooled a row at a
-/// time ([`Tracer::shade_row_sums`]): below a packet's width, a pixel's own run leaves most of
-/// its packet's lanes empty.
-const POOLED_RUN_MAX: u32 = 4;
+/// time ([`Tracer::shade_row_sums`]): a pixel's own run of so few rays leaves most of its
+/// packet's lanes empty. Pooling eight was slower than each pixel's own packet on cornell and
+/// sphere_plane (docs/benchmarks.md, "Frames of few samples").
+const POOLED_SHARED_RUN_MAX: u32 = 4;
+
+/// Most samples per pixel a frame may trace for runs whose samples each have a camera ray of
+/// their own to be traced and lit a row at a time ([`Tracer::shade_runs`]): their points are
+/// set up one by one either way, and pooling pays up to eight; at 64 a pixel's own run fills
+/// its packets, and pooling's larger run was slower.
+const POOLED_OWN_RUN_MAX: u32 = 8;
 
 /// What every tile of this frame traces.
 struct Job {
@@ -489,7 +547,7 @@ fn trace_tile<C: CameraRays>(
     let mut tracer = Tracer::default();
     // One pixel's samples of this frame.
     let mut samples = Vec::with_capacity(job.count as usize);
-    let (mut films, mut lenses, mut hits, mut radiance) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut radiance = Vec::new();
     let mut camera_rays = Vec::new();
     let mut nonfinite = 0;
     let pixels = ((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize;
@@ -501,9 +559,12 @@ fn trace_tile<C: CameraRays>(
     // per pixel, a row of the tile's pixels at a time (neighbouring rays travel together).
     let one_ray_per_pixel = !job.jitter && !C::USES_LENS;
     let (mut row_hits, mut row_pixels, mut row_fixed, mut row_ends) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-    // Small runs of shared hits, summed without per-sample values, are lit a row at a time.
-    let pooled = one_ray_per_pixel && !job.aovs && !job.adaptive && job.count <= POOLED_RUN_MAX;
-    let mut row_sums = Vec::new();
+    // Small runs of shared hits, summed without per-sample values, are lit a row at a time;
+    // so are small runs of samples with camera rays of their own.
+    let pooled = one_ray_per_pixel && !job.aovs && !job.adaptive && job.count <= POOLED_SHARED_RUN_MAX;
+    let pooled_own = !one_ray_per_pixel && job.count <= POOLED_OWN_RUN_MAX;
+    let (mut row_sums, mut own_runs, mut row_samples, mut own_run) = (Vec::new(), Vec::new(), Vec::new(), 0);
+    let mut own = OwnRays::default();
     for y in tile.y0..tile.y1 {
         if one_ray_per_pixel {
             camera_rays.clear();
@@ -526,6 +587,28 @@ fn trace_tile<C: CameraRays>(
             // The timed pixels' part of the row's camera rays and fixed lights.
             if timed > 0 {
                 tracer.split.pixels += cycles_since(start) * timed / camera_rays.len() as u64;
+            }
+        }
+        if pooled_own {
+            // Each sample has a camera ray of its own, and a pixel's few of them would leave
+            // most of a packet empty: the row's runs are traced and lit together.
+            own_runs.clear();
+            let (mut timed, start) = (0, cycle_count());
+            for x in tile.x0..tile.x1 {
+                let pixel = y * job.width + x;
+                if !acc.pixel_done(pixel as usize, target) {
+                    own_runs.push((x, pixel, job.first_sample.wrapping_add(acc.count(pixel as usize))));
+                    timed += u64::from(timed_pixel(pixel));
+                }
+            }
+            if !own_runs.is_empty() {
+                tracer.for_row(timed, own_runs.len(), |tracer| {
+                    own.trace(tracer, scene, camera, job, y, &own_runs, job.count, &mut row_samples);
+                });
+            }
+            own_run = 0;
+            if timed > 0 {
+                tracer.split.pixels += cycles_since(start) * timed / own_runs.len() as u64;
             }
         }
         let row_len = row_hits.len();
@@ -608,26 +691,15 @@ fn trace_tile<C: CameraRays>(
                     samples.clear();
                     samples.resize(count as usize, SampleResult { radiance: scene.background, ..Default::default() })
                 }
+                None if pooled_own => {
+                    // Lit with the row's other pixels before the loop.
+                    samples.clear();
+                    samples.extend_from_slice(&row_samples[own_run * count as usize..][..count as usize]);
+                    own_run += 1;
+                }
                 None => {
-                    // Every sample has a camera ray of its own: compute the run's samples of
-                    // every dimension ahead, trace the camera rays, then light every hit, one
-                    // call per light type for the whole run.
-                    films.clear();
-                    films.resize(count as usize, Vec2::splat(0.5));
-                    lenses.clear();
-                    lenses.resize(count as usize, Vec2::ZERO);
-                    if job.jitter {
-                        scene.sets.fill(pixel, first, dims::PIXEL, &mut films);
-                    }
-                    if C::USES_LENS {
-                        scene.sets.fill(pixel, first, dims::LENS, &mut lenses);
-                    }
-                    tracer.prepare_run(scene, pixel, first, count);
-                    camera_rays.clear();
-                    camera_rays.extend((0..count as usize).map(|j| camera.ray(x, y, films[j], lenses[j])));
-                    tracer.primaries(scene, &camera_rays, &mut hits);
-                    samples.resize(count as usize, SampleResult::default());
-                    tracer.shade_run(scene, &hits, pixel, first, !job.aovs, &mut samples);
+                    let run = [(x, pixel, first)];
+                    own.trace(&mut tracer, scene, camera, job, y, &run, count, &mut samples);
                 }
             }
             for s in &samples {

@@ -90,7 +90,7 @@ pub struct Tracer {
     /// A direction run's shadow rays and answers.
     direction_rays: DirectionRays,
     /// Every light dimension's samples for a pixel's run of camera samples that do not share a
-    /// hit (jittered or lens rays), computed ahead by [`Tracer::prepare_run`].
+    /// hit (jittered or lens rays), computed ahead by [`Tracer::prepare_runs`].
     run: RunSamples,
     /// The shading points of such a run.
     points: Vec<RunPoint>,
@@ -164,20 +164,9 @@ impl CosinePoint for RunPoint {
 const SHADOW_EPSILON: f32 = 1e-4;
 
 impl Tracer {
-    /// Computes every light dimension's samples for samples `first..first + count` of `pixel`
-    /// at once (one hash per pass, vectorised patterns), for [`Tracer::shade_run`].
-    pub fn prepare_run(&mut self, scene: &Scene, pixel: u32, first: u32, count: u32) {
-        let dims = scene.lights.iter().map(|(d, g)| d + g.dims()).max().unwrap_or(dims::LIGHTS) - dims::LIGHTS;
-        let run = &mut self.run;
-        run.stride = count as usize;
-        run.values.resize(dims as usize * run.stride, Vec2::ZERO);
-        for (k, column) in (0..dims).zip(run.values.chunks_exact_mut(run.stride.max(1))) {
-            scene.sets.fill(pixel, first, dims::LIGHTS + k, column);
-        }
-    }
-
     /// Every light dimension's samples for the samples `first..first + count` of each of
-    /// `pixels` (pixel, first), pixel after pixel: pixel i's sample s is run entry `i·count + s`.
+    /// `pixels` (pixel, first), pixel after pixel: pixel i's sample s is run entry `i·count + s`
+    /// (one hash per pass, vectorised patterns).
     fn prepare_runs(&mut self, scene: &Scene, pixels: &[(u32, u32)], count: u32) {
         let dims = scene.lights.iter().map(|(d, g)| d + g.dims()).max().unwrap_or(dims::LIGHTS) - dims::LIGHTS;
         let (run, n) = (&mut self.run, count as usize);
@@ -194,7 +183,7 @@ impl Tracer {
     /// hits (`hits[i]`, the hit of `pixels[i]`: the pixel and its first sample this frame),
     /// `count` samples each, into `out[i]` (zero where the camera ray escaped). The row's runs
     /// are pooled: each light type lights all their samples in one call, as the samples of a
-    /// jittered run ([`Tracer::shade_run`]), so a cosine run's rays from neighbouring pixels
+    /// jittered run ([`Tracer::shade_runs`]), so a cosine run's rays from neighbouring pixels
     /// share packets, which pays where a pixel's own run would leave most lanes of its packet
     /// empty. Each pixel's light is its samples' light added in sample order. `timed` of the
     /// pixels are timed ([`crate::stats::timed_pixel`]): that share of the cycles goes to
@@ -227,56 +216,59 @@ impl Tracer {
                 ..point
             }));
         }
-        // The row's cycles, kept apart and then scaled to the timed pixels' share.
-        let (split, timing) = (std::mem::take(&mut self.split), (self.timing, self.timing_queries));
-        (self.timing, self.timing_queries) = (timed > 0, timed > 0);
         let mut arriving = std::mem::take(&mut self.arriving);
-        for &(first_dim, group) in scene.lights {
-            if group.dims() == 0 {
-                continue;
-            }
-            self.light_points(scene, group, first_dim, &points, true, &mut arriving);
-            let term = group.term();
-            for (run, light) in points.chunks_exact(n).zip(arriving.chunks_exact(n)) {
-                let reflectance = term.reflectance(&run[0].at.material);
-                if reflectance.max_element() > 0.0 {
-                    out[run[0].j as usize / n] += Vec3A::from(reflectance) * light.iter().sum::<Vec3A>();
+        self.for_row(timed, hits.len(), |tracer| {
+            for &(first_dim, group) in scene.lights {
+                if group.dims() == 0 {
+                    continue;
+                }
+                tracer.light_points(scene, group, first_dim, &points, true, &mut arriving);
+                let term = group.term();
+                for (run, light) in points.chunks_exact(n).zip(arriving.chunks_exact(n)) {
+                    let reflectance = term.reflectance(&run[0].at.material);
+                    if reflectance.max_element() > 0.0 {
+                        out[run[0].j as usize / n] += Vec3A::from(reflectance) * light.iter().sum::<Vec3A>();
+                    }
                 }
             }
-        }
-        let row = std::mem::replace(&mut self.split, split);
-        self.split.add(&row.scaled(timed, hits.len() as u64));
-        (self.timing, self.timing_queries) = timing;
+        });
         self.arriving = arriving;
         self.points = points;
     }
 
-    /// Light reflected for the run of samples `first, first + 1, …` of `pixel` last given to
-    /// [`Tracer::prepare_run`], each at its own camera hit (`hits[j]`, `None` where the camera
-    /// ray escaped), into `out[j]`. `skip_black` lets lights whose reflectance is zero at a hit
-    /// be skipped there (no rays); AOVs need them traced. Each light type is called once for
-    /// the whole run, reading the light samples computed ahead.
-    pub fn shade_run(
+    /// Light reflected for the runs of samples `first, first + 1, …` (`count` of them) of each
+    /// of `pixels` (pixel, first), each sample at its own camera hit (`hits[i·count + s]` for
+    /// sample s of pixel i, `None` where the camera ray escaped), into `out` (same layout).
+    /// `skip_black` lets lights whose reflectance is zero at a hit be skipped there (no rays);
+    /// AOVs need them traced. Every light dimension's samples are computed ahead, and each
+    /// light type is called once for all the runs: a row of pixels' few samples each share
+    /// packets as one pixel's many do.
+    pub fn shade_runs(
         &mut self,
         scene: &Scene,
         hits: &[Option<PrimaryHit>],
-        pixel: u32,
-        first: u32,
+        pixels: &[(u32, u32)],
+        count: u32,
         skip_black: bool,
         out: &mut [SampleResult],
     ) {
+        self.prepare_runs(scene, pixels, count);
         let mut points = std::mem::take(&mut self.points);
         points.clear();
-        // One pixel: one symmetry for all its points.
-        let pixel = (pixel, scene.sets.frame_symmetry(pixel));
-        for (j, (o, hit)) in out.iter_mut().zip(hits).enumerate() {
-            let Some(primary) = hit else {
-                *o = SampleResult { radiance: scene.background, ..Default::default() };
-                continue;
-            };
-            let point = RunPoint::new(scene, &primary.hit, j, pixel, first.wrapping_add(j as u32));
-            *o = SampleResult::at_hit(primary, &point.at.material);
-            points.push(point);
+        let n = count as usize;
+        for (i, &(pixel, first)) in pixels.iter().enumerate() {
+            // One pixel: one symmetry for all its points.
+            let pixel = (pixel, scene.sets.frame_symmetry(pixel));
+            for s in 0..n {
+                let (j, o) = (i * n + s, &mut out[i * n + s]);
+                let Some(primary) = &hits[j] else {
+                    *o = SampleResult { radiance: scene.background, ..Default::default() };
+                    continue;
+                };
+                let point = RunPoint::new(scene, &primary.hit, j, pixel, first.wrapping_add(s as u32));
+                *o = SampleResult::at_hit(primary, &point.at.material);
+                points.push(point);
+            }
         }
         let mut arriving = std::mem::take(&mut self.arriving);
         for &(first_dim, group) in scene.lights {
@@ -288,6 +280,21 @@ impl Tracer {
         }
         self.arriving = arriving;
         self.points = points;
+    }
+
+    /// Runs `work` for a row of `n` pixels of which `timed` are timed
+    /// ([`crate::stats::timed_pixel`]): its cycles are counted apart, every query timed when any
+    /// pixel is (a row's rays go in few queries), and the timed pixels' share of them goes to
+    /// `split`.
+    pub fn for_row<R>(&mut self, timed: u64, n: usize, work: impl FnOnce(&mut Self) -> R) -> R {
+        let (split, timing) = (std::mem::take(&mut self.split), (self.timing, self.timing_queries));
+        (self.timing, self.timing_queries) = (timed > 0, timed > 0);
+        let result = work(self);
+        let row = std::mem::replace(&mut self.split, split);
+        // `timed` ≤ n: nothing to share out of an empty row.
+        self.split.add(&row.scaled(timed, n.max(1) as u64));
+        (self.timing, self.timing_queries) = timing;
+        result
     }
 
     /// Sets `arriving` to the light `group` (first sample dimension `first_dim`) brings to each
@@ -399,20 +406,15 @@ impl Tracer {
             let Some(PrimaryHit { hit, .. }) = hit else { continue };
             points.push(RunPoint::new(scene, hit, j, (pixel, scene.sets.frame_symmetry(pixel)), sample));
         }
-        // The row's cycles, kept apart and then scaled to the timed pixels' share.
-        // A row's shadow rays go in few queries: each is timed when any pixel is.
-        let (split, timing) = (std::mem::take(&mut self.split), (self.timing, self.timing_queries));
-        (self.timing, self.timing_queries) = (timed > 0, timed > 0);
         let mut arriving = std::mem::take(&mut self.arriving);
-        for (g, &(first_dim, group)) in scene.fixed_groups().enumerate() {
-            self.light_points(scene, group, first_dim, &points, skip_black, &mut arriving);
-            for (p, &a) in points.iter().zip(&arriving) {
-                out[g * n + p.j as usize] = a;
+        self.for_row(timed, n, |tracer| {
+            for (g, &(first_dim, group)) in scene.fixed_groups().enumerate() {
+                tracer.light_points(scene, group, first_dim, &points, skip_black, &mut arriving);
+                for (p, &a) in points.iter().zip(&arriving) {
+                    out[g * n + p.j as usize] = a;
+                }
             }
-        }
-        let row = std::mem::replace(&mut self.split, split);
-        self.split.add(&row.scaled(timed, n as u64));
-        (self.timing, self.timing_queries) = timing;
+        });
         self.arriving = arriving;
         self.row = points;
     }
