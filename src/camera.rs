@@ -202,6 +202,18 @@ pub enum ActiveCamera {
     Orthographic(OrthographicRays),
 }
 
+impl ActiveCamera {
+    /// Whether its rays start on a lens ([`CameraRays::USES_LENS`]), so that each sample of a
+    /// pixel has a camera ray of its own.
+    pub fn uses_lens(&self) -> bool {
+        match self {
+            ActiveCamera::Pinhole(_) => PinholeRays::USES_LENS,
+            ActiveCamera::ThinLens(_) => ThinLensRays::USES_LENS,
+            ActiveCamera::Orthographic(_) => OrthographicRays::USES_LENS,
+        }
+    }
+}
+
 impl Camera {
     /// A one-line description of what makes this camera unusable, if anything.
     pub fn validate(&self) -> Result<(), String> {

@@ -116,7 +116,7 @@ pub fn trace(
     // Frames after this one will find the camera rays' ends here, where every sample of a
     // pixel shares its camera ray and the scene's hits have ends ([`RayEnd`]); a render that
     // ends with this frame keeps none.
-    let shared_camera_rays = !job.jitter && !matches!(camera, ActiveCamera::ThinLens(_)) && !geometry.has_alpha();
+    let shared_camera_rays = job.shares_camera_rays(camera.uses_lens()) && !geometry.has_alpha();
     let more_frames = settings.target_spp().is_none_or(|target| target > acc.spp + count);
     if shared_camera_rays && more_frames && acc.camera_ends.len() != n {
         acc.camera_ends = vec![RayEnd::UNKNOWN; n];
@@ -194,6 +194,21 @@ impl TilePixels<'_> {
             x0: self.tile.x0,
             width: self.width,
         })
+    }
+
+    /// The pixels of row `y` this frame samples, as (column, pixel, number of its first sample)
+    /// into `out`; returns how many of them are timed ([`timed_pixel`]).
+    fn row_to_trace(&self, y: u32, job: &Job, target: Option<f32>, out: &mut Vec<(u32, u32, u32)>) -> u64 {
+        out.clear();
+        let mut timed = 0;
+        for x in self.tile.x0..self.tile.x1 {
+            let pixel = y * job.width + x;
+            if !self.pixel_done(pixel as usize, target) {
+                out.push((x, pixel, job.first_sample.wrapping_add(self.count(pixel as usize))));
+                timed += u64::from(timed_pixel(pixel));
+            }
+        }
+        timed
     }
 
     /// Row and column inside the tile of image pixel `i`.
@@ -532,6 +547,14 @@ struct Job {
     adaptive: bool,
 }
 
+impl Job {
+    /// Whether every sample of a pixel has the same camera ray (no jitter, and a camera
+    /// without a lens: `uses_lens`).
+    fn shares_camera_rays(&self, uses_lens: bool) -> bool {
+        !self.jitter && !uses_lens
+    }
+}
+
 /// Traces one tile and adds its samples to its pixels (`acc`).
 fn trace_tile<C: CameraRays>(
     scene: &Scene,
@@ -557,29 +580,25 @@ fn trace_tile<C: CameraRays>(
     let mut aovs = Vec::with_capacity(if job.aovs { pixels } else { 0 });
     // Without jitter or lens every sample of a pixel has the same camera ray: it is traced once
     // per pixel, a row of the tile's pixels at a time (neighbouring rays travel together).
-    let one_ray_per_pixel = !job.jitter && !C::USES_LENS;
+    let one_ray_per_pixel = job.shares_camera_rays(C::USES_LENS);
     let (mut row_hits, mut row_pixels, mut row_fixed, mut row_ends) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     // Small runs of shared hits, summed without per-sample values, are lit a row at a time;
     // so are small runs of samples with camera rays of their own.
     let pooled = one_ray_per_pixel && !job.aovs && !job.adaptive && job.count <= POOLED_SHARED_RUN_MAX;
     let pooled_own = !one_ray_per_pixel && job.count <= POOLED_OWN_RUN_MAX;
-    let (mut row_sums, mut own_runs, mut row_samples, mut own_run) = (Vec::new(), Vec::new(), Vec::new(), 0);
+    let (mut row_sums, mut row_runs, mut row_samples, mut own_run) = (Vec::new(), Vec::new(), Vec::new(), 0);
+    let fixed_groups = scene.fixed_group_count();
     let mut own = OwnRays::default();
     for y in tile.y0..tile.y1 {
         if one_ray_per_pixel {
+            let start = cycle_count();
+            let timed = acc.row_to_trace(y, job, target, &mut row_runs);
             camera_rays.clear();
+            camera_rays.extend(row_runs.iter().map(|&(x, _, _)| camera.ray(x, y, Vec2::splat(0.5), Vec2::ZERO)));
             row_pixels.clear();
-            let (mut timed, start) = (0, cycle_count());
-            for x in tile.x0..tile.x1 {
-                let pixel = y * job.width + x;
-                if !acc.pixel_done(pixel as usize, target) {
-                    camera_rays.push(camera.ray(x, y, Vec2::splat(0.5), Vec2::ZERO));
-                    row_pixels.push((pixel, job.first_sample.wrapping_add(acc.count(pixel as usize))));
-                    timed += u64::from(timed_pixel(pixel));
-                }
-            }
+            row_pixels.extend(row_runs.iter().map(|&(_, pixel, first)| (pixel, first)));
             let row = RowCamera { rays: &camera_rays, pixels: &row_pixels, skip_black: !job.aovs, timed };
-            let kept = acc.kept_row(y, scene.fixed_group_count());
+            let kept = acc.kept_row(y, fixed_groups);
             row.hits_and_light(&mut tracer, scene, kept, &mut row_ends, &mut row_hits, &mut row_fixed);
             if pooled {
                 tracer.shade_row_sums(scene, &row_pixels, &row_hits, job.count, timed, &mut row_sums);
@@ -592,23 +611,16 @@ fn trace_tile<C: CameraRays>(
         if pooled_own {
             // Each sample has a camera ray of its own, and a pixel's few of them would leave
             // most of a packet empty: the row's runs are traced and lit together.
-            own_runs.clear();
-            let (mut timed, start) = (0, cycle_count());
-            for x in tile.x0..tile.x1 {
-                let pixel = y * job.width + x;
-                if !acc.pixel_done(pixel as usize, target) {
-                    own_runs.push((x, pixel, job.first_sample.wrapping_add(acc.count(pixel as usize))));
-                    timed += u64::from(timed_pixel(pixel));
-                }
-            }
-            if !own_runs.is_empty() {
-                tracer.for_row(timed, own_runs.len(), |tracer| {
-                    own.trace(tracer, scene, camera, job, y, &own_runs, job.count, &mut row_samples);
+            let start = cycle_count();
+            let timed = acc.row_to_trace(y, job, target, &mut row_runs);
+            if !row_runs.is_empty() {
+                tracer.for_row(timed, row_runs.len(), |tracer| {
+                    own.trace(tracer, scene, camera, job, y, &row_runs, job.count, &mut row_samples);
                 });
             }
             own_run = 0;
             if timed > 0 {
-                tracer.split.pixels += cycles_since(start) * timed / own_runs.len() as u64;
+                tracer.split.pixels += cycles_since(start) * timed / row_runs.len() as u64;
             }
         }
         let row_len = row_hits.len();
