@@ -231,6 +231,51 @@ fn packed_digit(packed: u8, morton: u64, shift: u32) -> u64 {
     u64::from(packed >> (2 * ((morton >> shift) & 3)) & 3) << shift
 }
 
+/// The permuted sample bits (pbrt-v4's `GetSampleIndex` below the pixel's digits) of samples
+/// `start, start + 1, …` of the pixel whose Morton index shifted up by `log2_spp` is `pixel`,
+/// one per element of `lows`. A digit's permutation depends only on the digits above it, so
+/// the digits are permuted top down, level by level: a level hashes each distinct prefix of
+/// the run's indices once and writes its children's digits, in place (a child's slot never
+/// lies below its parent's). A run of `n` samples hashes about n / 3 prefixes.
+#[inline(always)]
+fn permuted_lows(log2_spp: u32, pixel: u64, start: u32, dim_key: u64, lows: &mut [u32]) {
+    let Some(last) = (lows.len() as u32).checked_sub(1).map(|n| start + n) else {
+        return;
+    };
+    lows[0] = 0;
+    let mut above = log2_spp;
+    while above > 0 {
+        // Base-4 digits, down to a lone low bit when log2_spp is odd.
+        let width = if above == 1 { 1 } else { 2 };
+        let shift = above - width;
+        let (first_parent, first_child) = (start >> above, start >> shift);
+        let last_child = last >> shift;
+        for parent in (first_parent..=last >> above).rev() {
+            let hash = mix_bits(((pixel >> above) | u64::from(parent)) ^ dim_key);
+            let high = lows[(parent - first_parent) as usize];
+            let (eldest, youngest) = (parent << width, (parent << width) | ((1 << width) - 1));
+            if width == 2 && eldest >= first_child && youngest <= last_child {
+                // All four children, the common case.
+                let packed = u32::from(packed_permutation(hash));
+                let slot = (eldest - first_child) as usize;
+                let digits = [0, 2, 4, 6].map(|at| high | (packed >> at & 3) << shift);
+                lows[slot..slot + 4].copy_from_slice(&digits);
+            } else if width == 2 {
+                let packed = packed_permutation(hash);
+                for child in (eldest.max(first_child)..=youngest.min(last_child)).rev() {
+                    let digit = u32::from(packed >> (2 * (child & 3)) & 3);
+                    lows[(child - first_child) as usize] = high | digit << shift;
+                }
+            } else {
+                for child in (eldest.max(first_child)..=youngest.min(last_child)).rev() {
+                    lows[(child - first_child) as usize] = high | ((child & 1) ^ (hash as u32 & 1));
+                }
+            }
+        }
+        above = shift;
+    }
+}
+
 crate::simd::multiversion! {
     /// The loop of [`ZSobol::fill`]: `pixel_and_digits` holds the pixel's Morton index shifted
     /// up by `log2_spp` and its digits permuted ([`ZSobol::pixel_digits`]), `dim_key` the
@@ -239,53 +284,29 @@ crate::simd::multiversion! {
     fn fill_samples(log2_spp: u32, pixel_and_digits: [u64; 2], first: u32, dim_key: u64, seeds: (u32, u32), out: &mut [glam::Vec2]) {
         let [pixel, high] = pixel_and_digits;
         let to_unit = |bits: u32| (bits as f32 * (1.0 / 4_294_967_296.0)).min(super::ONE_MINUS_EPSILON);
-        let odd = log2_spp & 1 == 1;
-        // Per digit below the pixel's: the digits above it (a Morton index shifted right,
-        // below 2^62, so never u64::MAX), their hash and the permutation that hash picks,
-        // packed two bits a digit; entry 0 is the low bit's when `odd`.
-        let mut above = [(u64::MAX, 0u64, 0u8); 17];
-        let mut hashed = |level: usize, key: u64| {
-            let (k, h, packed) = &mut above[level];
-            if *k != key {
-                *h = mix_bits(key ^ dim_key);
-                (*k, *packed) = (key, packed_permutation(*h));
-            }
-            (*h, *packed)
-        };
         // The pixel's high bits' Sobol' bits, reversed, for runs whose indices fit the table.
         let tabled = log2_spp <= LOW_BITS;
         let high_bits = [0, 1].map(|dim| sobol_bits(high as u32, dim).reverse_bits());
-        // A block of samples at a time: each sample's permuted index and Sobol' bits one by one
-        // (the digits' hashes depend on the samples before), then the scrambling and the
-        // conversion of the block in a loop of its own, which the compiler vectorises.
+        // A block of samples at a time: their permuted indices, then their Sobol' bits, the
+        // scrambling and the conversion in a loop of its own, which the compiler vectorises.
         const BLOCK: usize = 64;
-        let mut reversed = [[0u32; BLOCK]; 2];
+        let mut lows = [0u32; BLOCK];
         for (b, out) in out.chunks_mut(BLOCK).enumerate() {
-            let start = first.wrapping_add((b * BLOCK) as u32);
-            for (k, index) in (start..).take(out.len()).enumerate() {
-                let morton = pixel | index as u64;
-                let mut low = 0;
-                for i in u32::from(odd)..log2_spp.div_ceil(2) {
-                    let shift = 2 * i - u32::from(odd);
-                    // `permuted_digit`, with the permutation looked up once per key.
-                    let (_, packed) = hashed(i as usize, morton >> (shift + 2));
-                    low |= packed_digit(packed, morton, shift);
+            let lows = &mut lows[..out.len()];
+            permuted_lows(log2_spp, pixel, first.wrapping_add((b * BLOCK) as u32), dim_key, lows);
+            let point = |[x, y]: [u32; 2]| {
+                glam::Vec2::new(to_unit(fast_owen_of_reversed(x, seeds.0)), to_unit(fast_owen_of_reversed(y, seeds.1)))
+            };
+            if tabled {
+                // `low` is below 2^log2_spp, within the table: the mask only spares a bounds check.
+                const MASK: u32 = (1 << LOW_BITS) - 1;
+                for (o, &low) in out.iter_mut().zip(lows.iter()) {
+                    *o = point([0, 1].map(|dim| high_bits[dim] ^ LOW_SOBOL[dim][(low & MASK) as usize]));
                 }
-                if odd {
-                    low |= (morton & 1) ^ (hashed(0, morton >> 1).0 & 1);
+            } else {
+                for (o, &low) in out.iter_mut().zip(lows.iter()) {
+                    *o = point([0, 1].map(|dim| sobol_bits(high as u32 | low, dim).reverse_bits()));
                 }
-                for (dim, column) in reversed.iter_mut().enumerate() {
-                    column[k] = if tabled {
-                        high_bits[dim] ^ LOW_SOBOL[dim][low as usize]
-                    } else {
-                        sobol_bits((high | low) as u32, dim).reverse_bits()
-                    };
-                }
-            }
-            let [xs, ys] = &reversed;
-            for ((o, &x), &y) in out.iter_mut().zip(xs).zip(ys) {
-                let (x, y) = (fast_owen_of_reversed(x, seeds.0), fast_owen_of_reversed(y, seeds.1));
-                *o = glam::Vec2::new(to_unit(x), to_unit(y));
             }
         }
     }
@@ -364,10 +385,13 @@ mod tests {
                     assert_eq!(got.to_array(), want, "spp {spp}, pixel ({x}, {y}), dim {dim}, sample {i}");
                     assert_eq!(z.sample(x, y, i as u32, dim, seed), want);
                 }
-                // A run that starts mid-pixel gives the same samples.
-                let mut tail = vec![glam::Vec2::ZERO; spp as usize / 2];
-                z.fill(x, y, spp - tail.len() as u32, dim, seed, &mut tail);
-                assert_eq!(tail[..], run[run.len() - tail.len()..]);
+                // Runs that start mid-pixel, of any length, give the same samples.
+                for (start, len) in [(spp / 2, spp / 2), (1, spp - 1), (spp / 4 + 3, spp / 3), (spp - 1, 1), (5, 70)] {
+                    let (start, len) = (start.min(spp - 1), len.min(spp - start.min(spp - 1)));
+                    let mut part = vec![glam::Vec2::ZERO; len as usize];
+                    z.fill(x, y, start, dim, seed, &mut part);
+                    assert_eq!(part[..], run[start as usize..(start + len) as usize], "spp {spp}, run {start}+{len}");
+                }
             }
         }
     }
