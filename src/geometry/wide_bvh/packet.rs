@@ -425,7 +425,7 @@ pub(crate) struct LaneHits<T> {
 }
 
 #[cfg(target_arch = "x86_64")]
-impl<T: Copy> LaneHits<T> {
+impl<T: Copy + PartialEq> LaneHits<T> {
     /// No hits yet for `rays` (up to sixteen), each lane's closest distance its ray's `tmax`.
     pub fn new(rays: &[Ray]) -> Self {
         let mut tmax = [0.0; 16];
@@ -443,14 +443,15 @@ impl<T: Copy> LaneHits<T> {
     }
 
     /// Offers lane `k` a hit at `t` found by its [`LaneHits::probe`]: kept if closer than its
-    /// closest so far (clearing a tie there), else (exactly as close) a tie.
+    /// closest so far (clearing a tie there), else (exactly as close) a tie, unless it is the
+    /// closest hit itself offered again (a triangle that spatial splits put in several leaves).
     #[inline(always)]
     pub fn offer(&mut self, k: usize, t: f32, hit: T) {
         if t < self.tmax[k] {
             self.tmax[k] = t;
             self.best[k] = Some(hit);
             self.tied &= !(1 << k);
-        } else {
+        } else if self.best[k] != Some(hit) {
             self.tied |= 1 << k;
         }
     }
