@@ -96,8 +96,6 @@ pub struct Tracer {
     points: Vec<RunPoint>,
     /// The camera hits of a row of pixels, for the lights that draw no samples.
     row: Vec<RunPoint>,
-    /// The surface hits of a run of camera rays.
-    surfaces: Vec<Option<SurfaceHit>>,
     /// The camera rays of a row whose ends were not known, and their places in the row.
     unknown_rays: Vec<Ray>,
     unknown_at: Vec<u32>,
@@ -323,15 +321,11 @@ impl Tracer {
     /// the scene allows ([`SceneGeometry::intersect_many`]).
     pub fn primaries(&mut self, scene: &Scene, rays: &[Ray], out: &mut Vec<Option<PrimaryHit>>) {
         self.rays.primary += rays.len() as u64;
-        self.surfaces.clear();
-        self.surfaces.resize(rays.len(), None);
-        scene.geometry.intersect_many(rays, &mut self.stack, &mut self.surfaces);
         out.clear();
-        out.extend(
-            rays.iter()
-                .zip(&self.surfaces)
-                .map(|(ray, hit)| hit.map(|hit| PrimaryHit { hit, depth: hit.t * ray.dir.length() })),
-        );
+        out.resize(rays.len(), None);
+        scene.geometry.intersect_many(rays, &mut self.stack, |k, hit| {
+            out[k] = hit.map(|hit| PrimaryHit { hit, depth: hit.t * rays[k].dir.length() });
+        });
     }
 
     /// [`Tracer::primaries`] for rays whose ends (`ends[k]` for `rays[k]`) may be known from

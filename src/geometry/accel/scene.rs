@@ -279,19 +279,25 @@ impl SceneGeometry {
         self.hit_with_planes(ray, best)
     }
 
-    /// [`SceneGeometry::intersect`] for each of `rays` into `hits` (same length), the same hits:
+    /// [`SceneGeometry::intersect`] for each of `rays`, the same hits:
     /// in packets where the trees are eight-wide, every instance is in world space and there are
     /// triangle packets (straight into the one BLAS of a static scene, else through the top
     /// level), which suits runs of rays that travel together, such as one pixel's camera rays.
-    pub fn intersect_many(&self, rays: &[Ray], stack: &mut Vec<(u32, f32)>, hits: &mut [Option<SurfaceHit>]) {
+    /// Calls `found(k, hit)` with each `rays[k]`'s hit.
+    pub fn intersect_many(
+        &self,
+        rays: &[Ray],
+        stack: &mut Vec<(u32, f32)>,
+        mut found: impl FnMut(usize, Option<SurfaceHit>),
+    ) {
         if self.alpha.is_some() {
             // Alpha-tested meshes take the single-ray path.
-            for (ray, hit) in rays.iter().zip(hits) {
-                *hit = self.intersect(ray, stack);
+            for (k, ray) in rays.iter().enumerate() {
+                found(k, self.intersect(ray, stack));
             }
             return;
         }
-        self.closest_each(rays, stack, |k, ray, end| hits[k] = self.hit_at(ray, end));
+        self.closest_each(rays, stack, |k, ray, end| found(k, self.hit_at(ray, end)));
     }
 
     /// Where each of `rays` ends ([`RayEnd`]) into `ends` (same length), found as
