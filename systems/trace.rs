@@ -590,35 +590,32 @@ fn trace_tile<C: CameraRays>(
     let fixed_groups = scene.fixed_group_count();
     let mut own = OwnRays::default();
     for y in tile.y0..tile.y1 {
-        if one_ray_per_pixel {
+        // Rows traced before their pixels: shared camera hits, or pooled runs of own rays.
+        if one_ray_per_pixel || pooled_own {
             let start = cycle_count();
             let timed = acc.row_to_trace(y, job, target, &mut row_runs);
-            camera_rays.clear();
-            camera_rays.extend(row_runs.iter().map(|&(x, _, _)| camera.ray(x, y, Vec2::splat(0.5), Vec2::ZERO)));
-            row_pixels.clear();
-            row_pixels.extend(row_runs.iter().map(|&(_, pixel, first)| (pixel, first)));
-            let row = RowCamera { rays: &camera_rays, pixels: &row_pixels, skip_black: !job.aovs, timed };
-            let kept = acc.kept_row(y, fixed_groups);
-            row.hits_and_light(&mut tracer, scene, kept, &mut row_ends, &mut row_hits, &mut row_fixed);
-            if pooled {
-                tracer.shade_row_sums(scene, &row_pixels, &row_hits, job.count, timed, &mut row_sums);
+            if one_ray_per_pixel {
+                camera_rays.clear();
+                camera_rays.extend(row_runs.iter().map(|&(x, _, _)| camera.ray(x, y, Vec2::splat(0.5), Vec2::ZERO)));
+                row_pixels.clear();
+                row_pixels.extend(row_runs.iter().map(|&(_, pixel, first)| (pixel, first)));
+                let row = RowCamera { rays: &camera_rays, pixels: &row_pixels, skip_black: !job.aovs, timed };
+                let kept = acc.kept_row(y, fixed_groups);
+                row.hits_and_light(&mut tracer, scene, kept, &mut row_ends, &mut row_hits, &mut row_fixed);
+                if pooled {
+                    tracer.shade_row_sums(scene, &row_pixels, &row_hits, job.count, timed, &mut row_sums);
+                }
+            } else {
+                // Each sample has a camera ray of its own, and a pixel's few of them would leave
+                // most of a packet empty: the row's runs are traced and lit together.
+                if !row_runs.is_empty() {
+                    tracer.for_row(timed, row_runs.len(), |tracer| {
+                        own.trace(tracer, scene, camera, job, y, &row_runs, job.count, &mut row_samples);
+                    });
+                }
+                own_run = 0;
             }
-            // The timed pixels' part of the row's camera rays and fixed lights.
-            if timed > 0 {
-                tracer.split.pixels += cycles_since(start) * timed / camera_rays.len() as u64;
-            }
-        }
-        if pooled_own {
-            // Each sample has a camera ray of its own, and a pixel's few of them would leave
-            // most of a packet empty: the row's runs are traced and lit together.
-            let start = cycle_count();
-            let timed = acc.row_to_trace(y, job, target, &mut row_runs);
-            if !row_runs.is_empty() {
-                tracer.for_row(timed, row_runs.len(), |tracer| {
-                    own.trace(tracer, scene, camera, job, y, &row_runs, job.count, &mut row_samples);
-                });
-            }
-            own_run = 0;
+            // The timed pixels' part of the row's work.
             if timed > 0 {
                 tracer.split.pixels += cycles_since(start) * timed / row_runs.len() as u64;
             }

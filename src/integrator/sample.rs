@@ -3,7 +3,12 @@
 
 use glam::{Vec3, Vec3A};
 
-use crate::{components::Matte, geometry::SurfaceHit, light::Term, resources::AovValues};
+use crate::{
+    components::Matte,
+    geometry::{Ray, SurfaceHit},
+    light::Term,
+    resources::AovValues,
+};
 
 /// What one camera sample saw, for the beauty image and the AOVs.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -117,4 +122,12 @@ pub struct PrimaryHit {
     pub hit: SurfaceHit,
     /// Distance from the ray's origin.
     pub depth: f32,
+}
+
+impl PrimaryHit {
+    /// The hit `hit` of camera ray `ray`, at the distance it travelled.
+    #[inline]
+    pub fn along(ray: &Ray, hit: SurfaceHit) -> Self {
+        PrimaryHit { hit, depth: hit.t * ray.dir.length() }
+    }
 }

@@ -324,7 +324,7 @@ impl Tracer {
         out.clear();
         out.resize(rays.len(), None);
         scene.geometry.intersect_many(rays, &mut self.stack, |k, hit| {
-            out[k] = hit.map(|hit| PrimaryHit { hit, depth: hit.t * rays[k].dir.length() });
+            out[k] = hit.map(|hit| PrimaryHit::along(&rays[k], hit));
         });
     }
 
@@ -361,9 +361,11 @@ impl Tracer {
             }
         }
         out.clear();
-        out.extend(rays.iter().zip(ends.iter()).map(|(ray, &end)| {
-            scene.geometry.hit_at(ray, end).map(|hit| PrimaryHit { hit, depth: hit.t * ray.dir.length() })
-        }));
+        out.extend(
+            rays.iter()
+                .zip(ends.iter())
+                .map(|(ray, &end)| scene.geometry.hit_at(ray, end).map(|hit| PrimaryHit::along(ray, hit))),
+        );
         true
     }
 
