@@ -35,32 +35,38 @@ impl SurfaceHit {
         offset_ray_origin(self.p, self.p_error, self.normal, w, 0.0)
     }
 
-    /// Both origins a ray leaving this surface can start from, worked out once for a hit that
-    /// spawns many rays: those of [`SurfaceHit::spawn_origin`], pushed along the normal at
-    /// least `least` (world units) instead where that is farther (a fixed offset, as the peer
-    /// renderers' contract has it; 0 keeps the error bound's alone).
+    /// Both origins a ray leaving this surface can start from: those of
+    /// [`SurfaceHit::spawn_origin`], pushed along the normal at least `least` (world units)
+    /// instead where that is farther (a fixed offset, as the peer renderers' contract has it;
+    /// 0 keeps the error bound's alone). What they are made of is worked out once for a hit
+    /// that spawns many rays; each origin is made when a ray asks for it.
     #[inline]
     pub fn spawn_origins(&self, least: f32) -> SpawnOrigins {
-        let origin = |n: Vec3A| offset_ray_origin(self.p, self.p_error, self.normal, n, least);
-        SpawnOrigins { p: self.p, normal: self.normal, front: origin(self.normal), back: origin(-self.normal) }
+        SpawnOrigins {
+            p: self.p,
+            normal: self.normal,
+            offset: self.normal * offset_distance(self.normal, self.p_error, least),
+        }
     }
 }
 
-/// The ray origins of one hit on either side of its surface.
+/// Where the rays leaving one hit start, on either side of its surface: the hit point pushed
+/// by `offset` (in front) or by −`offset` (behind), then one float further away.
 #[derive(Clone, Copy, Debug)]
 pub struct SpawnOrigins {
     /// The hit point.
     pub p: Vec3A,
     normal: Vec3A,
-    front: Vec3A,
-    back: Vec3A,
+    /// The push in front of the surface: the normal times the error bound's reach along it.
+    offset: Vec3A,
 }
 
 impl SpawnOrigins {
     /// The origin for a ray towards `w`: exactly [`SurfaceHit::spawn_origin`]`(w)`.
     #[inline]
     pub fn towards(&self, w: Vec3A) -> Vec3A {
-        if w.dot(self.normal) < 0.0 { self.back } else { self.front }
+        let offset = if w.dot(self.normal) < 0.0 { -self.offset } else { self.offset };
+        step_away(self.p + offset, offset)
     }
 
     /// The normal whose side [`SpawnOrigins::towards`] tests: a direction `w` starts behind
@@ -70,19 +76,32 @@ impl SpawnOrigins {
         self.normal
     }
 
-    /// The origin in front of the surface and the one behind it.
+    /// The push in front of the surface: an origin is `p` plus it (in front) or plus its
+    /// negation (behind), each component then moved one float the way the push points.
     #[inline(always)]
-    pub fn sides(&self) -> (Vec3A, Vec3A) {
-        (self.front, self.back)
+    pub fn offset(&self) -> Vec3A {
+        self.offset
     }
+
+    /// The origin in front of the surface and the one behind it.
+    #[inline]
+    pub fn sides(&self) -> (Vec3A, Vec3A) {
+        (step_away(self.p + self.offset, self.offset), step_away(self.p + -self.offset, -self.offset))
+    }
+}
+
+/// How far along the unit normal `n` a point with error bound `err` is pushed: past the bound's
+/// reach along `n`, and at least `least`.
+#[inline(always)]
+fn offset_distance(n: Vec3A, err: Vec3A, least: f32) -> f32 {
+    n.abs().dot(err).max(least)
 }
 
 /// Offsets `p` (with error bound `err`) along `n` to the side of `w`, far enough that the
 /// spawned ray cannot re-hit the surface that `p` lies on, and at least `least` (world units).
 #[inline]
 pub fn offset_ray_origin(p: Vec3A, err: Vec3A, n: Vec3A, w: Vec3A, least: f32) -> Vec3A {
-    let d = n.abs().dot(err).max(least);
-    let mut offset = n * d;
+    let mut offset = n * offset_distance(n, err, least);
     if w.dot(n) < 0.0 {
         offset = -offset;
     }

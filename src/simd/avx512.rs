@@ -4,7 +4,9 @@ use std::arch::x86_64::*;
 
 use glam::{Vec2, Vec3A};
 
-use super::{CompressLanes, FusedLanes, HasAvx512, Kernel, Lanes, SampleLanes, lanes::isa_methods, u32_lanes::U32x16};
+use super::{
+    CompressLanes, FusedLanes, HasAvx512, Kernel, Lanes, SampleLanes, StepLanes, lanes::isa_methods, u32_lanes::U32x16,
+};
 
 /// Sixteen lanes in an AVX-512 register. The field is private: a value is made only from a
 /// [`HasAvx512`] token or from other values, so it proves the CPU has AVX-512F.
@@ -99,6 +101,29 @@ impl CompressLanes for Avx512 {
             let keep = ((1u32 << out.len().min(16)) - 1) as __mmask16;
             // The masked store writes only the first `out.len()` floats (at most sixteen).
             _mm512_mask_storeu_ps(out.as_mut_ptr(), keep, self.0)
+        }
+    }
+}
+
+impl StepLanes for Avx512 {
+    isa_methods! {
+        fn step_away(self, o: Self) -> Self {
+            let (v, o, zero) = (self.0, o.0, _mm512_setzero_ps());
+            let bits = _mm512_castps_si512(v);
+            let (up, down) = (_mm512_cmp_ps_mask::<_CMP_GT_OQ>(o, zero), _mm512_cmp_ps_mask::<_CMP_LT_OQ>(o, zero));
+            let positive = _mm512_cmp_ps_mask::<_CMP_GT_OQ>(v, zero);
+            // Away from zero (+1 on the bits) when moving up from a positive value or down from
+            // a negative one (a NaN counts as negative), towards it (−1) otherwise.
+            let away = !(up ^ positive);
+            let moved = _mm512_add_epi32(bits, _mm512_mask_blend_epi32(away, _mm512_set1_epi32(-1), _mm512_set1_epi32(1)));
+            // From either zero: the least positive float up, the least negative one down.
+            let from_zero = _mm512_mask_blend_epi32(up, _mm512_set1_epi32(0x8000_0001_u32 as i32), _mm512_set1_epi32(1));
+            let moved = _mm512_mask_blend_epi32(_mm512_cmp_ps_mask::<_CMP_EQ_OQ>(v, zero), moved, from_zero);
+            // Infinities stay where they are the far end.
+            let at_end = (up & _mm512_cmp_ps_mask::<_CMP_EQ_OQ>(v, _mm512_set1_ps(f32::INFINITY)))
+                | (down & _mm512_cmp_ps_mask::<_CMP_EQ_OQ>(v, _mm512_set1_ps(f32::NEG_INFINITY)));
+            let moves = (up | down) & !at_end;
+            Avx512(_mm512_castsi512_ps(_mm512_mask_blend_epi32(moves, bits, moved)))
         }
     }
 }
@@ -334,6 +359,46 @@ mod tests {
             let lanes = Avx512::load_partial(isa, &x[..len]);
             let want: [f32; 16] = std::array::from_fn(|k| if k < len { x[k] } else { 0.0 });
             assert_eq!(std::array::from_fn::<f32, 16, _>(|k| lanes.lane(k)), want, "length {len}");
+        }
+    }
+
+    /// `step_away` moves each lane as `next_float_up` (positive offset) or `next_float_down`
+    /// (negative) does, or leaves it (zero or NaN offset), bit for bit on zeros, infinities,
+    /// NaN, subnormals, the largest floats and random bits (where the CPU has AVX-512).
+    #[test]
+    fn step_away_is_next_float_up_or_down_in_every_lane() {
+        crate::simd::both_widths(|_| {}, steps);
+    }
+
+    /// [`step_away_is_next_float_up_or_down_in_every_lane`].
+    fn steps(isa: HasAvx512) {
+        use crate::math::{next_float_down, next_float_up};
+        let mut values = vec![0.0, -0.0, 1.0, -1.0, f32::INFINITY, f32::NEG_INFINITY, f32::NAN, -f32::NAN];
+        values.extend([f32::MIN_POSITIVE, -f32::MIN_POSITIVE, 1e-45, -1e-45, f32::MAX, f32::MIN, 1e3, -2.5e-7]);
+        let mut rng = SplitMix64::new(5);
+        values.extend((0..1000).map(|_| f32::from_bits(rng.next_u64() as u32)));
+        let offsets = [1e-7, -1e-7, 0.0, -0.0, f32::NAN, f32::INFINITY, f32::NEG_INFINITY];
+        for start in 0..values.len() {
+            let v: [f32; 16] = std::array::from_fn(|k| values[(start + k * 7) % values.len()]);
+            let o: [f32; 16] = std::array::from_fn(|k| offsets[(start + k) % offsets.len()]);
+            let got = Avx512::load(isa, &v).step_away(Avx512::load(isa, &o));
+            for k in 0..16 {
+                let want = if o[k] > 0.0 {
+                    next_float_up(v[k])
+                } else if o[k] < 0.0 {
+                    next_float_down(v[k])
+                } else {
+                    v[k]
+                };
+                assert_eq!(
+                    got.lane(k).to_bits(),
+                    want.to_bits(),
+                    "v = {:e} ({:#x}), o = {}",
+                    v[k],
+                    v[k].to_bits(),
+                    o[k]
+                );
+            }
         }
     }
 }

@@ -121,6 +121,14 @@ pub(crate) trait CompressLanes: Lanes {
     fn store_partial(self, out: &mut [f32]);
 }
 
+/// Lanes that move floats to their neighbours by their bits, for ray origins set up in lanes.
+pub(crate) trait StepLanes: Lanes {
+    /// Each lane moved one float the way `o`'s lane points: up where it is positive, down where
+    /// it is negative, unchanged otherwise (the geometry's `step_away`, bit for bit, NaN
+    /// included).
+    fn step_away(self, o: Self) -> Self;
+}
+
 /// Lanes with u32 lanes of the same width ([`U32Lanes`]), for the samplers: their integer
 /// hashes and shuffle tables run in the u32 lanes, and their points come out in these.
 #[cfg(target_arch = "x86_64")]

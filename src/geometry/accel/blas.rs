@@ -494,6 +494,10 @@ impl Blas {
         false
     }
 
+    /// The surface at a hit of primitive `slot` at barycentrics (b1, b2) (triangles) of `ray`,
+    /// whose `tmax` is the hit's t. Inlined into its caller, which overwrites some of the
+    /// result's fields: built in registers, the hit is not read back from memory field by field.
+    #[inline(always)]
     pub(super) fn surface(&self, slot: u32, ray: &Ray, b1: f32, b2: f32, object: u32) -> SurfaceHit {
         if let Some(packet) = self.packets.get(slot as usize / 4) {
             return packet.triangle(slot as usize % 4).surface(ray, ray.tmax, b1, b2, object);

@@ -13,17 +13,17 @@ use crate::{
     geometry::{accel::SceneGeometry, lanes::RayLanes},
     light::DirectionTerms,
     sampling::warp::cosine_hemisphere_lanes,
-    simd::{CompressLanes, Kernel, dot3},
+    simd::{CompressLanes, Kernel, StepLanes, dot3},
 };
 
 /// Columns of [`PointColumns`]: the sample point (2), the frame's u, v and w (9; w is the
-/// normal whose side picks a ray's origin), and the origins in front of and behind the surface
-/// (3 + 3).
+/// normal whose side picks a ray's origin), the hit point (3) and its push off the surface (3,
+/// [`SpawnOrigins::offset`](crate::geometry::hit::SpawnOrigins::offset)).
 const U: usize = 0;
 const FRAME: usize = 2;
 const NORMAL: usize = FRAME + 6;
-const FRONT: usize = 11;
-const BACK: usize = 14;
+const POINT: usize = 11;
+const OFFSET: usize = 14;
 const COLUMNS: usize = 17;
 
 /// A run of shading points as columns, one entry per point, padded to whole groups of sixteen.
@@ -42,7 +42,7 @@ impl PointColumns {
     /// Writes `points`, their sample points `u` and whether each is `lit`, into the columns,
     /// a column at a time (each a plain pass over the points).
     pub(super) fn gather<P: CosinePoint>(&mut self, points: &[P], u: impl Fn(&P) -> Vec2, lit: impl Fn(&P) -> bool) {
-        let [ux, uy, fux, fuy, fuz, fvx, fvy, fvz, fwx, fwy, fwz, fx, fy, fz, bx, by, bz] = &mut self.columns;
+        let [ux, uy, fux, fuy, fuz, fvx, fvy, fvz, fwx, fwy, fwz, px, py, pz, ox, oy, oz] = &mut self.columns;
         fill(ux, points, |p| u(p).x);
         fill(uy, points, |p| u(p).y);
         fill(fux, points, |p| p.frame().u.x);
@@ -54,12 +54,12 @@ impl PointColumns {
         fill(fwx, points, |p| p.frame().w.x);
         fill(fwy, points, |p| p.frame().w.y);
         fill(fwz, points, |p| p.frame().w.z);
-        fill(fx, points, |p| p.spawn().sides().0.x);
-        fill(fy, points, |p| p.spawn().sides().0.y);
-        fill(fz, points, |p| p.spawn().sides().0.z);
-        fill(bx, points, |p| p.spawn().sides().1.x);
-        fill(by, points, |p| p.spawn().sides().1.y);
-        fill(bz, points, |p| p.spawn().sides().1.z);
+        fill(px, points, |p| p.spawn().p.x);
+        fill(py, points, |p| p.spawn().p.y);
+        fill(pz, points, |p| p.spawn().p.z);
+        fill(ox, points, |p| p.spawn().offset().x);
+        fill(oy, points, |p| p.spawn().offset().y);
+        fill(oz, points, |p| p.spawn().offset().z);
         let bits = |v: Vec3A| v.to_array().map(f32::to_bits);
         debug_assert!(
             points.iter().all(|p| bits(p.frame().w.into()) == bits(p.spawn().normal())),
@@ -88,7 +88,7 @@ pub(super) struct PointsRun<'a> {
     pub(super) arriving: &'a mut [Vec3A],
 }
 
-impl<L: PassLanes + CompressLanes> Kernel<L> for PointsRun<'_> {
+impl<L: PassLanes + CompressLanes + StepLanes> Kernel<L> for PointsRun<'_> {
     type Output = (u64, u64);
     #[inline(always)]
     fn run(self, isa: L::Isa) -> (u64, u64) {
@@ -106,7 +106,7 @@ impl DirectionRays {
     /// is one quarter of the hemisphere nearly everywhere), and traced as packets of
     /// consecutive rays. Each point gets the ray, answer and light of [`DirectionRays::add`].
     #[inline(always)]
-    pub(super) fn add_cosine_points_lanes<L: PassLanes + CompressLanes>(
+    pub(super) fn add_cosine_points_lanes<L: PassLanes + CompressLanes + StepLanes>(
         &mut self,
         isa: L::Isa,
         geometry: &SceneGeometry,
@@ -145,8 +145,10 @@ impl DirectionRays {
                 for (a, column) in [&mut *dx, &mut *dy, &mut *dz].into_iter().enumerate() {
                     d[a].store(&mut column[at..]);
                 }
+                // `SpawnOrigins::towards`: the point pushed to the ray's side, one float further.
                 for (a, column) in [&mut *ox, &mut *oy, &mut *oz].into_iter().enumerate() {
-                    c(FRONT + a).select(behind, c(BACK + a)).store(&mut column[at..]);
+                    let push = c(OFFSET + a).select(behind, c(OFFSET + a).neg());
+                    c(POINT + a).add(push).step_away(push).store(&mut column[at..]);
                 }
                 let valid = ((1u32 << (n - at).min(w)) - 1) & points.lit[g];
                 let negative = [L::bits(local[0].lt(zero)), L::bits(local[1].lt(zero))];
