@@ -66,7 +66,7 @@ impl PlacedLight for PlacedDome {
     /// seen only if the shadow ray towards w escapes the scene.
     fn sample(&self, at: &ShadingPoint, u: &LightSamples) -> Option<LightSample> {
         let s = cosine_power_hemisphere(u.get(0), 1.0);
-        let dir = at.frame.to_world(s.dir);
+        let dir = at.frame().to_world(s.dir);
         let t = dir.dot(self.up).max(0.0).sqrt();
         let radiance = self.horizon.lerp(self.zenith, t);
         if radiance.max_element() <= 0.0 {

@@ -12,7 +12,6 @@ use crate::{
     components::Matte,
     geometry::{Ray, RayEnd, RayOrder, SceneGeometry, SpawnOrigins, SurfaceHit},
     light::{DirectionRun, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term},
-    math::Onb,
     sampling::{SampleSets, dims},
     stats::{RayCounts, TraceSplit, cycle_count, cycles_since},
 };
@@ -38,11 +37,8 @@ impl Scene<'_> {
     /// its shadow rays start, [`Scene::ray_offset`] or more off the surface.
     #[inline(always)]
     fn lit_point(&self, hit: &SurfaceHit, symmetry: Option<u32>) -> (ShadingPoint, SpawnOrigins) {
-        let mut at = ShadingPoint::new(hit.p, hit.normal, self.material(hit));
-        if let Some(k) = symmetry {
-            at.frame = at.frame.symmetry(k);
-        }
-        (at, hit.spawn_origins(self.ray_offset))
+        let at = ShadingPoint::new(hit.p, hit.normal, self.material(hit));
+        (symmetry.map_or(at, |k| at.with_symmetry(k)), hit.spawn_origins(self.ray_offset))
     }
 
     /// The material at camera hit `hit`: its object's, with the colour of a textured surface
@@ -148,8 +144,8 @@ impl RunPoint {
 
 impl CosinePoint for RunPoint {
     #[inline(always)]
-    fn frame(&self) -> &Onb {
-        &self.at.frame
+    fn symmetry(&self) -> u32 {
+        self.at.symmetry()
     }
 
     #[inline(always)]
@@ -552,7 +548,7 @@ impl Tracer {
                 let sample = (pixel, first, dim);
                 let (stack, sum) = (&mut self.stack, sum.as_deref_mut());
                 if let Some((traced, cycles)) =
-                    rays.add_cosine(geometry, stack, spawn, &at.frame, scene.sets, sample, &terms, arriving, sum)
+                    rays.add_cosine(geometry, stack, spawn, &at.frame(), scene.sets, sample, &terms, arriving, sum)
                 {
                     self.rays.count(P::TERM, traced);
                     self.split.add_queries(P::TERM, cycles);

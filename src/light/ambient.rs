@@ -89,7 +89,7 @@ impl PlacedLight for PlacedOccluder {
     #[inline]
     fn sample(&self, at: &ShadingPoint, u: &LightSamples) -> Option<LightSample> {
         let s = cosine_power_hemisphere(u.get(0), self.exponent);
-        Some(self.terms().light_sample(s.weight, at.frame.to_world(s.dir).into()))
+        Some(self.terms().light_sample(s.weight, at.frame().to_world(s.dir).into()))
     }
 
     /// Cosine sampling (e = 1) draws exactly such runs.
@@ -103,10 +103,11 @@ impl PlacedLight for PlacedOccluder {
     #[inline]
     fn sample_directions(&self, at: &ShadingPoint, values: &[Vec2], run: &mut DirectionRun) -> Option<DirectionTerms> {
         run.resize(values.len());
+        let frame = at.frame();
         if self.exponent == 1.0 {
-            cosine_directions(&at.frame, values, [&mut run.x, &mut run.y, &mut run.z, &mut run.weight]);
+            cosine_directions(&frame, values, [&mut run.x, &mut run.y, &mut run.z, &mut run.weight]);
         } else {
-            self.directions4(&at.frame, values, run);
+            self.directions4(&frame, values, run);
         }
         Some(self.terms())
     }

@@ -87,16 +87,37 @@ pub struct ShadingPoint {
     pub normal: Vec3A,
     /// Material at the point.
     pub material: Matte,
-    /// Orthonormal frame with `w` = `normal`, built once per hit for lights that sample
-    /// directions around the normal (`frame.to_world(local)`).
-    pub frame: Onb,
+    /// The symmetry of the tangent square its frame is turned by ([`Onb::symmetry`], 0..8; 0
+    /// leaves it as built).
+    symmetry: u32,
 }
 
 impl ShadingPoint {
-    /// The point at `p` with unit normal `normal` and its frame.
+    /// The point at `p` with unit normal `normal`.
     #[inline]
     pub fn new(p: Vec3A, normal: Vec3A, material: Matte) -> Self {
-        ShadingPoint { p, normal, material, frame: Onb::from_normal(normal.into()) }
+        ShadingPoint { p, normal, material, symmetry: 0 }
+    }
+
+    /// The point with its frame turned by symmetry `k` (0..8) of its tangent square.
+    #[inline]
+    pub fn with_symmetry(self, k: u32) -> Self {
+        ShadingPoint { symmetry: k, ..self }
+    }
+
+    /// The symmetry its frame is turned by (0..8).
+    #[inline(always)]
+    pub fn symmetry(&self) -> u32 {
+        self.symmetry
+    }
+
+    /// Orthonormal frame with `w` = `normal`, for lights that sample directions around the
+    /// normal (`frame().to_world(local)`): [`Onb::from_normal`], turned by the point's
+    /// symmetry. Made when asked: a light that samples a run of directions at one point asks
+    /// once for them all.
+    #[inline]
+    pub fn frame(&self) -> Onb {
+        Onb::from_normal(self.normal.into()).symmetry(self.symmetry)
     }
 }
 

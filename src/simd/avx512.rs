@@ -5,7 +5,7 @@ use std::arch::x86_64::*;
 use glam::{Vec2, Vec3A};
 
 use super::{
-    CompressLanes, FusedLanes, HasAvx512, Kernel, Lanes, SampleLanes, StepLanes, lanes::isa_methods, u32_lanes::U32x16,
+    BitLanes, CompressLanes, FusedLanes, HasAvx512, Kernel, Lanes, SampleLanes, lanes::isa_methods, u32_lanes::U32x16,
 };
 
 /// Sixteen lanes in an AVX-512 register. The field is private: a value is made only from a
@@ -105,8 +105,13 @@ impl CompressLanes for Avx512 {
     }
 }
 
-impl StepLanes for Avx512 {
+impl BitLanes for Avx512 {
     isa_methods! {
+        fn copysign(self, sign: Self) -> Self {
+            let magnitude = _mm512_and_si512(_mm512_castps_si512(self.0), _mm512_set1_epi32(i32::MAX));
+            let sign = _mm512_and_si512(_mm512_castps_si512(sign.0), _mm512_set1_epi32(i32::MIN));
+            Avx512(_mm512_castsi512_ps(_mm512_or_si512(magnitude, sign)))
+        }
         fn step_away(self, o: Self) -> Self {
             let (v, o, zero) = (self.0, o.0, _mm512_setzero_ps());
             let bits = _mm512_castps_si512(v);

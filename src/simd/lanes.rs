@@ -121,8 +121,11 @@ pub(crate) trait CompressLanes: Lanes {
     fn store_partial(self, out: &mut [f32]);
 }
 
-/// Lanes that move floats to their neighbours by their bits, for ray origins set up in lanes.
-pub(crate) trait StepLanes: Lanes {
+/// Lanes that work on their floats' bits: signs and neighbouring floats, for shading frames and
+/// ray origins set up in lanes.
+pub(crate) trait BitLanes: Lanes {
+    /// Each lane with the magnitude of this one and the sign of `sign`'s (`f32::copysign`).
+    fn copysign(self, sign: Self) -> Self;
     /// Each lane moved one float the way `o`'s lane points: up where it is positive, down where
     /// it is negative, unchanged otherwise (the geometry's `step_away`, bit for bit, NaN
     /// included).

@@ -31,7 +31,7 @@ mod u32_lanes;
 pub(crate) use avx::Avx;
 #[cfg(target_arch = "x86_64")]
 pub(crate) use avx512::Avx512;
-pub(crate) use lanes::{CompressLanes, FusedLanes, Lanes, StepLanes};
+pub(crate) use lanes::{BitLanes, CompressLanes, FusedLanes, Lanes};
 #[cfg(target_arch = "x86_64")]
 pub(crate) use lanes::{SampleLanes, dot3};
 pub(crate) use portable::Portable;

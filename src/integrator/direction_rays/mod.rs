@@ -162,8 +162,9 @@ pub(crate) struct DirectionRays {
 
 /// A shading point of a cosine run over many points ([`DirectionRays::add_cosine_points`]).
 pub(crate) trait CosinePoint {
-    /// The point's shading frame (its `w` the normal of its [`CosinePoint::spawn`]).
-    fn frame(&self) -> &Onb;
+    /// The symmetry its shading frame is turned by ([`Onb::symmetry`]); the frame is built
+    /// around the normal of its [`CosinePoint::spawn`] ([`Onb::from_normal`]).
+    fn symmetry(&self) -> u32;
     /// Where its rays start.
     fn spawn(&self) -> &SpawnOrigins;
 }

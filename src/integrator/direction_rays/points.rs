@@ -13,18 +13,17 @@ use crate::{
     geometry::{accel::SceneGeometry, lanes::RayLanes},
     light::DirectionTerms,
     sampling::warp::cosine_hemisphere_lanes,
-    simd::{CompressLanes, Kernel, StepLanes, dot3},
+    simd::{BitLanes, CompressLanes, Kernel, dot3},
 };
 
-/// Columns of [`PointColumns`]: the sample point (2), the frame's u, v and w (9; w is the
-/// normal whose side picks a ray's origin), the hit point (3) and its push off the surface (3,
-/// [`SpawnOrigins::offset`](crate::geometry::hit::SpawnOrigins::offset)).
+/// Columns of [`PointColumns`]: the sample point (2), the normal (3; the shading frame's w, and
+/// the normal whose side picks a ray's origin), the hit point (3) and its push off the surface
+/// (3, [`SpawnOrigins::offset`](crate::geometry::hit::SpawnOrigins::offset)).
 const U: usize = 0;
-const FRAME: usize = 2;
-const NORMAL: usize = FRAME + 6;
-const POINT: usize = 11;
-const OFFSET: usize = 14;
-const COLUMNS: usize = 17;
+const NORMAL: usize = 2;
+const POINT: usize = 5;
+const OFFSET: usize = 8;
+const COLUMNS: usize = 11;
 
 /// A run of shading points as columns, one entry per point, padded to whole groups of sixteen.
 #[derive(Debug, Default)]
@@ -32,6 +31,10 @@ pub(super) struct PointColumns {
     columns: [Vec<f32>; COLUMNS],
     /// Bit k of entry g: point 16g + k is lit.
     lit: Vec<u32>,
+    /// The bits of each point's frame symmetry ([`Onb::symmetry`](crate::math::Onb::symmetry)),
+    /// one mask per group as in `lit`: a quarter turn (bit 0 of the symmetry), a half turn (bit
+    /// 1), a mirror (bit 2).
+    symmetry: [Vec<u32>; 3],
     /// Each point's ray origin (x, y, z).
     origins: [Vec<f32>; 3],
     /// Ray origins (x, y, z) in tracing order, beside the directions in `ray_dirs`.
@@ -42,33 +45,31 @@ impl PointColumns {
     /// Writes `points`, their sample points `u` and whether each is `lit`, into the columns,
     /// a column at a time (each a plain pass over the points).
     pub(super) fn gather<P: CosinePoint>(&mut self, points: &[P], u: impl Fn(&P) -> Vec2, lit: impl Fn(&P) -> bool) {
-        let [ux, uy, fux, fuy, fuz, fvx, fvy, fvz, fwx, fwy, fwz, px, py, pz, ox, oy, oz] = &mut self.columns;
+        let [ux, uy, nx, ny, nz, px, py, pz, ox, oy, oz] = &mut self.columns;
         fill(ux, points, |p| u(p).x);
         fill(uy, points, |p| u(p).y);
-        fill(fux, points, |p| p.frame().u.x);
-        fill(fuy, points, |p| p.frame().u.y);
-        fill(fuz, points, |p| p.frame().u.z);
-        fill(fvx, points, |p| p.frame().v.x);
-        fill(fvy, points, |p| p.frame().v.y);
-        fill(fvz, points, |p| p.frame().v.z);
-        fill(fwx, points, |p| p.frame().w.x);
-        fill(fwy, points, |p| p.frame().w.y);
-        fill(fwz, points, |p| p.frame().w.z);
+        fill(nx, points, |p| p.spawn().normal().x);
+        fill(ny, points, |p| p.spawn().normal().y);
+        fill(nz, points, |p| p.spawn().normal().z);
         fill(px, points, |p| p.spawn().p.x);
         fill(py, points, |p| p.spawn().p.y);
         fill(pz, points, |p| p.spawn().p.z);
         fill(ox, points, |p| p.spawn().offset().x);
         fill(oy, points, |p| p.spawn().offset().y);
         fill(oz, points, |p| p.spawn().offset().z);
-        let bits = |v: Vec3A| v.to_array().map(f32::to_bits);
-        debug_assert!(
-            points.iter().all(|p| bits(p.frame().w.into()) == bits(p.spawn().normal())),
-            "frames around the normal"
-        );
-        self.lit.clear();
-        self.lit
-            .extend(points.chunks(16).map(|c| c.iter().enumerate().fold(0, |m, (k, p)| m | u32::from(lit(p)) << k)));
+        masks(&mut self.lit, points, lit);
+        for (b, mask) in self.symmetry.iter_mut().enumerate() {
+            masks(mask, points, |p| p.symmetry() >> b & 1 != 0);
+        }
     }
+}
+
+/// Sets `mask` to one entry per group of sixteen of `points`, bit k of entry g set where
+/// `bit` holds for point 16g + k.
+#[inline(always)]
+fn masks<P>(mask: &mut Vec<u32>, points: &[P], bit: impl Fn(&P) -> bool) {
+    mask.clear();
+    mask.extend(points.chunks(16).map(|c| c.iter().enumerate().fold(0, |m, (k, p)| m | u32::from(bit(p)) << k)));
 }
 
 /// Sets `column` to `value` of each of `points`, padded with 0.5 to a whole group of sixteen.
@@ -88,7 +89,7 @@ pub(super) struct PointsRun<'a> {
     pub(super) arriving: &'a mut [Vec3A],
 }
 
-impl<L: PassLanes + CompressLanes + StepLanes> Kernel<L> for PointsRun<'_> {
+impl<L: PassLanes + CompressLanes + BitLanes> Kernel<L> for PointsRun<'_> {
     type Output = (u64, u64);
     #[inline(always)]
     fn run(self, isa: L::Isa) -> (u64, u64) {
@@ -106,7 +107,7 @@ impl DirectionRays {
     /// is one quarter of the hemisphere nearly everywhere), and traced as packets of
     /// consecutive rays. Each point gets the ray, answer and light of [`DirectionRays::add`].
     #[inline(always)]
-    pub(super) fn add_cosine_points_lanes<L: PassLanes + CompressLanes + StepLanes>(
+    pub(super) fn add_cosine_points_lanes<L: PassLanes + CompressLanes + BitLanes>(
         &mut self,
         isa: L::Isa,
         geometry: &SceneGeometry,
@@ -137,10 +138,13 @@ impl DirectionRays {
                 let at = g * w;
                 let c = |k: usize| L::load(isa, &points.columns[k][at..]);
                 let local = cosine_hemisphere_lanes(c(U), c(U + 1));
+                let normal = [c(NORMAL), c(NORMAL + 1), c(NORMAL + 2)];
+                let symmetry = points.symmetry.each_ref().map(|m| L::mask(isa, m[g]));
+                let (u, v) = frame_lanes(isa, normal, symmetry);
                 // The frame's `to_world`, u·x + v·y + w·z, and `SpawnOrigins::towards`'s side
                 // test, x·n.x + y·n.y + z·n.z: the scalar code's products and sums.
-                let d = [0, 1, 2].map(|a| dot3(&[c(FRAME + a), c(FRAME + 3 + a), c(FRAME + 6 + a)], &local));
-                let side = dot3(&d, &[c(NORMAL), c(NORMAL + 1), c(NORMAL + 2)]);
+                let d = [0, 1, 2].map(|a| dot3(&[u[a], v[a], normal[a]], &local));
+                let side = dot3(&d, &normal);
                 let behind = side.lt(zero);
                 for (a, column) in [&mut *dx, &mut *dy, &mut *dz].into_iter().enumerate() {
                     d[a].store(&mut column[at..]);
@@ -205,5 +209,73 @@ impl DirectionRays {
             );
         }
         (traced as u64, cycles)
+    }
+}
+
+/// The tangents u and v of each lane's shading frame around unit normal `n`, turned by its
+/// symmetry (masks of a quarter turn, a half turn and a mirror): [`Onb::from_normal`] and
+/// [`Onb::symmetry`], operation for operation, so every lane has the scalar frame's bits.
+///
+/// [`Onb::from_normal`]: crate::math::Onb::from_normal
+/// [`Onb::symmetry`]: crate::math::Onb::symmetry
+#[inline(always)]
+fn frame_lanes<L: BitLanes>(isa: L::Isa, n: [L; 3], [quarter, half, mirror]: [L::Mask; 3]) -> ([L; 3], [L; 3]) {
+    let one = L::splat(isa, 1.0);
+    let sign = one.copysign(n[2]);
+    let a = L::splat(isa, -1.0).div(sign.add(n[2]));
+    let b = n[0].mul(n[1]).mul(a);
+    let u = [one.add(sign.mul(n[0]).mul(n[0]).mul(a)), sign.mul(b), sign.neg().mul(n[0])];
+    let v = [b, sign.add(n[1].mul(n[1]).mul(a)), n[1].neg()];
+    // A quarter turn takes (u, v) to (v, −u), a half turn to (−u, −v); a mirror negates v.
+    let (u, v) = ([0, 1, 2].map(|k| u[k].select(quarter, v[k])), [0, 1, 2].map(|k| v[k].select(quarter, u[k].neg())));
+    let negate = |x: L, m: L::Mask| x.select(m, x.neg());
+    (u.map(|x| negate(x, half)), v.map(|x| negate(negate(x, half), mirror)))
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+
+    use super::*;
+    use crate::{
+        math::Onb,
+        random::SplitMix64,
+        simd::{Avx512, HasAvx512, Lanes},
+    };
+
+    /// Each lane's frame is the scalar frame of its normal under its symmetry, bit for bit, on
+    /// normals along and against every axis (±0 in z included) and random ones, under all eight
+    /// symmetries (where the CPU has AVX-512).
+    #[test]
+    fn frames_in_lanes_are_the_scalar_frames() {
+        crate::simd::both_widths(|_| {}, frames);
+    }
+
+    /// [`frames_in_lanes_are_the_scalar_frames`].
+    fn frames(isa: HasAvx512) {
+        let mut normals = vec![Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z];
+        normals.extend([Vec3::new(0.6, 0.8, 0.0), Vec3::new(0.6, 0.8, -0.0), Vec3::new(0.0, 0.6, -0.8)]);
+        let mut rng = SplitMix64::new(11);
+        let mut unit = || rng.next_f32() * 2.0 - 1.0;
+        normals.extend((0..200).map(|_| Vec3::new(unit(), unit(), unit()).normalize()));
+        let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+        for (start, chunk) in normals.chunks(16).enumerate() {
+            let lane = |k: usize| chunk[k % chunk.len()];
+            let column = |a: usize| Avx512::load(isa, &std::array::from_fn::<f32, 16, _>(|k| lane(k)[a]));
+            let symmetry = |k: usize| ((start + 3 * k) % 8) as u32;
+            let masks = [0, 1, 2].map(|b| Avx512::mask(isa, (0..16).fold(0, |m, k| m | (symmetry(k) >> b & 1) << k)));
+            let (u, v) = frame_lanes(isa, [column(0), column(1), column(2)], masks);
+            for k in 0..16 {
+                let want = Onb::from_normal(lane(k)).symmetry(symmetry(k));
+                let got = |x: [Avx512; 3]| Vec3::from_array(x.map(|c| c.lane(k)));
+                let n = lane(k);
+                assert_eq!(
+                    (bits(got(u)), bits(got(v))),
+                    (bits(want.u), bits(want.v)),
+                    "n = {n}, symmetry {}",
+                    symmetry(k)
+                );
+            }
+        }
     }
 }
