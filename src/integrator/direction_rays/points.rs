@@ -57,19 +57,24 @@ impl PointColumns {
         fill(ox, points, |p| p.spawn().offset().x);
         fill(oy, points, |p| p.spawn().offset().y);
         fill(oz, points, |p| p.spawn().offset().z);
-        masks(&mut self.lit, points, lit);
-        for (b, mask) in self.symmetry.iter_mut().enumerate() {
-            masks(mask, points, |p| p.symmetry() >> b & 1 != 0);
+        // One pass for the four masks: bit k of entry g is point 16g + k's.
+        self.lit.clear();
+        self.symmetry.iter_mut().for_each(Vec::clear);
+        for group in points.chunks(16) {
+            let (mut lit_bits, mut symmetry_bits) = (0, [0; 3]);
+            for (k, p) in group.iter().enumerate() {
+                lit_bits |= u32::from(lit(p)) << k;
+                let symmetry = p.symmetry();
+                for (b, bits) in symmetry_bits.iter_mut().enumerate() {
+                    *bits |= (symmetry >> b & 1) << k;
+                }
+            }
+            self.lit.push(lit_bits);
+            for (mask, bits) in self.symmetry.iter_mut().zip(symmetry_bits) {
+                mask.push(bits);
+            }
         }
     }
-}
-
-/// Sets `mask` to one entry per group of sixteen of `points`, bit k of entry g set where
-/// `bit` holds for point 16g + k.
-#[inline(always)]
-fn masks<P>(mask: &mut Vec<u32>, points: &[P], bit: impl Fn(&P) -> bool) {
-    mask.clear();
-    mask.extend(points.chunks(16).map(|c| c.iter().enumerate().fold(0, |m, (k, p)| m | u32::from(bit(p)) << k)));
 }
 
 /// Sets `column` to `value` of each of `points`, padded with 0.5 to a whole group of sixteen.
