@@ -712,15 +712,15 @@ fn trace_tile<C: CameraRays>(
                 }
             }
             for s in &samples {
-                let s = &SampleResult { radiance: s.radiance + fixed.radiance, direct: s.direct + fixed.direct, ..*s };
-                let values = job.aovs.then(|| s.aov_values());
-                if !all_finite(s.radiance.into()) || values.is_some_and(|v| v.iter().any(|x| !x.is_finite())) {
+                let radiance = s.radiance + fixed.radiance;
+                let values = job.aovs.then(|| SampleResult { direct: s.direct + fixed.direct, ..*s }.aov_values());
+                if !all_finite(radiance.into()) || values.is_some_and(|v| v.iter().any(|x| !x.is_finite())) {
                     nonfinite += 1;
                     continue;
                 }
-                sum += s.radiance;
+                sum += radiance;
                 if job.adaptive {
-                    sq_sum += luminance(s.radiance).powi(2);
+                    sq_sum += luminance(radiance).powi(2);
                 }
                 if let Some(values) = values {
                     aov.iter_mut().zip(values).for_each(|(a, v)| *a += v);
