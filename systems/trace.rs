@@ -711,19 +711,31 @@ fn trace_tile<C: CameraRays>(
                     own.trace(&mut tracer, scene, camera, job, y, &run, count, &mut samples);
                 }
             }
-            for s in &samples {
-                let radiance = s.radiance + fixed.radiance;
-                let values = job.aovs.then(|| SampleResult { direct: s.direct + fixed.direct, ..*s }.aov_values());
-                if !all_finite(radiance.into()) || values.is_some_and(|v| v.iter().any(|x| !x.is_finite())) {
-                    nonfinite += 1;
-                    continue;
-                }
+            let mut add = |radiance: Vec3| {
                 sum += radiance;
                 if job.adaptive {
                     sq_sum += luminance(radiance).powi(2);
                 }
-                if let Some(values) = values {
+            };
+            if job.aovs {
+                for s in &samples {
+                    let radiance = s.radiance + fixed.radiance;
+                    let values = SampleResult { direct: s.direct + fixed.direct, ..*s }.aov_values();
+                    if !all_finite(radiance.into()) || !values.iter().fold(true, |finite, x| finite & x.is_finite()) {
+                        nonfinite += 1;
+                        continue;
+                    }
+                    add(radiance);
                     aov.iter_mut().zip(values).for_each(|(a, v)| *a += v);
+                }
+            } else {
+                for s in &samples {
+                    let radiance = s.radiance + fixed.radiance;
+                    if !all_finite(radiance.into()) {
+                        nonfinite += 1;
+                        continue;
+                    }
+                    add(radiance);
                 }
             }
             sums.push(sum);
