@@ -11,10 +11,8 @@ use obvhs::{
 use rayon::prelude::*;
 
 #[cfg(target_arch = "x86_64")]
-use super::kernels::BlasPackets;
 use super::{
     PAR_CHUNK, Prim, Shape, hit_prim,
-    ray_order::RayOrder,
     tree::{OccludedEach, Occluder, Tree, TreeQuery},
 };
 use crate::components::Mesh;
@@ -31,8 +29,6 @@ use crate::geometry::{
     wide_bvh::{NodeTest, WideBvh},
 };
 use crate::simd::{Kernel, Lanes, prefetch};
-#[cfg(target_arch = "x86_64")]
-use crate::simd::{packet_lanes, run_in};
 
 /// The BVH2 build settings for small sets (under [`SMALL_SET`] primitives): obvhs's medium
 /// preset with leaves of at most one packet, collapsed less eagerly (traversal cost 1.5 instead
@@ -365,29 +361,6 @@ impl Blas {
         let rays = std::slice::from_ref(ray);
         self.tree.query(OccludedEach { target: self, rays, stack, blocked: &mut blocked });
         blocked[0]
-    }
-
-    /// [`Blas::occluded`] for each of `rays` not yet `blocked` (same length), in one call: in
-    /// ray packets where the tree is eight-wide and holds triangle packets.
-    pub(super) fn occluded_many(
-        &self,
-        rays: &[Ray],
-        order: RayOrder,
-        stack: &mut Vec<(u32, f32)>,
-        blocked: &mut [bool],
-    ) {
-        #[cfg(target_arch = "x86_64")]
-        if let Tree::Eight(tree, _) = &self.tree
-            && !self.packets.is_empty()
-            && rays.len() >= PACKET_RUN
-        {
-            let kernel = BlasPackets { blas: self, tree, rays, order, stack, blocked };
-            // Packets are eight or sixteen wide where `simd::isa` allows them.
-            return run_in(packet_lanes(), kernel).expect("eight or sixteen lanes");
-        }
-        // Without packets the order does not matter.
-        let _ = order;
-        self.tree.query(OccludedEach { target: self, rays, stack, blocked });
     }
 
     /// The lanes of `lanes` whose ray (`ray(k)` for lane k) a triangle in packets

@@ -12,10 +12,11 @@
 
 mod alpha;
 mod blas;
-mod kernels;
+mod blas_packets;
 mod ray_order;
 mod reference;
 mod scene;
+mod scene_packets;
 mod tlas;
 mod tree;
 
@@ -25,9 +26,11 @@ pub(crate) use blas::IndexedTriangles;
 #[cfg(test)]
 pub(crate) use blas::subtree_depth;
 #[cfg(target_arch = "x86_64")]
-pub(crate) use kernels::{KernelLanes, SceneLanes};
+pub(crate) use blas_packets::KernelLanes;
 pub use ray_order::RayOrder;
 pub use scene::{BvhWork, RayEnd, SceneGeometry};
+#[cfg(target_arch = "x86_64")]
+pub(crate) use scene_packets::SceneLanes;
 pub use tlas::Instance;
 
 use bevy_ecs::prelude::Entity;

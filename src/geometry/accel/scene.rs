@@ -13,18 +13,13 @@ use obvhs::{
     bvh2::{builder::build_bvh2, node::Bvh2Node},
 };
 
-#[cfg(target_arch = "x86_64")]
-use super::kernels::{BlasClosestLanes, TopClosestLanes, TopPackets};
 use super::{
     Object, Prim, Shape,
     alpha::AlphaLayer,
-    blas::{Blas, PACKET_RUN, SMALL_SET, subtree_depth},
-    ray_order::RayOrder,
+    blas::{Blas, SMALL_SET, subtree_depth},
     tlas::Instance,
-    tree::{ClosestHit, OccludedEach, Occluder, Tree, TreeQuery},
+    tree::{ClosestHit, Occluder, Tree, TreeQuery},
 };
-#[cfg(target_arch = "x86_64")]
-use crate::geometry::wide_bvh::LaneHits;
 use crate::geometry::{
     hit::SurfaceHit,
     ray::Ray,
@@ -32,8 +27,6 @@ use crate::geometry::{
     wide_bvh::{NodeTest, WideBvh},
 };
 use crate::material::PlacedSurface;
-#[cfg(target_arch = "x86_64")]
-use crate::simd::run_in;
 
 /// What the last BVH update did, for statistics.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -63,7 +56,7 @@ pub struct SceneGeometry {
     pub(super) top: Tree,
     /// Whether runs of camera rays go through the top level in packets: every instance is in
     /// world space (no transform) and some BLAS holds triangle packets.
-    top_packets: bool,
+    pub(super) top_packets: bool,
     /// The BLAS of a scene that is one world-space instance (a baked static scene), which
     /// queries take directly, with no top level: held here so that a query reaches it in one
     /// load rather than through the instance list.
@@ -279,38 +272,6 @@ impl SceneGeometry {
         self.hit_with_planes(ray, best)
     }
 
-    /// [`SceneGeometry::intersect`] for each of `rays`, the same hits:
-    /// in packets where the trees are eight-wide, every instance is in world space and there are
-    /// triangle packets (straight into the one BLAS of a static scene, else through the top
-    /// level), which suits runs of rays that travel together, such as one pixel's camera rays.
-    /// Calls `found(k, hit)` with each `rays[k]`'s hit.
-    pub fn intersect_many(
-        &self,
-        rays: &[Ray],
-        stack: &mut Vec<(u32, f32)>,
-        mut found: impl FnMut(usize, Option<SurfaceHit>),
-    ) {
-        if self.alpha.is_some() {
-            // Alpha-tested meshes take the single-ray path.
-            for (k, ray) in rays.iter().enumerate() {
-                found(k, self.intersect(ray, stack));
-            }
-            return;
-        }
-        self.closest_each(rays, stack, |k, ray, end| found(k, self.hit_at(ray, end)));
-    }
-
-    /// Where each of `rays` ends ([`RayEnd`]) into `ends` (same length), found as
-    /// [`SceneGeometry::intersect_many`] finds its hits; `false` (and nothing written) where
-    /// the scene has alpha-tested meshes, whose hits a [`RayEnd`] does not hold.
-    pub fn ray_ends(&self, rays: &[Ray], stack: &mut Vec<(u32, f32)>, ends: &mut [RayEnd]) -> bool {
-        if self.alpha.is_some() {
-            return false;
-        }
-        self.closest_each(rays, stack, |k, _, end| ends[k] = end);
-        true
-    }
-
     /// The hit [`SceneGeometry::intersect`] finds along `ray` where it ends at `end` (found by
     /// [`SceneGeometry::ray_ends`] for this ray), bit for bit: the surface at the closest
     /// primitive, unless a plane is hit before it.
@@ -319,82 +280,12 @@ impl SceneGeometry {
         self.hit_with_planes(ray.with_tmax(end.tmax), end.closest())
     }
 
-    /// Calls `out(k, ray, end)` with where each `rays[k]` ends among the opaque primitives
-    /// (planes aside): in packets where the scene allows ([`SceneGeometry::camera_packets`]).
-    #[inline(always)]
-    fn closest_each(&self, rays: &[Ray], stack: &mut Vec<(u32, f32)>, mut out: impl FnMut(usize, &Ray, RayEnd)) {
-        #[cfg(target_arch = "x86_64")]
-        if rays.len() >= PACKET_RUN
-            && let Some(into) = self.camera_packets()
-        {
-            let width = crate::simd::packet_lanes();
-            for (c, chunk) in rays.chunks(width).enumerate() {
-                let mut found = LaneHits::new(chunk);
-                let live = (1u32 << chunk.len()) - 1;
-                let alone = self.closest_packet(into, chunk, live, &mut found, stack) | found.tied;
-                for (k, ray) in chunk.iter().enumerate() {
-                    let end = if alone & (1 << k) != 0 {
-                        self.ray_end(ray, stack)
-                    } else {
-                        RayEnd::new(found.best[k], found.tmax[k])
-                    };
-                    out(c * width + k, ray, end);
-                }
-            }
-            return;
-        }
-        for (k, ray) in rays.iter().enumerate() {
-            out(k, ray, self.ray_end(ray, stack));
-        }
-    }
-
     /// Where `ray` ends among the opaque primitives, traced alone.
     #[inline(always)]
-    fn ray_end(&self, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> RayEnd {
+    pub(super) fn ray_end(&self, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> RayEnd {
         let mut ray = *ray;
         let best = self.closest_instance(&mut ray, stack);
         RayEnd::new(best, ray.tmax)
-    }
-
-    /// Where [`SceneGeometry::intersect_many`] traces packets, if anywhere: straight into the
-    /// one world-space BLAS of triangle packets of a static scene, else through an eight-wide
-    /// top level whose instances are all in world space, with some triangle packets.
-    #[cfg(target_arch = "x86_64")]
-    fn camera_packets(&self) -> Option<CameraPackets<'_>> {
-        if let Some(blas) = &self.world_blas
-            && let Tree::Eight(tree, _) = &blas.tree
-            && !blas.packets.is_empty()
-        {
-            return Some(CameraPackets::World(blas, tree));
-        }
-        match &self.top {
-            Tree::Eight(top, _) if self.top_packets => Some(CameraPackets::Top(top)),
-            _ => None,
-        }
-    }
-
-    /// One packet of [`SceneGeometry::intersect_many`] traced `into` the scene, offered to
-    /// `hits`. Returns the lanes whose subtree overflowed a packet's stack.
-    #[cfg(target_arch = "x86_64")]
-    fn closest_packet(
-        &self,
-        into: CameraPackets,
-        rays: &[Ray],
-        live: u32,
-        hits: &mut LaneHits<ClosestHit>,
-        stack: &mut Vec<(u32, f32)>,
-    ) -> u32 {
-        // Packets are eight or sixteen wide where `simd::isa` allows them.
-        match into {
-            CameraPackets::World(blas, tree) => {
-                let kernel = BlasClosestLanes { blas, tree, rays, live, instance: 0, hits };
-                run_in(crate::simd::packet_lanes(), kernel)
-            }
-            CameraPackets::Top(top) => {
-                run_in(crate::simd::packet_lanes(), TopClosestLanes { scene: self, top, rays, live, hits, stack })
-            }
-        }
-        .expect("eight or sixteen lanes")
     }
 
     /// The closest hit along `ray` given the closest primitive hit `best` (instance, slot,
@@ -485,55 +376,10 @@ impl SceneGeometry {
         best
     }
 
-    /// Whether anything blocks `ray` in (0, tmax); stops at the first blocker found.
-    #[inline]
-    pub fn occluded(&self, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool {
-        let mut blocked = [false];
-        self.occluded_many(std::slice::from_ref(ray), RayOrder::Mixed, stack, &mut blocked);
-        blocked[0]
-    }
-
-    /// [`SceneGeometry::occluded`] for each of `rays` into `blocked` (same length; every entry is
-    /// written, whatever it held), in one call:
-    /// the dispatch to the tree's width and the traversal's set-up outside the loop over rays;
-    /// `order` says how the rays are cut into packets.
-    pub fn occluded_many(&self, rays: &[Ray], order: RayOrder, stack: &mut Vec<(u32, f32)>, blocked: &mut [bool]) {
-        self.opaque_occluded_many(rays, order, stack, blocked);
-        if let Some(alpha) = &self.alpha {
-            for (ray, b) in rays.iter().zip(blocked.iter_mut()) {
-                *b = *b || alpha.occluded(ray, stack);
-            }
-        }
-    }
-
     /// Whether the scene has alpha-tested meshes, which queries test apart.
     #[inline(always)]
     pub fn has_alpha(&self) -> bool {
         self.alpha.is_some()
-    }
-
-    /// [`SceneGeometry::occluded_many`] for everything but the alpha-tested meshes.
-    #[inline(always)]
-    fn opaque_occluded_many(&self, rays: &[Ray], order: RayOrder, stack: &mut Vec<(u32, f32)>, blocked: &mut [bool]) {
-        for (ray, b) in rays.iter().zip(blocked.iter_mut()) {
-            *b = self.planes.iter().any(|p| p.intersect(ray).is_some());
-        }
-        stack.clear();
-        if let Some(blas) = &self.world_blas {
-            // One world-space BLAS (a static scene): no top level to traverse.
-            blas.occluded_many(rays, order, stack, blocked);
-        } else {
-            #[cfg(target_arch = "x86_64")]
-            if let Tree::Eight(top, _) = &self.top
-                && rays.len() >= PACKET_RUN
-            {
-                let kernel = TopPackets { scene: self, top, rays, order, stack, blocked };
-                // Packets are eight or sixteen wide where `simd::isa` allows them.
-                return run_in(crate::simd::packet_lanes(), kernel).expect("eight or sixteen lanes");
-            }
-            let _ = order;
-            self.top.query(OccludedEach { target: self, rays, stack, blocked });
-        }
     }
 
     /// Whether anything in instances `first..first + count` (a top-level leaf) blocks `ray`.
@@ -567,16 +413,6 @@ impl Occluder for SceneGeometry {
     ) -> bool {
         top.occluded(node_test, ray, stack, |first, count, stack| self.instances_block(first, count, ray, stack))
     }
-}
-
-/// Where [`SceneGeometry::intersect_many`] traces a packet.
-#[cfg(target_arch = "x86_64")]
-#[derive(Clone, Copy)]
-pub(super) enum CameraPackets<'a> {
-    /// Straight into a static scene's one world-space BLAS of triangle packets, and its tree.
-    World(&'a Blas, &'a crate::geometry::wide_bvh::Bvh8),
-    /// Through the top level (every instance in world space).
-    Top(&'a crate::geometry::wide_bvh::Bvh8),
 }
 
 /// Closest hit through the top level: (instance, primitive slot, b1, b2).
@@ -614,7 +450,7 @@ impl RayEnd {
     const NO_PRIMITIVE: u32 = u32::MAX;
 
     #[inline(always)]
-    fn new(best: Option<ClosestHit>, tmax: f32) -> Self {
+    pub(super) fn new(best: Option<ClosestHit>, tmax: f32) -> Self {
         match best {
             Some((instance, slot, b1, b2)) => RayEnd { instance, slot, bary: [b1, b2], tmax },
             None => RayEnd { instance: Self::NO_PRIMITIVE, slot: 0, bary: [0.0; 2], tmax },

@@ -1,215 +1,188 @@
-//! The packet kernels: occlusion and closest hits of ray packets, written once over the lane
-//! type and compiled per instruction set by [`Lanes::compiled`](crate::simd::Lanes::compiled).
-//!
-//! Each kernel below is one out-of-line copy per lane type (as a call between them was before
-//! they were generic), and the closures they hand to the generic traversal are written inside
-//! their `run`, which is inlined into that copy, with the token (`isa`) that lets it run.
+//! The scene's queries of many rays at once: camera rays' closest hits and occlusion, traced in
+//! packets through the top level where the trees allow, and the top level's packet kernels,
+//! written once over the lane type and compiled per instruction set by
+//! [`Lanes::compiled`](crate::simd::Lanes::compiled). The rays that reach an instance go on
+//! through its BLAS's kernels (`blas_packets`).
 
+#[cfg(target_arch = "x86_64")]
 use super::{
-    blas::Blas,
-    ray_order::{RayOrder, in_packets},
-    scene::SceneGeometry,
+    blas::{Blas, PACKET_RUN},
+    blas_packets::{BlasClosestLanes, BlasLanesOf, KernelLanes},
+    ray_order::in_packets,
     tlas::Instance,
     tree::{ClosestHit, Tree},
 };
-use crate::geometry::ray::{Ray, Shear};
+use super::{
+    ray_order::RayOrder,
+    scene::{RayEnd, SceneGeometry},
+    tree::OccludedEach,
+};
+use crate::geometry::{hit::SurfaceHit, ray::Ray};
 #[cfg(target_arch = "x86_64")]
 use crate::geometry::{
-    tri4::RayTriPacket,
+    lanes::{PacketLanes, RayLanes},
     wide_bvh::{Bvh8, FusedPacket, LaneHits, PACKET_MIN_LANES, RayPacket},
 };
 #[cfg(target_arch = "x86_64")]
-use crate::{
-    geometry::lanes::{PacketLanes, RayLanes},
-    simd::{FusedLanes, Kernel},
-};
+use crate::simd::{Kernel, run_in};
 
-/// Lane types the packet kernels run in: rays gathered into them, nodes tested by fused
-/// multiply-adds.
-#[cfg(target_arch = "x86_64")]
-pub(crate) trait KernelLanes: PacketLanes + FusedLanes {}
-#[cfg(target_arch = "x86_64")]
-impl<L: PacketLanes + FusedLanes> KernelLanes for L {}
+impl SceneGeometry {
+    /// [`SceneGeometry::intersect`] for each of `rays`, the same hits:
+    /// in packets where the trees are eight-wide, every instance is in world space and there are
+    /// triangle packets (straight into the one BLAS of a static scene, else through the top
+    /// level), which suits runs of rays that travel together, such as one pixel's camera rays.
+    /// Calls `found(k, hit)` with each `rays[k]`'s hit.
+    pub fn intersect_many(
+        &self,
+        rays: &[Ray],
+        stack: &mut Vec<(u32, f32)>,
+        mut found: impl FnMut(usize, Option<SurfaceHit>),
+    ) {
+        if self.alpha.is_some() {
+            // Alpha-tested meshes take the single-ray path.
+            for (k, ray) in rays.iter().enumerate() {
+                found(k, self.intersect(ray, stack));
+            }
+            return;
+        }
+        self.closest_each(rays, stack, |k, ray, end| found(k, self.hit_at(ray, end)));
+    }
 
-/// The closest hits of `rays` (one packet; lanes of `live`) in `tree`, `blas`'s eight-wide
-/// tree, as instance `instance`, traced together and offered to `hits`: exactly what
-/// [`Blas::closest`] finds, except that a second hit at exactly a lane's closest distance is
-/// marked a tie. Returns the lanes whose subtree overflowed the packet's stack; trace those,
-/// and the tied ones, alone.
-#[cfg(target_arch = "x86_64")]
-pub(super) struct BlasClosestLanes<'a> {
-    pub(super) blas: &'a Blas,
-    pub(super) tree: &'a Bvh8,
-    pub(super) rays: &'a [Ray],
-    pub(super) live: u32,
-    pub(super) instance: u32,
-    pub(super) hits: &'a mut LaneHits<ClosestHit>,
-}
+    /// Where each of `rays` ends ([`RayEnd`]) into `ends` (same length), found as
+    /// [`SceneGeometry::intersect_many`] finds its hits; `false` (and nothing written) where
+    /// the scene has alpha-tested meshes, whose hits a [`RayEnd`] does not hold.
+    pub fn ray_ends(&self, rays: &[Ray], stack: &mut Vec<(u32, f32)>, ends: &mut [RayEnd]) -> bool {
+        if self.alpha.is_some() {
+            return false;
+        }
+        self.closest_each(rays, stack, |k, _, end| ends[k] = end);
+        true
+    }
 
-#[cfg(target_arch = "x86_64")]
-impl<L: KernelLanes> Kernel<L> for BlasClosestLanes<'_> {
-    type Output = u32;
+    /// Calls `out(k, ray, end)` with where each `rays[k]` ends among the opaque primitives
+    /// (planes aside): in packets where the scene allows ([`SceneGeometry::camera_packets`]).
     #[inline(always)]
-    fn run(self, isa: L::Isa) -> u32 {
-        let BlasClosestLanes { blas, tree, rays, live, instance, hits } = self;
-        let in_lanes = L::rays(isa, rays);
-        let packet = RayPacket::new(&in_lanes);
-        let edges = RayTriPacket::new(&in_lanes);
-        let mut e = [[0.0f32; 16]; 3];
-        let leaf = |first: u32, count: u32, lanes: u32, hits: &mut LaneHits<ClosestHit>| {
-            for packet in &blas.packets[first as usize..(first + count) as usize] {
-                for (lane, &slot) in packet.slot.iter().enumerate() {
-                    if slot == u32::MAX {
-                        continue;
-                    }
-                    let classes = packet.edges_packet_with(lane, &edges, &mut e);
-                    let mut crossing = (classes.pass | classes.exact) & lanes;
-                    if crossing == 0 {
-                        continue;
-                    }
-                    let tri = packet.triangle(lane);
-                    let plane = tri.plane();
-                    while crossing != 0 {
-                        let k = crossing.trailing_zeros() as usize;
-                        crossing &= crossing - 1;
-                        // The scalar test's end, as the single-ray leaf finishes it: from the
-                        // lane's own edge functions where they passed (the values the scalar
-                        // test computes), the whole scalar test where one is zero or NaN.
-                        let ray = hits.probe(rays, k);
-                        let found = if classes.exact & (1 << k) != 0 {
-                            tri.intersect(&ray, &Shear::new(ray.dir))
-                        } else {
-                            tri.finish_on(&plane, &ray, e[0][k], e[1][k], e[2][k])
-                        };
-                        if let Some((t, b1, b2)) = found {
-                            hits.offer(k, t, (instance, slot, b1, b2));
-                        }
-                    }
+    fn closest_each(&self, rays: &[Ray], stack: &mut Vec<(u32, f32)>, mut out: impl FnMut(usize, &Ray, RayEnd)) {
+        #[cfg(target_arch = "x86_64")]
+        if rays.len() >= PACKET_RUN
+            && let Some(into) = self.camera_packets()
+        {
+            let width = crate::simd::packet_lanes();
+            for (c, chunk) in rays.chunks(width).enumerate() {
+                let mut found = LaneHits::new(chunk);
+                let live = (1u32 << chunk.len()) - 1;
+                let alone = self.closest_packet(into, chunk, live, &mut found, stack) | found.tied;
+                for (k, ray) in chunk.iter().enumerate() {
+                    let end = if alone & (1 << k) != 0 {
+                        self.ray_end(ray, stack)
+                    } else {
+                        RayEnd::new(found.best[k], found.tmax[k])
+                    };
+                    out(c * width + k, ray, end);
                 }
             }
-        };
-        let first = &rays[live.trailing_zeros() as usize];
-        tree.closest_packet(L::node_test8(isa), &packet, first, live, hits, leaf)
-    }
-}
-
-/// [`Blas::occluded_many`] by packets of consecutive rays (a pixel's shadow rays, which leave
-/// one point), traversed together while at least four of them enter a node. Every ray gets
-/// exactly the answer of its own traversal.
-#[cfg(target_arch = "x86_64")]
-pub(super) struct BlasPackets<'a> {
-    pub(super) blas: &'a Blas,
-    pub(super) tree: &'a Bvh8,
-    pub(super) rays: &'a [Ray],
-    pub(super) order: RayOrder,
-    pub(super) stack: &'a mut Vec<(u32, f32)>,
-    pub(super) blocked: &'a mut [bool],
-}
-
-#[cfg(target_arch = "x86_64")]
-impl<L: KernelLanes> Kernel<L> for BlasPackets<'_> {
-    type Output = ();
-    #[inline(always)]
-    fn run(self, isa: L::Isa) {
-        let BlasPackets { blas, tree, rays, order, stack, blocked } = self;
-        in_packets::<L>(rays, order, blocked, |rays, live| {
-            L::compiled(isa, BlasLanes { blas, tree, rays, live, stack })
-        });
-    }
-}
-
-/// The lanes of `live` whose ray in `rays` (one packet) anything in `blas` blocks, the rays
-/// traced together in `tree`, its eight-wide tree.
-#[cfg(target_arch = "x86_64")]
-struct BlasLanes<'a> {
-    blas: &'a Blas,
-    tree: &'a Bvh8,
-    rays: &'a [Ray],
-    live: u32,
-    stack: &'a mut Vec<(u32, f32)>,
-}
-
-#[cfg(target_arch = "x86_64")]
-impl<L: KernelLanes> Kernel<L> for BlasLanes<'_> {
-    type Output = u32;
-    #[inline(always)]
-    fn run(self, isa: L::Isa) -> u32 {
-        let BlasLanes { blas, tree, rays, live, stack } = self;
-        if live == 0 {
-            return 0;
+            return;
         }
-        let in_lanes = L::rays(isa, rays);
-        L::compiled(isa, BlasLanesOf { blas, tree, in_lanes: &in_lanes, ray: |k| rays[k], live, stack })
+        for (k, ray) in rays.iter().enumerate() {
+            out(k, ray, self.ray_end(ray, stack));
+        }
     }
-}
 
-/// The lanes of `live` whose ray anything in `blas` blocks, as [`BlasLanes`], for a packet
-/// already in lanes (`in_lanes`); `ray(k)` gives lane k's ray, for rays that go on alone and
-/// tests that take one ray.
-#[cfg(target_arch = "x86_64")]
-struct BlasLanesOf<'a, L, F> {
-    blas: &'a Blas,
-    tree: &'a Bvh8,
-    in_lanes: &'a RayLanes<L>,
-    ray: F,
-    live: u32,
-    stack: &'a mut Vec<(u32, f32)>,
-}
+    /// Where [`SceneGeometry::intersect_many`] traces packets, if anywhere: straight into the
+    /// one world-space BLAS of triangle packets of a static scene, else through an eight-wide
+    /// top level whose instances are all in world space, with some triangle packets.
+    #[cfg(target_arch = "x86_64")]
+    fn camera_packets(&self) -> Option<CameraPackets<'_>> {
+        if let Some(blas) = &self.world_blas
+            && let Tree::Eight(tree, _) = &blas.tree
+            && !blas.packets.is_empty()
+        {
+            return Some(CameraPackets::World(blas, tree));
+        }
+        match &self.top {
+            Tree::Eight(top, _) if self.top_packets => Some(CameraPackets::Top(top)),
+            _ => None,
+        }
+    }
 
-#[cfg(target_arch = "x86_64")]
-impl<L: KernelLanes, F: Fn(usize) -> Ray> Kernel<L> for BlasLanesOf<'_, L, F> {
-    type Output = u32;
-    #[inline(always)]
-    fn run(self, isa: L::Isa) -> u32 {
-        let BlasLanesOf { blas, tree, in_lanes, ray, live, stack } = self;
-        // The packet starts at its entry node; where its segments' box overlaps no leaf,
-        // nothing can block its rays, and nothing more is made.
-        let Some(start) = tree.entry_node_of(L::node_test8(isa), in_lanes, live) else { return 0 };
-        // Nodes are tested by fused multiply-adds at both widths ([`FusedPacket`]).
-        let packet = FusedPacket::new(in_lanes, live);
-        // The edge tests' constants, made when the packet first reaches a leaf.
-        let mut edges = None;
-        let leaf = |first, count, lanes: u32, _: &mut Vec<(u32, f32)>| {
-            if lanes.count_ones() == 1 {
-                let lane = lanes.trailing_zeros() as usize;
-                return if blas.packets_block(L::node_test8(isa), first, count, &ray(lane)) { lanes } else { 0 };
+    /// One packet of [`SceneGeometry::intersect_many`] traced `into` the scene, offered to
+    /// `hits`. Returns the lanes whose subtree overflowed a packet's stack.
+    #[cfg(target_arch = "x86_64")]
+    fn closest_packet(
+        &self,
+        into: CameraPackets,
+        rays: &[Ray],
+        live: u32,
+        hits: &mut LaneHits<ClosestHit>,
+        stack: &mut Vec<(u32, f32)>,
+    ) -> u32 {
+        // Packets are eight or sixteen wide where `simd::isa` allows them.
+        match into {
+            CameraPackets::World(blas, tree) => {
+                let kernel = BlasClosestLanes { blas, tree, rays, live, instance: 0, hits };
+                run_in(crate::simd::packet_lanes(), kernel)
             }
-            if edges.is_none() {
-                edges = Some(RayTriPacket::new(in_lanes));
+            CameraPackets::Top(top) => {
+                run_in(crate::simd::packet_lanes(), TopClosestLanes { scene: self, top, rays, live, hits, stack })
             }
-            let r = edges.as_ref().expect("made above");
-            blas.packets_block_lanes(first, count, &ray, r, lanes)
-        };
-        let single = |node, lane: usize, stack: &mut Vec<(u32, f32)>| {
-            L::compiled(isa, BlasLoneRay { blas, tree, node, ray: ray(lane), stack })
-        };
-        tree.occluded_packet(&packet, start, live, stack, leaf, single)
+        }
+        .expect("eight or sixteen lanes")
     }
-}
 
-/// Whether anything in `blas` blocks `ray`, a ray of a packet that goes on alone from `node` of
-/// `tree`: a kernel of its own, as a closure is compiled for the instruction set of the function
-/// it is written in (here none) where the compiler leaves it out of line.
-#[cfg(target_arch = "x86_64")]
-struct BlasLoneRay<'a> {
-    blas: &'a Blas,
-    tree: &'a Bvh8,
-    node: u32,
-    ray: Ray,
-    stack: &'a mut Vec<(u32, f32)>,
-}
+    /// Whether anything blocks `ray` in (0, tmax); stops at the first blocker found.
+    #[inline]
+    pub fn occluded(&self, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> bool {
+        let mut blocked = [false];
+        self.occluded_many(std::slice::from_ref(ray), RayOrder::Mixed, stack, &mut blocked);
+        blocked[0]
+    }
 
-#[cfg(target_arch = "x86_64")]
-impl<L: PacketLanes> Kernel<L> for BlasLoneRay<'_> {
-    type Output = bool;
+    /// [`SceneGeometry::occluded`] for each of `rays` into `blocked` (same length; every entry is
+    /// written, whatever it held), in one call:
+    /// the dispatch to the tree's width and the traversal's set-up outside the loop over rays;
+    /// `order` says how the rays are cut into packets.
+    pub fn occluded_many(&self, rays: &[Ray], order: RayOrder, stack: &mut Vec<(u32, f32)>, blocked: &mut [bool]) {
+        self.opaque_occluded_many(rays, order, stack, blocked);
+        if let Some(alpha) = &self.alpha {
+            for (ray, b) in rays.iter().zip(blocked.iter_mut()) {
+                *b = *b || alpha.occluded(ray, stack);
+            }
+        }
+    }
+
+    /// [`SceneGeometry::occluded_many`] for everything but the alpha-tested meshes.
     #[inline(always)]
-    fn run(self, isa: L::Isa) -> bool {
-        let BlasLoneRay { blas, tree, node, ray, stack } = self;
-        let leaf = |first, count, _: &mut Vec<(u32, f32)>| blas.packets_block(L::node_test8(isa), first, count, &ray);
-        tree.occluded_from_touch(L::node_test8(isa), node, &ray, stack, leaf, |first, count| {
-            blas.prefetch_packets(first, count)
-        })
+    fn opaque_occluded_many(&self, rays: &[Ray], order: RayOrder, stack: &mut Vec<(u32, f32)>, blocked: &mut [bool]) {
+        for (ray, b) in rays.iter().zip(blocked.iter_mut()) {
+            *b = self.planes.iter().any(|p| p.intersect(ray).is_some());
+        }
+        stack.clear();
+        if let Some(blas) = &self.world_blas {
+            // One world-space BLAS (a static scene): no top level to traverse.
+            blas.occluded_many(rays, order, stack, blocked);
+        } else {
+            #[cfg(target_arch = "x86_64")]
+            if let Tree::Eight(top, _) = &self.top
+                && rays.len() >= PACKET_RUN
+            {
+                let kernel = TopPackets { scene: self, top, rays, order, stack, blocked };
+                // Packets are eight or sixteen wide where `simd::isa` allows them.
+                return run_in(crate::simd::packet_lanes(), kernel).expect("eight or sixteen lanes");
+            }
+            let _ = order;
+            self.top.query(OccludedEach { target: self, rays, stack, blocked });
+        }
     }
+}
+
+/// Where [`SceneGeometry::intersect_many`] traces a packet.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+enum CameraPackets<'a> {
+    /// Straight into a static scene's one world-space BLAS of triangle packets, and its tree.
+    World(&'a Blas, &'a Bvh8),
+    /// Through the top level (every instance in world space).
+    Top(&'a Bvh8),
 }
 
 /// The closest hits of `rays` (one packet; lanes of `live`) through the top-level tree `top`,
@@ -220,13 +193,13 @@ impl<L: PacketLanes> Kernel<L> for BlasLoneRay<'_> {
 /// a packet, any other BLAS each ray alone. Returns the lanes whose subtree overflowed a
 /// packet's stack; trace those, and the tied ones, alone.
 #[cfg(target_arch = "x86_64")]
-pub(super) struct TopClosestLanes<'a> {
-    pub(super) scene: &'a SceneGeometry,
-    pub(super) top: &'a Bvh8,
-    pub(super) rays: &'a [Ray],
-    pub(super) live: u32,
-    pub(super) hits: &'a mut LaneHits<ClosestHit>,
-    pub(super) stack: &'a mut Vec<(u32, f32)>,
+struct TopClosestLanes<'a> {
+    scene: &'a SceneGeometry,
+    top: &'a Bvh8,
+    rays: &'a [Ray],
+    live: u32,
+    hits: &'a mut LaneHits<ClosestHit>,
+    stack: &'a mut Vec<(u32, f32)>,
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -270,13 +243,13 @@ impl<L: KernelLanes> Kernel<L> for TopClosestLanes<'_> {
 /// within one BLAS; an instance reached by at least [`PACKET_MIN_LANES`] of a packet's rays
 /// gets them as one packet in its own frame.
 #[cfg(target_arch = "x86_64")]
-pub(super) struct TopPackets<'a> {
-    pub(super) scene: &'a SceneGeometry,
-    pub(super) top: &'a Bvh8,
-    pub(super) rays: &'a [Ray],
-    pub(super) order: RayOrder,
-    pub(super) stack: &'a mut Vec<(u32, f32)>,
-    pub(super) blocked: &'a mut [bool],
+struct TopPackets<'a> {
+    scene: &'a SceneGeometry,
+    top: &'a Bvh8,
+    rays: &'a [Ray],
+    order: RayOrder,
+    stack: &'a mut Vec<(u32, f32)>,
+    blocked: &'a mut [bool],
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -396,7 +369,7 @@ impl<L: KernelLanes, F: Fn(usize) -> Ray> Kernel<L> for TopPacket<'_, L, F> {
 }
 
 /// Whether anything blocks `ray`, a ray of a packet that goes on alone from `node` of the
-/// top-level tree `top` (a kernel of its own, as [`BlasLoneRay`]).
+/// top-level tree `top` (a kernel of its own, as a BLAS's lone ray is).
 #[cfg(target_arch = "x86_64")]
 struct TopLoneRay<'a> {
     scene: &'a SceneGeometry,
