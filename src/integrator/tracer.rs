@@ -53,7 +53,7 @@ impl Scene<'_> {
         material
     }
 
-    /// How many light groups draw no samples ([`Scene::fixed_groups`]).
+    /// How many light groups draw no samples (`Scene::fixed_groups`).
     pub fn fixed_group_count(&self) -> usize {
         self.fixed_groups().count()
     }

@@ -134,7 +134,7 @@ pub(super) fn permute_pow2_lanes<V: U32Lanes>(i: V, mask: u32, seed: u32) -> V {
     permute_round_lanes(i, mask, seed).add(V::splat(isa, seed)).and(V::splat(isa, mask))
 }
 
-/// Whether [`permute_lanes`] gives [`permute`]'s values for `len` and `seed`: a power of two,
+/// Whether `permute_lanes` gives [`permute`]'s values for `len` and `seed`: a power of two,
 /// or a length below 2³¹ whose last step (`i + seed` for i < len) cannot wrap around 2³², so
 /// that its remainder comes from `seed`'s. Only a seed within `len` of 2³² fails.
 #[inline]

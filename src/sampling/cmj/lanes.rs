@@ -120,7 +120,7 @@ impl<L: SampleLanes> SmallGrid<L> {
 }
 
 /// The shuffle of `len` (at most 16) grid columns or rows by `seed` as a table: entry i holds
-/// i's shuffled place ([`permute`](crate::sampling::hash::permute)); entries past `len` are
+/// i's shuffled place ([`permute`]); entries past `len` are
 /// never looked up.
 #[inline(always)]
 fn shuffle_table<V: U32Lanes>(isa: V::Isa, len: Modulus, seed: u32) -> V::Table16 {
