@@ -213,7 +213,7 @@ impl ZSobol {
 /// put back in its place.
 #[inline(always)]
 fn permuted_digit(morton: u64, shift: u32, hash: u64) -> u64 {
-    packed_digit(packed_permutation(hash), morton, shift)
+    u64::from(packed_permutation(hash) >> (2 * ((morton >> shift) & 3)) & 3) << shift
 }
 
 /// The permutation of a base-4 digit that `hash` picks, packed two bits a digit: digit d goes
@@ -222,13 +222,6 @@ fn permuted_digit(morton: u64, shift: u32, hash: u64) -> u64 {
 fn packed_permutation(hash: u64) -> u8 {
     let perm = PERMUTATIONS[((hash >> 24) % 24) as usize];
     perm[0] | perm[1] << 2 | perm[2] << 4 | perm[3] << 6
-}
-
-/// The base-4 digit of `morton` at bit `shift` under the packed permutation `packed`, put back
-/// in its place.
-#[inline(always)]
-fn packed_digit(packed: u8, morton: u64, shift: u32) -> u64 {
-    u64::from(packed >> (2 * ((morton >> shift) & 3)) & 3) << shift
 }
 
 /// The permuted sample bits (pbrt-v4's `GetSampleIndex` below the pixel's digits) of samples
