@@ -622,6 +622,10 @@ fn trace_tile<C: CameraRays>(
         }
         let row_len = row_hits.len();
         let mut row_hits = row_hits.iter().enumerate();
+        // Where the row was gathered before its pixels, its runs are its pixels still sampled,
+        // in column order: no pixel's error is worked out twice.
+        let row_gathered = one_ray_per_pixel || pooled_own;
+        let mut row_left = row_runs.iter().peekable();
         for x in tile.x0..tile.x1 {
             let pixel = y * job.width + x;
             tracer.timing = timed_pixel(pixel);
@@ -633,7 +637,12 @@ fn trace_tile<C: CameraRays>(
             // A pixel's samples are numbered 0, 1, … (from `first_sample` for a part of a
             // render) whatever the others do (adaptive sampling retires pixels independently).
             let first = job.first_sample.wrapping_add(acc.count(pixel as usize));
-            let count = if acc.pixel_done(pixel as usize, target) { 0 } else { job.count };
+            let done = if row_gathered {
+                row_left.next_if(|&&(column, _, _)| column == x).is_none()
+            } else {
+                acc.pixel_done(pixel as usize, target)
+            };
+            let count = if done { 0 } else { job.count };
             if count == 0 {
                 sums.push(sum);
                 counts.push(0);
