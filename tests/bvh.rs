@@ -439,7 +439,7 @@ fn bundles_get_single_hits(geometry: &SceneGeometry, vertices: &[Vec3A], seam: &
             })
             .collect();
         let mut many = vec![None; count];
-        geometry.intersect_many(&rays, &mut stack, |k, hit| many[k] = hit);
+        geometry.intersect_many(&rays, &mut stack, &mut many, |_, hit| hit);
         for (ray, hit) in rays.iter().zip(&many) {
             let single = geometry.intersect(ray, &mut stack);
             assert_eq!(hit_bits(hit), hit_bits(&single), "bundle {bundle}, ray {ray:?}");

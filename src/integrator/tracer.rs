@@ -319,9 +319,7 @@ impl Tracer {
         self.rays.primary += rays.len() as u64;
         out.clear();
         out.resize(rays.len(), None);
-        scene.geometry.intersect_many(rays, &mut self.stack, |k, hit| {
-            out[k] = hit.map(|hit| PrimaryHit::along(&rays[k], hit));
-        });
+        scene.geometry.intersect_many(rays, &mut self.stack, out, PrimaryHit::along);
     }
 
     /// [`Tracer::primaries`] for rays whose ends (`ends[k]` for `rays[k]`) may be known from
@@ -357,11 +355,10 @@ impl Tracer {
             }
         }
         out.clear();
-        out.extend(
-            rays.iter()
-                .zip(ends.iter())
-                .map(|(ray, &end)| scene.geometry.hit_at(ray, end).map(|hit| PrimaryHit::along(ray, hit))),
-        );
+        out.resize(rays.len(), None);
+        for ((ray, &end), out) in rays.iter().zip(ends.iter()).zip(out.iter_mut()) {
+            scene.geometry.hit_at_into(ray, end, out, |hit| PrimaryHit::along(ray, hit));
+        }
         true
     }
 

@@ -280,6 +280,19 @@ impl SceneGeometry {
         self.hit_with_planes(ray.with_tmax(end.tmax), end.closest())
     }
 
+    /// [`SceneGeometry::hit_at`] made into `make(hit)` and written to `out` from registers:
+    /// the surface is worked out here, not returned through memory that a copy would read
+    /// back while its narrow stores are still in flight.
+    #[inline(never)]
+    pub fn hit_at_into<T>(&self, ray: &Ray, end: RayEnd, out: &mut Option<T>, make: impl FnOnce(SurfaceHit) -> T) {
+        let best = end.closest();
+        *out = self
+            .planes_before(ray.with_tmax(end.tmax), |ray| {
+                best.map(|(i, slot, b1, b2)| self.surface_inlined(i, slot, ray, b1, b2))
+            })
+            .map(make);
+    }
+
     /// Where `ray` ends among the opaque primitives, traced alone.
     #[inline(always)]
     pub(super) fn ray_end(&self, ray: &Ray, stack: &mut Vec<(u32, f32)>) -> RayEnd {
@@ -314,6 +327,12 @@ impl SceneGeometry {
 
     /// The surface at a hit of instance `i`'s primitive `slot`; `ray.tmax` is the world t.
     pub(super) fn surface(&self, i: u32, slot: u32, ray: &Ray, b1: f32, b2: f32) -> SurfaceHit {
+        self.surface_inlined(i, slot, ray, b1, b2)
+    }
+
+    /// [`SceneGeometry::surface`], inlined where it is called.
+    #[inline(always)]
+    fn surface_inlined(&self, i: u32, slot: u32, ray: &Ray, b1: f32, b2: f32) -> SurfaceHit {
         let inst = &self.instances[i as usize];
         let blas = &self.blases[inst.blas as usize];
         let prim = blas.object(slot);

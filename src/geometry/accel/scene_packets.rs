@@ -31,21 +31,22 @@ impl SceneGeometry {
     /// in packets where the trees are eight-wide, every instance is in world space and there are
     /// triangle packets (straight into the one BLAS of a static scene, else through the top
     /// level), which suits runs of rays that travel together, such as one pixel's camera rays.
-    /// Calls `found(k, hit)` with each `rays[k]`'s hit.
-    pub fn intersect_many(
+    /// Writes `make(ray, hit)` of each `rays[k]`'s hit (`None` where it has none) to `out[k]`.
+    pub fn intersect_many<T>(
         &self,
         rays: &[Ray],
         stack: &mut Vec<(u32, f32)>,
-        mut found: impl FnMut(usize, Option<SurfaceHit>),
+        out: &mut [Option<T>],
+        make: impl Fn(&Ray, SurfaceHit) -> T,
     ) {
         if self.alpha.is_some() {
             // Alpha-tested meshes take the single-ray path.
             for (k, ray) in rays.iter().enumerate() {
-                found(k, self.intersect(ray, stack));
+                out[k] = self.intersect(ray, stack).map(|hit| make(ray, hit));
             }
             return;
         }
-        self.closest_each(rays, stack, |k, ray, end| found(k, self.hit_at(ray, end)));
+        self.closest_each(rays, stack, |k, ray, end| self.hit_at_into(ray, end, &mut out[k], |hit| make(ray, hit)));
     }
 
     /// Where each of `rays` ends ([`RayEnd`]) into `ends` (same length), found as
