@@ -274,15 +274,9 @@ impl SceneGeometry {
 
     /// The hit [`SceneGeometry::intersect`] finds along `ray` where it ends at `end` (found by
     /// [`SceneGeometry::ray_ends`] for this ray), bit for bit: the surface at the closest
-    /// primitive, unless a plane is hit before it.
-    #[inline]
-    pub fn hit_at(&self, ray: &Ray, end: RayEnd) -> Option<SurfaceHit> {
-        self.hit_with_planes(ray.with_tmax(end.tmax), end.closest())
-    }
-
-    /// [`SceneGeometry::hit_at`] made into `make(hit)` and written to `out` from registers:
-    /// the surface is worked out here, not returned through memory that a copy would read
-    /// back while its narrow stores are still in flight.
+    /// primitive, unless a plane is hit before it; made into `make(hit)` and written to `out`.
+    /// The surface is worked out here and stored from registers, not returned through memory
+    /// that a copy would read back while its narrow stores are still in flight.
     #[inline(never)]
     pub fn hit_at_into<T>(&self, ray: &Ray, end: RayEnd, out: &mut Option<T>, make: impl FnOnce(SurfaceHit) -> T) {
         let best = end.closest();
@@ -451,7 +445,7 @@ impl TreeQuery for TopClosest<'_> {
 
 /// Where a ray ends, in 20 bytes: the closest opaque primitive it meets (instance, slot and
 /// barycentrics) and its distance, or only the ray's own end where it meets none. Planes are
-/// not in it: [`SceneGeometry::hit_at`] tests them again (a scene has a few).
+/// not in it: [`SceneGeometry::hit_at_into`] tests them again (a scene has a few).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RayEnd {
     /// The instance hit; [`RayEnd::NO_PRIMITIVE`] where none is, [`RayEnd::UNKNOWN`]'s where
