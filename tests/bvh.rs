@@ -327,13 +327,14 @@ fn runs_match_brute_force(geometry: &SceneGeometry, offset: Vec3, rng: &mut Spli
     assert!(total > runs * 30 && blocked > total / 10 && blocked < total * 9 / 10, "{blocked} of {total} blocked");
 }
 
-/// A hit's t, point, error bound, normal and object, as bits for exact comparisons.
-type HitBits = (u32, [u32; 3], [u32; 3], [u32; 3], u32);
+/// A hit's t, point, error bound, normal, object, triangle and barycentrics, as bits for exact
+/// comparisons.
+type HitBits = (u32, [u32; 3], [u32; 3], [u32; 3], u32, u32, [u32; 2]);
 
 /// The bits of a hit.
 fn hit_bits(hit: &Option<SurfaceHit>) -> Option<HitBits> {
     let bits = |v: Vec3A| v.to_array().map(f32::to_bits);
-    hit.map(|h| (h.t.to_bits(), bits(h.p), bits(h.p_error), bits(h.normal), h.object))
+    hit.map(|h| (h.t.to_bits(), bits(h.p), bits(h.p_error), bits(h.normal), h.object, h.prim, h.bary.map(f32::to_bits)))
 }
 
 #[test]
@@ -381,6 +382,8 @@ fn runs_of_camera_rays_get_the_hits_of_single_queries() {
     let seam: Vec<Vec3A> = (0..=n).map(|z| Vec3A::new(0.0, -5.5, z as f32 - 3.0)).collect();
     // Baked into one BLAS of triangles (a static scene: packets straight into it).
     let baked = SceneGeometry::build(pieces.concat(), plane(), (0..33).map(|_| matte()).collect());
+    // The same without the plane: every hit on a triangle packet.
+    let baked_alone = SceneGeometry::build(pieces.concat(), Vec::new(), (0..33).map(|_| matte()).collect());
     // As world-space instances under a top level, with a BLAS of spheres (traced ray by ray);
     // and once more with a rotated, scaled instance besides (camera rays then go one by one).
     let mut blases: Vec<Arc<Blas>> = pieces.into_iter().map(|p| Arc::new(Blas::build(p))).collect();
@@ -407,7 +410,7 @@ fn runs_of_camera_rays_get_the_hits_of_single_queries() {
     );
     instances.push(Instance::new(33, blases[33].bounds().unwrap(), m, Some(38)).unwrap());
     let transformed = SceneGeometry::from_instances(blases, instances, plane(), objects());
-    for geometry in [&baked, &world, &transformed] {
+    for geometry in [&baked, &baked_alone, &world, &transformed] {
         bundles_get_single_hits(geometry, &vertices, &seam, &mut rng);
     }
 }

@@ -9,6 +9,8 @@ pub(crate) mod huge_pages;
 pub(crate) mod lanes;
 pub mod ray;
 pub mod shapes;
+#[cfg(target_arch = "x86_64")]
+pub(crate) mod surface_lanes;
 pub mod tri4;
 pub mod wide_bvh;
 pub mod world_space;

@@ -89,6 +89,12 @@ impl Tri4 {
         Triangle { p: [vertex(0), vertex(1), vertex(2)] }
     }
 
+    /// The vertices of the triangle in `lane`, exactly as packed: vertex by vertex, x, y, z.
+    #[inline(always)]
+    pub fn vertices(&self, lane: usize) -> [f32; 9] {
+        std::array::from_fn(|i| self.p[i / 3][i % 3][lane])
+    }
+
     /// Edge tests of the four lanes (unused lanes come back in `exact`; skip them by slot).
     #[inline(always)]
     pub fn edges(&self, r: &RayTri4) -> Edges {

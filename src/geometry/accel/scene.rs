@@ -302,6 +302,14 @@ impl SceneGeometry {
         self.planes_before(ray, |ray| best.map(|(i, slot, b1, b2)| self.surface(i, slot, ray, b1, b2)))
     }
 
+    /// Whether a plane lies before `tmax` along `ray`: where one does, the hit there is the
+    /// plane's ([`SceneGeometry::hit_at_into`]).
+    #[inline(always)]
+    pub(super) fn plane_before(&self, ray: &Ray, tmax: f32) -> bool {
+        let ray = ray.with_tmax(tmax);
+        self.planes.iter().any(|plane| plane.intersect(&ray).is_some())
+    }
+
     /// The hit of a plane before `ray.tmax` if there is one, else `surface(ray)`: the hit
     /// found at `ray.tmax`.
     #[inline(always)]
@@ -329,13 +337,7 @@ impl SceneGeometry {
     fn surface_inlined(&self, i: u32, slot: u32, ray: &Ray, b1: f32, b2: f32) -> SurfaceHit {
         let inst = &self.instances[i as usize];
         let blas = &self.blases[inst.blas as usize];
-        let prim = blas.object(slot);
-        // A mesh instance's primitives hold their triangle's index in the mesh; a world-space
-        // BLAS's hold their object's, and a bake of textured meshes keeps the triangles apart.
-        let (object, prim) = match inst.object {
-            Some(object) => (object, prim),
-            None => (prim, blas.source_triangles.as_ref().map_or(u32::MAX, |t| t[slot as usize])),
-        };
+        let (object, prim) = hit_ids(inst, blas, slot);
         if inst.identity {
             return SurfaceHit { prim, ..blas.surface(slot, ray, b1, b2, object) };
         }
@@ -440,6 +442,18 @@ impl TreeQuery for TopClosest<'_> {
     #[inline(always)]
     fn run<const W: usize>(self, tree: &WideBvh<W>, node_test: impl NodeTest<W>) -> Self::Output {
         self.scene.closest_through(tree, node_test, self.ray, self.stack)
+    }
+}
+
+/// The object and mesh triangle of a hit of primitive `slot` of `blas` placed by `inst`: a mesh
+/// instance's primitives hold their triangle's index in the mesh; a world-space BLAS's hold
+/// their object's, and a bake of textured meshes keeps the triangles apart.
+#[inline(always)]
+pub(super) fn hit_ids(inst: &Instance, blas: &Blas, slot: u32) -> (u32, u32) {
+    let prim = blas.object(slot);
+    match inst.object {
+        Some(object) => (object, prim),
+        None => (prim, blas.source_triangles.as_ref().map_or(u32::MAX, |t| t[slot as usize])),
     }
 }
 

@@ -9,6 +9,7 @@ use super::{
     blas::{Blas, PACKET_RUN},
     blas_packets::{BlasClosestLanes, BlasLanesOf, KernelLanes},
     ray_order::in_packets,
+    scene::hit_ids,
     tlas::Instance,
     tree::{ClosestHit, Tree},
 };
@@ -21,6 +22,7 @@ use crate::geometry::{hit::SurfaceHit, ray::Ray};
 #[cfg(target_arch = "x86_64")]
 use crate::geometry::{
     lanes::{PacketLanes, RayLanes},
+    surface_lanes::{HitColumns, SurfaceColumns, SurfaceLanes},
     wide_bvh::{Bvh8, FusedPacket, LaneHits, PACKET_MIN_LANES, RayPacket},
 };
 #[cfg(target_arch = "x86_64")]
@@ -46,6 +48,60 @@ impl SceneGeometry {
             }
             return;
         }
+        #[cfg(target_arch = "x86_64")]
+        if rays.len() >= PACKET_RUN
+            && let Some(into) = self.camera_packets()
+        {
+            let (mut columns, mut surfaces) = (HitColumns::default(), SurfaceColumns::default());
+            self.closest_packets(into, rays, stack, |at, chunk, found, alone, stack| {
+                let out = &mut out[at..][..chunk.len()];
+                // A packet's hits on triangle packets of world-space instances, no plane before
+                // them, made into surfaces in lanes; the others one by one.
+                let mut in_lanes = 0u32;
+                for (k, ray) in chunk.iter().enumerate() {
+                    if let Some((i, slot, b1, b2)) = found.best[k]
+                        && alone & (1 << k) == 0
+                        && let inst = &self.instances[i as usize]
+                        && inst.identity
+                        && let Some(packet) = self.blases[inst.blas as usize].packets.get(slot as usize / 4)
+                        && !self.plane_before(ray, found.tmax[k])
+                    {
+                        columns.set(k, packet.vertices(slot as usize % 4), [b1, b2], ray.dir.to_array());
+                        in_lanes |= 1 << k;
+                    }
+                }
+                if in_lanes != 0 {
+                    let kernel = SurfaceLanes { hits: &columns, n: chunk.len(), out: &mut surfaces };
+                    run_in(crate::simd::packet_lanes(), kernel).expect("eight or sixteen lanes");
+                }
+                for (k, (ray, out)) in chunk.iter().zip(out.iter_mut()).enumerate() {
+                    if in_lanes & (1 << k) == 0 {
+                        let end = if alone & (1 << k) != 0 {
+                            self.ray_end(ray, stack)
+                        } else {
+                            RayEnd::new(found.best[k], found.tmax[k])
+                        };
+                        self.hit_at_into(ray, end, out, |hit| make(ray, hit));
+                        continue;
+                    }
+                    let (i, slot, b1, b2) = found.best[k].expect("a hit made in lanes");
+                    let inst = &self.instances[i as usize];
+                    let (object, prim) = hit_ids(inst, &self.blases[inst.blas as usize], slot);
+                    let lane = |c: &[[f32; 16]; 3]| glam::Vec3A::new(c[0][k], c[1][k], c[2][k]);
+                    let hit = SurfaceHit {
+                        t: found.tmax[k],
+                        p: lane(&surfaces.p),
+                        p_error: lane(&surfaces.p_error),
+                        normal: lane(&surfaces.normal),
+                        object,
+                        prim,
+                        bary: [b1, b2],
+                    };
+                    *out = Some(make(ray, hit));
+                }
+            });
+            return;
+        }
         self.closest_each(rays, stack, |k, ray, end| self.hit_at_into(ray, end, &mut out[k], |hit| make(ray, hit)));
     }
 
@@ -68,24 +124,42 @@ impl SceneGeometry {
         if rays.len() >= PACKET_RUN
             && let Some(into) = self.camera_packets()
         {
-            let width = crate::simd::packet_lanes();
-            for (c, chunk) in rays.chunks(width).enumerate() {
-                let mut found = LaneHits::new(chunk);
-                let live = (1u32 << chunk.len()) - 1;
-                let alone = self.closest_packet(into, chunk, live, &mut found, stack) | found.tied;
+            self.closest_packets(into, rays, stack, |at, chunk, found, alone, stack| {
                 for (k, ray) in chunk.iter().enumerate() {
                     let end = if alone & (1 << k) != 0 {
                         self.ray_end(ray, stack)
                     } else {
                         RayEnd::new(found.best[k], found.tmax[k])
                     };
-                    out(c * width + k, ray, end);
+                    out(at + k, ray, end);
                 }
-            }
+            });
             return;
         }
         for (k, ray) in rays.iter().enumerate() {
             out(k, ray, self.ray_end(ray, stack));
+        }
+    }
+
+    /// Traces `rays` `into` the scene a packet at a time, calling `each(at, chunk, found,
+    /// alone, stack)` for the packet of `rays[at..]`: its closest hits in `found`, and the
+    /// lanes it leaves to be traced alone (their subtree overflowed a packet's stack, or a hit
+    /// tied at their closest distance) in `alone`.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    fn closest_packets(
+        &self,
+        into: CameraPackets,
+        rays: &[Ray],
+        stack: &mut Vec<(u32, f32)>,
+        mut each: impl FnMut(usize, &[Ray], &LaneHits<ClosestHit>, u32, &mut Vec<(u32, f32)>),
+    ) {
+        let width = crate::simd::packet_lanes();
+        for (c, chunk) in rays.chunks(width).enumerate() {
+            let mut found = LaneHits::new(chunk);
+            let live = (1u32 << chunk.len()) - 1;
+            let alone = self.closest_packet(into, chunk, live, &mut found, stack) | found.tied;
+            each(c * width, chunk, &found, alone, stack);
         }
     }
 
