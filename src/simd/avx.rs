@@ -52,6 +52,9 @@ impl SampleLanes for Avx {
         fn from_small_u32(i: U32x8) -> Self {
             Avx(_mm256_cvtepi32_ps(i.0))
         }
+        fn truncate_small(self) -> U32x8 {
+            U32x8(_mm256_cvttps_epi32(self.0))
+        }
         fn store_points(x: Self, y: Self, out: &mut [Vec2]) {
             let iota = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
             // (x, y) pairs as `Vec2`s lie in memory: points 0–3, then 4–7.

@@ -143,6 +143,9 @@ impl SampleLanes for Avx512 {
         fn from_small_u32(i: U32x16) -> Self {
             Avx512(_mm512_cvtepi32_ps(i.0))
         }
+        fn truncate_small(self) -> U32x16 {
+            U32x16(_mm512_cvttps_epi32(self.0))
+        }
         fn store_points(x: Self, y: Self, out: &mut [Vec2]) {
             // x and y of lanes 0–7, then of lanes 8–15, interleaved as `Vec2`s lie in memory.
             let low = _mm512_setr_epi32(0, 16, 1, 17, 2, 18, 3, 19, 4, 20, 5, 21, 6, 22, 7, 23);

@@ -142,6 +142,8 @@ pub(crate) trait SampleLanes: Lanes {
     fn from_u32(i: Self::U32) -> Self;
     /// [`SampleLanes::from_u32`] of lanes below 2³¹, which a signed conversion gives exactly.
     fn from_small_u32(i: Self::U32) -> Self;
+    /// Each lane (a number in [0, 2³¹)) truncated toward zero, as `x as u32` truncates it.
+    fn truncate_small(self) -> Self::U32;
     /// Writes lane k of `x` and of `y` as `out[k]`, for each k below `out.len()` and `WIDTH`,
     /// and nothing else.
     fn store_points(x: Self, y: Self, out: &mut [Vec2]);

@@ -299,6 +299,10 @@ impl SampleLanes for Portable {
         Portable(lanes(|k| i.0[k] as f32))
     }
     #[inline(always)]
+    fn truncate_small(self) -> PortableU32 {
+        PortableU32(std::array::from_fn(|k| self.0[k] as u32))
+    }
+    #[inline(always)]
     fn store_points(x: Self, y: Self, out: &mut [Vec2]) {
         for (k, out) in out.iter_mut().take(8).enumerate() {
             *out = Vec2::new(x.0[k], y.0[k]);

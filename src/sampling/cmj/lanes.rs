@@ -8,7 +8,7 @@ use super::{Cmj, Scrambles};
 use crate::{
     sampling::{
         ONE_MINUS_EPSILON,
-        hash::{Modulus, permute, permute_lanes, permute_pow2_lanes},
+        hash::{Modulus, permute, permute_lanes, permute_pow2_lanes, permutes_in_lanes},
     },
     simd::{CompressLanes, Kernel, SampleLanes, U32Lanes},
 };
@@ -39,46 +39,72 @@ fn randfloat_lanes<L: SampleLanes>(i: L::U32, p: u32) -> L {
     f.min_keep(L::splat(isa, ONE_MINUS_EPSILON))
 }
 
-/// One pattern of a [`Cmj`] on a grid of at most 16 × 16, set up for `L::WIDTH` samples at a
-/// time: the sample order's permutation and the two jitters per sample (three of the five
-/// hashes) computed in lanes, the column and row shuffles looked up from sixteen-entry tables
-/// worked out once ([`U32Lanes::lookup16`]). Each lane does the scalar code's operations in its
-/// order, so every value is [`Cmj::sample`]'s.
-pub(crate) struct SmallGrid<L: SampleLanes> {
+/// One pattern of a [`Cmj`], set up for `L::WIDTH` samples at a time: the sample order's
+/// permutation and the two jitters per sample (three of the five hashes) computed in lanes; the
+/// column and row shuffles looked up from sixteen-entry tables worked out once
+/// ([`U32Lanes::lookup16`]) on a grid of at most 16 × 16, else permuted in lanes too. Each lane
+/// does the scalar code's operations in its order, so every value is [`Cmj::sample`]'s.
+pub(crate) struct PatternLanes<L: SampleLanes> {
     isa: L::Isa,
     sc: Scrambles,
     n: Modulus,
-    /// m − 1 and log₂ m where n (and so m) is a power of two.
-    pow2_col: Option<(u32, u32)>,
-    /// m, and ⌈2¹⁶ / m⌉: the row of a sample s < 256 is (s · that) >> 16, exactly.
-    m: u32,
-    row_magic: u32,
+    cells: Cells,
     inv: [f32; 2],
-    /// Column c's shuffled sub-column in entry c (entries past m are never looked up).
-    by_col: <L::U32 as U32Lanes>::Table16,
-    /// Row r's shuffled sub-row in entry r.
-    by_row: <L::U32 as U32Lanes>::Table16,
+    shuffles: Shuffles<L::U32>,
 }
 
-impl<L: SampleLanes> SmallGrid<L> {
+/// How a shuffled sample number splits into its grid column and row.
+enum Cells {
+    /// m − 1 and log₂ m, where n (and so m) is a power of two.
+    Pow2 { mask: u32, shift: u32 },
+    /// m, and ⌈2¹⁶ / m⌉: the row of a sample s < 256 is (s · that) >> 16, exactly.
+    Small { m: u32, row_magic: u32 },
+    /// m: the row of a sample s < 2²³ is the f32 quotient s / m truncated, exactly (s / m lies
+    /// at least 1/m from the next integer above, farther than the quotient's rounding moves it).
+    Divided { m: u32 },
+}
+
+/// The column and row shuffles of a pattern.
+enum Shuffles<V: U32Lanes> {
+    /// Column c's shuffled sub-column in entry c of the first table, row r's sub-row in entry r
+    /// of the second (entries past m and k are never looked up).
+    Tables(V::Table16, V::Table16),
+    /// Each lane's column and row permuted in lanes ([`permute_lanes`]) over m and k.
+    Permuted(Modulus, Modulus),
+}
+
+/// Largest pattern whose rows [`Cells::Divided`] finds exactly.
+const DIVIDED_MAX: u32 = 1 << 23;
+
+/// Whether [`PatternLanes`] gives `cmj`'s pattern with scrambles `sc` exactly: every
+/// permutation it makes in lanes is [`permute`]'s ([`permutes_in_lanes`]), and its rows are
+/// exact.
+pub(super) fn takes_pattern(cmj: &Cmj, sc: &Scrambles) -> bool {
+    permutes_in_lanes(cmj.n, sc.order)
+        && (cmj.has_small_grid()
+            || (cmj.n.get() <= DIVIDED_MAX && permutes_in_lanes(cmj.m, sc.x) && permutes_in_lanes(cmj.k, sc.y)))
+}
+
+impl<L: SampleLanes> PatternLanes<L> {
     /// Pattern `p` of `cmj`, which must take it in lanes ([`Cmj::in_lanes`]).
     #[inline(always)]
     pub(crate) fn new(isa: L::Isa, cmj: &Cmj, p: u32) -> Self {
         debug_assert!(cmj.in_lanes(p));
         let sc = Scrambles::new(p);
-        let (by_col, by_row) = (shuffle_table::<L::U32>(isa, cmj.m, sc.x), shuffle_table::<L::U32>(isa, cmj.k, sc.y));
         let m = cmj.m.get();
-        SmallGrid {
-            isa,
-            sc,
-            n: cmj.n,
-            pow2_col: cmj.n.is_power_of_two().then(|| (cmj.m.mask(), m.trailing_zeros())),
-            m,
-            row_magic: (1u32 << 16).div_ceil(m),
-            inv: cmj.inv,
-            by_col,
-            by_row,
-        }
+        let cells = if cmj.n.is_power_of_two() {
+            Cells::Pow2 { mask: cmj.m.mask(), shift: m.trailing_zeros() }
+        } else if cmj.n.get() <= 256 {
+            Cells::Small { m, row_magic: (1u32 << 16).div_ceil(m) }
+        } else {
+            Cells::Divided { m }
+        };
+        let shuffles = if cmj.has_small_grid() {
+            Shuffles::Tables(shuffle_table::<L::U32>(isa, cmj.m, sc.x), shuffle_table::<L::U32>(isa, cmj.k, sc.y))
+        } else {
+            Shuffles::Permuted(cmj.m, cmj.k)
+        };
+        PatternLanes { isa, sc, n: cmj.n, cells, inv: cmj.inv, shuffles }
     }
 
     /// Each lane's sample `s` after the sample order's permutation.
@@ -99,15 +125,22 @@ impl<L: SampleLanes> SmallGrid<L> {
     #[inline(always)]
     fn points_of(&self, s: L::U32) -> (L, L) {
         let u = |x: u32| L::U32::splat(self.isa, x);
-        let (col, row) = match self.pow2_col {
-            Some((mask, shift)) => (s.and(u(mask)), s.shr(u(shift))),
-            None => {
-                // s < n ≤ 256: the quotient by multiplication is exact, the column s − row·m.
-                let row = s.mul(u(self.row_magic)).shr(u(16));
-                (s.add(row.mul(u(self.m.wrapping_neg()))), row)
+        let (col, row) = match self.cells {
+            Cells::Pow2 { mask, shift } => (s.and(u(mask)), s.shr(u(shift))),
+            // s < n ≤ 256: the quotient by multiplication is exact, the column s − row·m.
+            Cells::Small { m, row_magic } => {
+                let row = s.mul(u(row_magic)).shr(u(16));
+                (s.add(row.mul(u(m.wrapping_neg()))), row)
+            }
+            Cells::Divided { m } => {
+                let row = L::from_small_u32(s).div(L::splat(self.isa, m as f32)).truncate_small();
+                (s.add(row.mul(u(m.wrapping_neg()))), row)
             }
         };
-        let (sx, sy) = (col.lookup16(self.by_col), row.lookup16(self.by_row));
+        let (sx, sy) = match self.shuffles {
+            Shuffles::Tables(by_col, by_row) => (col.lookup16(by_col), row.lookup16(by_row)),
+            Shuffles::Permuted(m, k) => (permute_lanes(col, m, self.sc.x), permute_lanes(row, k, self.sc.y)),
+        };
         let (jx, jy) = (randfloat_lanes::<L>(s, self.sc.jx), randfloat_lanes::<L>(s, self.sc.jy));
         let [inv_m, inv_k] = self.inv.map(|v| L::splat(self.isa, v));
         // Grid indices are below 16: the conversion is exact.
@@ -140,21 +173,21 @@ fn shuffle_table<V: U32Lanes>(isa: V::Isa, len: Modulus, seed: u32) -> V::Table1
 }
 
 /// [`Cmj::fill`] for a pattern taken in lanes ([`Cmj::in_lanes`]): `L::WIDTH` samples at a
-/// time ([`SmallGrid::points`]), stored
+/// time ([`PatternLanes::points`]), stored
 /// as the `Vec2`s they are.
-pub(super) struct FillSmallGrid<'a> {
+pub(super) struct FillPattern<'a> {
     pub(super) cmj: &'a Cmj,
     pub(super) first: u32,
     pub(super) p: u32,
     pub(super) out: &'a mut [Vec2],
 }
 
-impl<L: SampleLanes> Kernel<L> for FillSmallGrid<'_> {
+impl<L: SampleLanes> Kernel<L> for FillPattern<'_> {
     type Output = ();
     #[inline(always)]
     fn run(self, isa: L::Isa) {
-        let FillSmallGrid { cmj, first, p, out } = self;
-        let grid = SmallGrid::<L>::new(isa, cmj, p);
+        let FillPattern { cmj, first, p, out } = self;
+        let grid = PatternLanes::<L>::new(isa, cmj, p);
         for (i, chunk) in out.chunks_mut(L::WIDTH).enumerate() {
             let (x, y) = grid.points(first + (L::WIDTH * i) as u32);
             L::store_points(x, y, chunk);
@@ -178,7 +211,7 @@ impl<L: SampleLanes + CompressLanes> Kernel<L> for FillColumns<'_> {
     fn run(self, isa: L::Isa) {
         let FillColumns { cmj, first, p, xs, ys } = self;
         assert_eq!(xs.len(), ys.len(), "one column per coordinate");
-        let grid = SmallGrid::<L>::new(isa, cmj, p);
+        let grid = PatternLanes::<L>::new(isa, cmj, p);
         for (i, (xs, ys)) in xs.chunks_mut(L::WIDTH).zip(ys.chunks_mut(L::WIDTH)).enumerate() {
             let (x, y) = grid.points(first + (L::WIDTH * i) as u32);
             x.store_partial(xs);
@@ -199,7 +232,7 @@ impl<L: SampleLanes + CompressLanes> Kernel<L> for FillColumns<'_> {
 /// shuffled sample number's are its column within the quarter, its quarter, its row, so one
 /// is a swap of bit fields of the other.
 pub(crate) struct QuadrantPattern<'a, L: SampleLanes> {
-    grid: SmallGrid<L>,
+    grid: PatternLanes<L>,
     /// Each slot's shuffled sample number ([`Cmj::quadrant_samples`] for this width).
     samples: &'a [u32; 256],
     /// Bits of the column within a quarter (log₂ m − 2) and of the row (log₂ k).
@@ -215,7 +248,7 @@ impl<'a, L: SampleLanes> QuadrantPattern<'a, L> {
         debug_assert!(cmj.has_quadrants());
         let (bits, packet_bits) = quadrant_bits(cmj, L::WIDTH as u32);
         let samples = &cmj.quadrant_samples[usize::from(L::WIDTH == 16)];
-        QuadrantPattern { grid: SmallGrid::new(isa, cmj, p), samples, bits, packet_bits }
+        QuadrantPattern { grid: PatternLanes::new(isa, cmj, p), samples, bits, packet_bits }
     }
 
     /// The points of the slots of packet `packet` (`L::WIDTH` consecutive slots): x lanes, y

@@ -9,14 +9,14 @@ mod tests;
 #[cfg(target_arch = "x86_64")]
 pub(crate) use lanes::QuadrantPattern;
 #[cfg(target_arch = "x86_64")]
-use lanes::{FillColumns, FillSmallGrid, quadrant_bits, quadrant_sample};
+use lanes::{FillColumns, FillPattern, quadrant_bits, quadrant_sample};
 
 use glam::Vec2;
 
 use super::{
     ONE_MINUS_EPSILON,
     generators::grid_shape,
-    hash::{Modulus, permute, permute_pow2, permutes_in_lanes},
+    hash::{Modulus, permute, permute_pow2},
 };
 
 /// Kensler's hash to a float in [0, 1).
@@ -96,11 +96,10 @@ impl Cmj {
     #[inline]
     pub fn fill(&self, first: u32, p: u32, out: &mut [Vec2]) {
         debug_assert!(first as u64 + out.len() as u64 <= self.n.get() as u64);
-        // Where the grid is at most 16 × 16, the column and row shuffles are worked out once
-        // per call and looked up by lane permutes, in the packets' lanes.
+        // In the packets' lanes wherever they give the pattern exactly (`in_lanes`).
         #[cfg(target_arch = "x86_64")]
         if self.in_lanes(p) {
-            let kernel = FillSmallGrid { cmj: self, first, p, out };
+            let kernel = FillPattern { cmj: self, first, p, out };
             // `packet_lanes` is sixteen where AVX-512 is allowed, else eight (AVX2's lanes or
             // the portable ones).
             return crate::simd::run_in(crate::simd::packet_lanes(), kernel).expect("eight or sixteen lanes");
@@ -138,12 +137,12 @@ impl Cmj {
         self.n.is_power_of_two() && self.has_small_grid() && self.m.get().is_multiple_of(4)
     }
 
-    /// Whether pattern `p` is computed in lanes ([`lanes::SmallGrid`]): a grid of at most
-    /// 16 × 16 (n ≤ 256), and a sample order whose permutation the lanes give exactly
-    /// ([`permutes_in_lanes`]: all but a few patterns in 2³² where n is not a power of two).
+    /// Whether pattern `p` is computed in lanes ([`lanes::PatternLanes`]): wherever the lanes
+    /// give its permutations exactly ([`permutes_in_lanes`](super::hash::permutes_in_lanes): all but a few patterns in 2³²
+    /// where a length is not a power of two), for patterns of up to 2²³ points.
     #[cfg(target_arch = "x86_64")]
     fn in_lanes(&self, p: u32) -> bool {
-        self.has_small_grid() && permutes_in_lanes(self.n, Scrambles::new(p).order)
+        lanes::takes_pattern(self, &Scrambles::new(p))
     }
 
     /// Whether the grid is at most 16 × 16, so that its columns and rows fit the lanes' tables.

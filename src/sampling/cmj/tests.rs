@@ -22,11 +22,10 @@ fn cmj_is_stratified_on_the_grid_and_both_axes() {
     }
 }
 
-/// Every fill path gives `sample`'s values: the small-grid copy in portable lanes and each
-/// vector copy this CPU has (AVX-512 and AVX2 lanes, for grids up to 16 × 16, n ≤ 256, any n,
-/// patterns whose permutation would wrap excepted), the portable loop, and the dispatch (the
-/// copy of the loop the environment picks, above 256); one sample at a time for other n. So do
-/// the columns, wherever they are computed.
+/// Every fill path gives `sample`'s values: the pattern in portable lanes and each vector copy
+/// this CPU has (AVX-512 and AVX2 lanes, any n, patterns whose permutations would wrap
+/// excepted; column and row shuffles from tables up to a 16 × 16 grid, permuted in lanes
+/// beyond), the portable loop, and the dispatch. So do the columns, wherever they are computed.
 #[test]
 fn fill_gives_the_samples_of_sample() {
     type Fill = fn(&Cmj, u32, u32, &mut [Vec2]);
@@ -36,20 +35,20 @@ fn fill_gives_the_samples_of_sample() {
         use crate::simd::{Avx, Avx512, HasAvx2, HasAvx512, Plain, Portable};
         fills.push(("portable lanes", |c, f, p, o| {
             if c.in_lanes(p) {
-                Portable::compiled(Plain, FillSmallGrid { cmj: c, first: f, p, out: o })
+                Portable::compiled(Plain, FillPattern { cmj: c, first: f, p, out: o })
             } else {
                 c.fill_portable(f, p, o)
             }
         }));
         if HasAvx2::on_cpu().is_some() {
             fills.push(("avx2", |c, f, p, o| match HasAvx2::on_cpu() {
-                Some(isa) if c.in_lanes(p) => Avx::compiled(isa, FillSmallGrid { cmj: c, first: f, p, out: o }),
+                Some(isa) if c.in_lanes(p) => Avx::compiled(isa, FillPattern { cmj: c, first: f, p, out: o }),
                 _ => c.fill_portable(f, p, o),
             }));
         }
         if HasAvx512::on_cpu().is_some() {
             fills.push(("avx512", |c, f, p, o| match HasAvx512::on_cpu() {
-                Some(isa) if c.in_lanes(p) => Avx512::compiled(isa, FillSmallGrid { cmj: c, first: f, p, out: o }),
+                Some(isa) if c.in_lanes(p) => Avx512::compiled(isa, FillPattern { cmj: c, first: f, p, out: o }),
                 _ => c.fill_portable(f, p, o),
             }));
         }
@@ -58,7 +57,7 @@ fn fill_gives_the_samples_of_sample() {
     // leave the lanes (the permutation's last step wraps around 2³²).
     let near_wrap = (u32::MAX - 7).wrapping_mul(inverse_odd(0x5163_3e2d));
     assert_eq!(Scrambles::new(near_wrap).order, u32::MAX - 7);
-    for n in [1u32, 2, 3, 7, 8, 12, 16, 17, 24, 32, 48, 64, 100, 128, 192, 200, 240, 256, 1000, 1024, 5000] {
+    for n in [1u32, 2, 3, 7, 8, 12, 16, 17, 24, 32, 48, 64, 100, 128, 192, 200, 240, 256, 320, 999, 1000, 1024, 5000] {
         let cmj = Cmj::new(n);
         for p in [0u32, 1, 99, 0xdead_beef, near_wrap] {
             for first in [0, n / 3, n - 1] {
