@@ -363,21 +363,23 @@ impl OwnRays {
         out: &mut Vec<SampleResult>,
     ) {
         let n = count as usize;
-        self.rays.clear();
         self.pixels.clear();
-        for &(x, pixel, first) in runs {
-            self.films.clear();
-            self.films.resize(n, Vec2::splat(0.5));
-            self.lenses.clear();
-            self.lenses.resize(n, Vec2::ZERO);
-            if job.jitter {
-                scene.sets.fill(pixel, first, dims::PIXEL, &mut self.films);
-            }
-            if C::USES_LENS {
-                scene.sets.fill(pixel, first, dims::LENS, &mut self.lenses);
-            }
-            self.rays.extend(self.films.iter().zip(&self.lenses).map(|(&film, &lens)| camera.ray(x, y, film, lens)));
-            self.pixels.push((pixel, first));
+        self.pixels.extend(runs.iter().map(|&(_, pixel, first)| (pixel, first)));
+        self.films.clear();
+        self.films.resize(runs.len() * n, Vec2::splat(0.5));
+        self.lenses.clear();
+        self.lenses.resize(runs.len() * n, Vec2::ZERO);
+        if job.jitter {
+            scene.sets.fill_runs(&self.pixels, count, dims::PIXEL, &mut self.films);
+        }
+        if C::USES_LENS {
+            scene.sets.fill_runs(&self.pixels, count, dims::LENS, &mut self.lenses);
+        }
+        self.rays.clear();
+        for (&(x, _, _), (films, lenses)) in
+            runs.iter().zip(self.films.chunks_exact(n.max(1)).zip(self.lenses.chunks_exact(n.max(1))))
+        {
+            self.rays.extend(films.iter().zip(lenses).map(|(&film, &lens)| camera.ray(x, y, film, lens)));
         }
         tracer.primaries(scene, &self.rays, &mut self.hits);
         out.resize(self.rays.len(), SampleResult::default());

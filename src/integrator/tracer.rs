@@ -167,9 +167,7 @@ impl Tracer {
         run.stride = pixels.len() * n;
         run.values.resize(dims as usize * run.stride, Vec2::ZERO);
         for (k, column) in (0..dims).zip(run.values.chunks_exact_mut(run.stride.max(1))) {
-            for (&(pixel, first), part) in pixels.iter().zip(column.chunks_exact_mut(n.max(1))) {
-                scene.sets.fill(pixel, first, dims::LIGHTS + k, part);
-            }
+            scene.sets.fill_runs(pixels, count, dims::LIGHTS + k, column);
         }
     }
 

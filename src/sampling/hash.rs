@@ -125,13 +125,13 @@ fn permute_round(mut i: u32, w: u32, p: u32) -> u32 {
     i ^ (i >> 5)
 }
 
-/// [`permute_pow2`] of each lane, with the scalar function's operations, so each lane gets its
-/// value.
+/// [`permute_pow2`] of each lane by its lane of `seed`, with the scalar function's operations,
+/// so each lane gets its value.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-pub(super) fn permute_pow2_lanes<V: U32Lanes>(i: V, mask: u32, seed: u32) -> V {
+pub(super) fn permute_pow2_lanes<V: U32Lanes>(i: V, mask: u32, seed: V) -> V {
     let isa = i.isa();
-    permute_round_lanes(i, mask, seed).add(V::splat(isa, seed)).and(V::splat(isa, mask))
+    permute_round_lanes(i, mask, seed).add(seed).and(V::splat(isa, mask))
 }
 
 /// Whether `permute_lanes` gives [`permute`]'s values for `len` and `seed`: a power of two,
@@ -149,7 +149,7 @@ pub fn permutes_in_lanes(len: Modulus, seed: u32) -> bool {
 #[inline(always)]
 pub(super) fn permute_lanes<V: U32Lanes>(i: V, len: Modulus, seed: u32) -> V {
     if len.is_power_of_two() {
-        return permute_pow2_lanes(i, len.mask, seed);
+        return permute_pow2_lanes(i, len.mask, V::splat(i.isa(), seed));
     }
     debug_assert!(permutes_in_lanes(len, seed));
     let isa = i.isa();
@@ -160,13 +160,14 @@ pub(super) fn permute_lanes<V: U32Lanes>(i: V, len: Modulus, seed: u32) -> V {
     let past = |x: V| u(len.get() - 1).add(x.xor(ones).add(u(1))).shr(u(31)).mul(ones);
     // Lanes past the length start from 0: their walk might never come back below it.
     let mut i = i.and(past(i).xor(ones));
-    i = permute_round_lanes(i, len.mask, seed);
+    let seeds = u(seed);
+    i = permute_round_lanes(i, len.mask, seeds);
     loop {
         let out = past(i);
         if out.test(ones) == 0 {
             break;
         }
-        i = permute_round_lanes(i, len.mask, seed).and(out).or(i.and(out.xor(ones)));
+        i = permute_round_lanes(i, len.mask, seeds).and(out).or(i.and(out.xor(ones)));
     }
     // (i + seed) mod len = (i + seed mod len) mod len, as i + seed does not wrap; the sum is
     // below twice the length.
@@ -174,23 +175,23 @@ pub(super) fn permute_lanes<V: U32Lanes>(i: V, len: Modulus, seed: u32) -> V {
     sum.add(u(len.get().wrapping_neg()).and(past(sum)))
 }
 
-/// [`permute_round`] of each lane, with its operations.
+/// [`permute_round`] of each lane by its lane of `seed`, with its operations.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-fn permute_round_lanes<V: U32Lanes>(i: V, mask: u32, seed: u32) -> V {
+fn permute_round_lanes<V: U32Lanes>(i: V, mask: u32, seed: V) -> V {
     let isa = i.isa();
     let u = |x: u32| V::splat(isa, x);
     let w = u(mask);
     let masked_shift = |i: V, n: u32| i.and(w).shr(u(n));
-    let mut i = i.xor(u(seed));
+    let mut i = i.xor(seed);
     i = i.mul(u(0xe170_893d));
-    i = i.xor(u(seed >> 16));
+    i = i.xor(seed.shr(u(16)));
     i = i.xor(masked_shift(i, 4));
-    i = i.xor(u(seed >> 8));
+    i = i.xor(seed.shr(u(8)));
     i = i.mul(u(0x0929_eb3f));
-    i = i.xor(u(seed >> 23));
+    i = i.xor(seed.shr(u(23)));
     i = i.xor(masked_shift(i, 1));
-    i = i.mul(u(1 | seed >> 27));
+    i = i.mul(u(1).or(seed.shr(u(27))));
     i = i.mul(u(0x6935_fa69));
     i = i.xor(masked_shift(i, 11));
     i = i.mul(u(0x74dc_b303));

@@ -260,6 +260,39 @@ impl SampleSets {
         }
     }
 
+    /// [`SampleSets::fill`] for runs of `count` samples of each of `runs` (pixel, first sample):
+    /// run i's sample s into `out[i·count + s]`. Short runs (frames of a few samples a pixel)
+    /// are made together, in lanes where the sets allow ([`Cmj::fill_each`]), not a vector's
+    /// set-up for each run's few lanes.
+    pub fn fill_runs(&self, runs: &[(u32, u32)], count: u32, dim: u32, out: &mut [Vec2]) {
+        let n = count as usize;
+        debug_assert_eq!(out.len(), runs.len() * n);
+        if n > Self::SHORT_RUN || self.kind != SamplerKind::CorrelatedMultiJittered {
+            for (&(pixel, first), out) in runs.iter().zip(out.chunks_exact_mut(n.max(1))) {
+                self.fill(pixel, first, dim, out);
+            }
+            return;
+        }
+        const BLOCK: usize = 64;
+        let (mut samples, mut patterns) = ([0u32; BLOCK], [0u32; BLOCK]);
+        let (mut k, mut at) = (0, 0);
+        for &(pixel, first) in runs {
+            for index in (0..count).map(|s| first.wrapping_add(s)) {
+                let pass = self.modulus.quotient(index);
+                (samples[k], patterns[k]) = (self.modulus.remainder(index), self.cmj_pattern(pixel, pass, dim));
+                k += 1;
+                if k == BLOCK {
+                    self.cmj.fill_each(&samples, &patterns, &mut out[at..at + BLOCK]);
+                    (k, at) = (0, at + BLOCK);
+                }
+            }
+        }
+        self.cmj.fill_each(&samples[..k], &patterns[..k], &mut out[at..at + k]);
+    }
+
+    /// Longest run [`SampleSets::fill_runs`] makes with the others, sample by sample.
+    const SHORT_RUN: usize = 8;
+
     /// [`SampleSets::fill`] as two columns, x into `xs` and y into `ys` (same length):
     /// correlated multi-jittered sets whose patterns [`Cmj::fill_columns`] computes in lanes go
     /// straight to the columns, other sets through [`SampleSets::fill`] a block at a time.
@@ -537,6 +570,29 @@ mod tests {
                         for (index, (&x, &y)) in (first..).zip(xs.iter().zip(&ys)) {
                             let v = sets.sample(pixel, index, 4);
                             assert_eq!((x, y), (v.x, v.y), "columns: {kind:?}, n {n}, index {index}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Runs of any length, many pixels' together, get [`SampleSets::sample`]'s values, across
+    /// passes: short runs of CMJ sets of a power-of-two size in lanes, each its own pattern
+    /// (more than one block of them), the rest run by run.
+    #[test]
+    fn fill_runs_gives_the_samples_of_sample() {
+        for kind in SamplerKind::ALL {
+            for n in [1u32, 12, 16, 64] {
+                let sets = SampleSets::generate(kind, n, 9, 37, 23);
+                for count in [1u32, 2, 3, 8, 9, 20] {
+                    let runs: Vec<(u32, u32)> = (0..50u32).map(|i| (i * 17 % 851, i * 7 % 90)).collect();
+                    let mut out = vec![Vec2::NAN; runs.len() * count as usize];
+                    sets.fill_runs(&runs, count, 3, &mut out);
+                    for (&(pixel, first), run) in runs.iter().zip(out.chunks_exact(count as usize)) {
+                        for (index, v) in (first..).zip(run) {
+                            let want = sets.sample(pixel, index, 3);
+                            assert_eq!(v.to_array(), want.to_array(), "{kind:?}, n {n}, count {count}, index {index}");
                         }
                     }
                 }

@@ -15,10 +15,10 @@ use crate::{
 
 /// The integer part of [`randfloat`](super::randfloat) in each lane, with its operations.
 #[inline(always)]
-fn randfloat_bits<V: U32Lanes>(i: V, p: u32) -> V {
+fn randfloat_bits<V: U32Lanes>(i: V, p: V) -> V {
     let isa = i.isa();
     let u = |x: u32| V::splat(isa, x);
-    let mut i = i.xor(u(p));
+    let mut i = i.xor(p);
     i = i.xor(i.shr(u(17)));
     i = i.xor(i.shr(u(10)));
     i = i.mul(u(0xb365_34e5));
@@ -27,13 +27,13 @@ fn randfloat_bits<V: U32Lanes>(i: V, p: u32) -> V {
     i = i.mul(u(0x93fc_4795));
     i = i.xor(u(0xdf6e_307f));
     i = i.xor(i.shr(u(17)));
-    i.mul(u(1 | p >> 18))
+    i.mul(u(1).or(p.shr(u(18))))
 }
 
 /// [`randfloat`](super::randfloat) of each lane, with its operations, so each lane gets its
 /// value.
 #[inline(always)]
-fn randfloat_lanes<L: SampleLanes>(i: L::U32, p: u32) -> L {
+fn randfloat_lanes<L: SampleLanes>(i: L::U32, p: L::U32) -> L {
     let isa = i.isa();
     let f = L::from_u32(randfloat_bits(i, p)).mul(L::splat(isa, 1.0 / 4_294_967_808.0));
     f.min_keep(L::splat(isa, ONE_MINUS_EPSILON))
@@ -141,14 +141,69 @@ impl<L: SampleLanes> PatternLanes<L> {
             Shuffles::Tables(by_col, by_row) => (col.lookup16(by_col), row.lookup16(by_row)),
             Shuffles::Permuted(m, k) => (permute_lanes(col, m, self.sc.x), permute_lanes(row, k, self.sc.y)),
         };
-        let (jx, jy) = (randfloat_lanes::<L>(s, self.sc.jx), randfloat_lanes::<L>(s, self.sc.jy));
-        let [inv_m, inv_k] = self.inv.map(|v| L::splat(self.isa, v));
-        // Grid indices are below 16: the conversion is exact.
-        let f = |v| L::from_small_u32(v);
-        let x = f(col).add(f(sy).add(jx).mul(inv_k)).mul(inv_m);
-        let y = f(row).add(f(sx).add(jy).mul(inv_m)).mul(inv_k);
-        let below_one = L::splat(self.isa, ONE_MINUS_EPSILON);
-        (x.min_keep(below_one), y.min_keep(below_one))
+        let jitter = [self.sc.jx, self.sc.jy].map(u);
+        point_lanes(self.isa, s, [col, row], [sx, sy], jitter, self.inv)
+    }
+}
+
+/// [`Cmj::point`](super::Cmj::point) in lanes: the point of each lane's shuffled sample `s` in
+/// cell (col, row) of the grid, its sub-cell (sx, sy), jittered by the hashes seeded `jitter`,
+/// on a grid of cell sizes `inv` (1/m, 1/k).
+#[inline(always)]
+fn point_lanes<L: SampleLanes>(
+    isa: L::Isa,
+    s: L::U32,
+    [col, row]: [L::U32; 2],
+    [sx, sy]: [L::U32; 2],
+    [jx, jy]: [L::U32; 2],
+    inv: [f32; 2],
+) -> (L, L) {
+    let (jx, jy) = (randfloat_lanes::<L>(s, jx), randfloat_lanes::<L>(s, jy));
+    let [inv_m, inv_k] = inv.map(|v| L::splat(isa, v));
+    // Grid indices are below 2²³: the conversion is exact.
+    let f = |v| L::from_small_u32(v);
+    let x = f(col).add(f(sy).add(jx).mul(inv_k)).mul(inv_m);
+    let y = f(row).add(f(sx).add(jy).mul(inv_m)).mul(inv_k);
+    let below_one = L::splat(isa, ONE_MINUS_EPSILON);
+    (x.min_keep(below_one), y.min_keep(below_one))
+}
+
+/// [`Cmj::fill_each`](super::Cmj::fill_each) as a kernel over the lane type: sample
+/// `samples[j]` of pattern `patterns[j]` into `out[j]`, for patterns of a power-of-two size,
+/// each lane its own pattern's scrambles.
+pub(super) struct FillEach<'a> {
+    pub(super) cmj: &'a Cmj,
+    pub(super) samples: &'a [u32],
+    pub(super) patterns: &'a [u32],
+    pub(super) out: &'a mut [Vec2],
+}
+
+impl<L: SampleLanes> Kernel<L> for FillEach<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn run(self, isa: L::Isa) {
+        let FillEach { cmj, samples, patterns, out } = self;
+        debug_assert!(cmj.n.is_power_of_two());
+        let u = |x: u32| L::U32::splat(isa, x);
+        let (wn, wm, wk) = (cmj.n.mask(), cmj.m.mask(), cmj.k.mask());
+        let shift = cmj.m.get().trailing_zeros();
+        for ((samples, patterns), out) in
+            samples.chunks(L::WIDTH).zip(patterns.chunks(L::WIDTH)).zip(out.chunks_mut(L::WIDTH))
+        {
+            let load = |values: &[u32]| {
+                let mut lanes = [0; 16];
+                lanes[..values.len()].copy_from_slice(values);
+                L::U32::load(isa, &lanes)
+            };
+            // `Scrambles::new` of each lane's pattern.
+            let p = load(patterns);
+            let [order, x, y, jx, jy] = Scrambles::FACTORS.map(|f| p.mul(u(f)));
+            let s = permute_pow2_lanes(load(samples), wn, order);
+            let (col, row) = (s.and(u(wm)), s.shr(u(shift)));
+            let (sx, sy) = (permute_pow2_lanes(col, wm, x), permute_pow2_lanes(row, wk, y));
+            let (x, y) = point_lanes::<L>(isa, s, [col, row], [sx, sy], [jx, jy], cmj.inv);
+            L::store_points(x, y, out);
+        }
     }
 }
 
@@ -161,7 +216,7 @@ fn shuffle_table<V: U32Lanes>(isa: V::Isa, len: Modulus, seed: u32) -> V::Table1
     if len.is_power_of_two() {
         let w = len.mask();
         for from in (0..16).step_by(V::WIDTH) {
-            permute_pow2_lanes(V::consecutive(isa, from as u32).and(V::splat(isa, w)), w, seed)
+            permute_pow2_lanes(V::consecutive(isa, from as u32).and(V::splat(isa, w)), w, V::splat(isa, seed))
                 .store(&mut entries[from..]);
         }
     } else {

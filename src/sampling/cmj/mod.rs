@@ -9,7 +9,7 @@ mod tests;
 #[cfg(target_arch = "x86_64")]
 pub(crate) use lanes::QuadrantPattern;
 #[cfg(target_arch = "x86_64")]
-use lanes::{FillColumns, FillPattern, quadrant_bits, quadrant_sample};
+use lanes::{FillColumns, FillEach, FillPattern, quadrant_bits, quadrant_sample};
 
 use glam::Vec2;
 
@@ -105,6 +105,21 @@ impl Cmj {
             return crate::simd::run_in(crate::simd::packet_lanes(), kernel).expect("eight or sixteen lanes");
         }
         fill_in_lanes(self, first, p, out);
+    }
+
+    /// Sample `samples[j]` (< n) of pattern `patterns[j]` into `out[j]`, each element its own
+    /// pattern (all three of one length): [`Cmj::sample`]'s values, in lanes where the patterns'
+    /// size is a power of two.
+    pub(crate) fn fill_each(&self, samples: &[u32], patterns: &[u32], out: &mut [Vec2]) {
+        debug_assert!(samples.len() == out.len() && patterns.len() == out.len());
+        #[cfg(target_arch = "x86_64")]
+        if self.n.is_power_of_two() {
+            let kernel = FillEach { cmj: self, samples, patterns, out };
+            return crate::simd::run_in(crate::simd::packet_lanes(), kernel).expect("eight or sixteen lanes");
+        }
+        for ((&s, &p), out) in samples.iter().zip(patterns).zip(out) {
+            *out = Vec2::from(self.sample(s, p));
+        }
     }
 
     /// Samples `first..first + xs.len()` (all < n) of pattern `p` as two columns, x into `xs`
@@ -228,14 +243,12 @@ struct Scrambles {
 }
 
 impl Scrambles {
+    /// The odd factors that make each seed from the pattern number, in the fields' order.
+    const FACTORS: [u32; 5] = [0x5163_3e2d, 0xa511_e9b3, 0x63d8_3595, 0xa399_d265, 0x711a_d6a5];
+
     #[inline(always)]
     fn new(p: u32) -> Self {
-        Scrambles {
-            order: p.wrapping_mul(0x5163_3e2d),
-            x: p.wrapping_mul(0xa511_e9b3),
-            y: p.wrapping_mul(0x63d8_3595),
-            jx: p.wrapping_mul(0xa399_d265),
-            jy: p.wrapping_mul(0x711a_d6a5),
-        }
+        let [order, x, y, jx, jy] = Self::FACTORS.map(|f| p.wrapping_mul(f));
+        Scrambles { order, x, y, jx, jy }
     }
 }
