@@ -264,7 +264,7 @@ impl SampleSets {
     /// run i's sample s into `out[i·count + s]`. Short runs (frames of a few samples a pixel)
     /// are made together, in lanes where the sets allow ([`Cmj::fill_each`]), not a vector's
     /// set-up for each run's few lanes.
-    pub fn fill_runs(&self, runs: &[(u32, u32)], count: u32, dim: u32, out: &mut [Vec2]) {
+    pub(crate) fn fill_runs(&self, runs: &[(u32, u32)], count: u32, dim: u32, out: &mut [Vec2]) {
         let n = count as usize;
         debug_assert_eq!(out.len(), runs.len() * n);
         if n > Self::SHORT_RUN || self.kind != SamplerKind::CorrelatedMultiJittered {
