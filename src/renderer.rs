@@ -36,6 +36,7 @@ pub struct Renderer {
     pool: Option<rayon::ThreadPool>,
     frames: u64,
     measure_memory: bool,
+    time_split: bool,
 }
 
 impl Renderer {
@@ -53,7 +54,14 @@ impl Renderer {
         world.init_resource::<SceneProblems>();
         world.init_resource::<ShapeValueChanges>();
         world.init_resource::<FrameStats>();
-        let mut r = Renderer { world, schedule: frame_schedule(), pool: None, frames: 0, measure_memory: false };
+        let mut r = Renderer {
+            world,
+            schedule: frame_schedule(),
+            pool: None,
+            frames: 0,
+            measure_memory: false,
+            time_split: false,
+        };
         r.add_light::<AmbientOccluder>()
             .add_light::<PointLight>()
             .add_light::<DirectionalLight>()
@@ -146,13 +154,25 @@ impl Renderer {
         self.measure_memory = on;
     }
 
+    /// Whether frames split the trace system's time by stage ([`FrameStats::trace_split`]: the
+    /// lights' and their scene queries' share): off by default, as its fenced readings of the
+    /// cycle counter cost frames of a few samples a pixel a few percent of their time.
+    pub fn time_split(&mut self, on: bool) {
+        self.time_split = on;
+    }
+
     /// Runs one frame: BVH upkeep, sample sets, tracing, accumulation, resolve.
     /// Fails, without tracing, while the scene holds something that cannot be rendered.
     pub fn run_frame(&mut self) -> Result<&FrameStats, HemiError> {
         let (measure_memory, peak_rss_before) =
             (self.measure_memory, self.measure_memory.then(take_peak_rss).flatten());
-        *self.world.resource_mut::<FrameStats>() =
-            FrameStats { frame: self.frames, measure_memory, peak_rss_before, ..Default::default() };
+        *self.world.resource_mut::<FrameStats>() = FrameStats {
+            frame: self.frames,
+            measure_memory,
+            time_split: self.time_split,
+            peak_rss_before,
+            ..Default::default()
+        };
         match &self.pool {
             Some(pool) => pool.install(|| self.schedule.run(&mut self.world)),
             None => self.schedule.run(&mut self.world),

@@ -245,7 +245,8 @@ pub struct FrameStats {
     pub buffer_bytes: usize,
     /// Samples rejected because they were NaN or infinite (should stay 0).
     pub nonfinite_samples: u64,
-    /// How the trace system's time divides between AO, direct light and the rest.
+    /// How the trace system's time divides between AO, direct light and the rest (measured
+    /// where [`FrameStats::time_split`] says).
     pub trace_split: TraceSplit,
     /// What the trace system's BVH queries did (all 0 unless built with the feature `counters`).
     pub traversal: TraversalCounts,
@@ -257,6 +258,9 @@ pub struct FrameStats {
     /// Whether each system's peak resident set size is measured (two reads of `/proc` per
     /// system, so only when asked for: [`crate::Renderer::measure_memory`]).
     pub measure_memory: bool,
+    /// Whether the trace system splits its time by stage into [`FrameStats::trace_split`] (all
+    /// 0 otherwise; only when asked for: [`crate::Renderer::time_split`]).
+    pub time_split: bool,
     /// The process's peak resident set size between the previous frame and this one (on the
     /// first frame: since the process started, the scene's loading included), when measured.
     pub peak_rss_before: Option<u64>,

@@ -101,6 +101,7 @@ pub fn trace(
         jitter: settings.jitter,
         aovs: settings.aovs,
         adaptive: settings.target_error.is_some(),
+        time_split: stats.time_split,
     };
     let n = settings.pixel_count();
     let acc = &mut *accumulation;
@@ -205,7 +206,7 @@ impl TilePixels<'_> {
             let pixel = y * job.width + x;
             if !self.pixel_done(pixel as usize, target) {
                 out.push((x, pixel, job.first_sample.wrapping_add(self.count(pixel as usize))));
-                timed += u64::from(timed_pixel(pixel));
+                timed += u64::from(job.timed(pixel));
             }
         }
         timed
@@ -547,9 +548,16 @@ struct Job {
     jitter: bool,
     aovs: bool,
     adaptive: bool,
+    /// Whether the timed pixels ([`timed_pixel`]) are timed: the split is asked for.
+    time_split: bool,
 }
 
 impl Job {
+    /// Whether `pixel` is timed for the split ([`timed_pixel`]).
+    fn timed(&self, pixel: u32) -> bool {
+        self.time_split && timed_pixel(pixel)
+    }
+
     /// Whether every sample of a pixel has the same camera ray (no jitter, and a camera
     /// without a lens: `uses_lens`).
     fn shares_camera_rays(&self, uses_lens: bool) -> bool {
@@ -594,7 +602,7 @@ fn trace_tile<C: CameraRays>(
     for y in tile.y0..tile.y1 {
         // Rows traced before their pixels: shared camera hits, or pooled runs of own rays.
         if one_ray_per_pixel || pooled_own {
-            let start = cycle_count();
+            let start = job.time_split.then(cycle_count);
             let timed = acc.row_to_trace(y, job, target, &mut row_runs);
             if one_ray_per_pixel {
                 camera_rays.clear();
@@ -618,7 +626,9 @@ fn trace_tile<C: CameraRays>(
                 own_run = 0;
             }
             // The timed pixels' part of the row's work.
-            if timed > 0 {
+            if let Some(start) = start
+                && timed > 0
+            {
                 tracer.split.pixels += cycles_since(start) * timed / row_runs.len() as u64;
             }
         }
@@ -630,8 +640,8 @@ fn trace_tile<C: CameraRays>(
         let mut row_left = row_runs.iter().peekable();
         for x in tile.x0..tile.x1 {
             let pixel = y * job.width + x;
-            tracer.timing = timed_pixel(pixel);
-            tracer.timing_queries = query_timed_pixel(pixel);
+            tracer.timing = job.timed(pixel);
+            tracer.timing_queries = job.time_split && query_timed_pixel(pixel);
             let start = tracer.timing.then(cycle_count);
             let mut sum = Vec3::ZERO;
             let mut sq_sum = 0.0;

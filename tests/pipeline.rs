@@ -228,7 +228,19 @@ fn no_shadow_rays_when_a_light_cannot_contribute() {
 #[test]
 fn the_trace_split_times_only_the_lights_a_scene_has() {
     let light = || Some((PointLight::default(), Vec3::new(0.0, 3.0, 0.0)));
-    let split = |occluders, light| floor_scene(occluders, light).run_frame().unwrap().trace_split;
+    let split = |occluders, light| {
+        let mut r = floor_scene(occluders, light);
+        r.time_split(true);
+        r.run_frame().unwrap().trace_split
+    };
+    // Unless asked for, nothing is timed, and the image is the same.
+    let mut untimed = floor_scene(1, light());
+    assert_eq!(untimed.run_frame().unwrap().trace_split, Default::default());
+    let mut timed = floor_scene(1, light());
+    timed.time_split(true);
+    timed.run_frame().unwrap();
+    let bits = |r: &Renderer| r.image().linear.iter().flat_map(|p| p.to_array().map(f32::to_bits)).collect::<Vec<_>>();
+    assert_eq!(bits(&untimed), bits(&timed));
     let both = split(1, light());
     assert!(both.ambient > 0 && both.diffuse > 0, "{both:?}");
     assert!(both.ambient + both.diffuse < both.pixels, "{both:?}");

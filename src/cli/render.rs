@@ -299,6 +299,7 @@ pub(super) fn render(args: RenderArgs) -> Result<(), HemiError> {
     };
     let stats_file = args.stats_json.as_deref().map(OutputFile::create_any).transpose()?;
     renderer.measure_memory(args.stats || stats_file.is_some());
+    renderer.time_split(args.stats || stats_file.is_some());
     let start = Instant::now();
     let display =
         args.display_server.as_deref().map(|a| super::tev::DisplayServer::connect(a, &args.out.to_string_lossy()));
