@@ -52,53 +52,10 @@ impl SceneGeometry {
         if rays.len() >= PACKET_RUN
             && let Some(into) = self.camera_packets()
         {
-            let (mut columns, mut surfaces) = (HitColumns::default(), SurfaceColumns::default());
+            let mut lanes = (HitColumns::default(), SurfaceColumns::default());
             self.closest_packets(into, rays, stack, |at, chunk, found, alone, stack| {
-                let out = &mut out[at..][..chunk.len()];
-                // A packet's hits on triangle packets of world-space instances, no plane before
-                // them, made into surfaces in lanes; the others one by one.
-                let mut in_lanes = 0u32;
-                for (k, ray) in chunk.iter().enumerate() {
-                    if let Some((i, slot, b1, b2)) = found.best[k]
-                        && alone & (1 << k) == 0
-                        && let inst = &self.instances[i as usize]
-                        && inst.identity
-                        && let Some(packet) = self.blases[inst.blas as usize].packets.get(slot as usize / 4)
-                        && !self.plane_before(ray, found.tmax[k])
-                    {
-                        columns.set(k, packet.vertices(slot as usize % 4), [b1, b2], ray.dir.to_array());
-                        in_lanes |= 1 << k;
-                    }
-                }
-                if in_lanes != 0 {
-                    let kernel = SurfaceLanes { hits: &columns, n: chunk.len(), out: &mut surfaces };
-                    run_in(crate::simd::packet_lanes(), kernel).expect("eight or sixteen lanes");
-                }
-                for (k, (ray, out)) in chunk.iter().zip(out.iter_mut()).enumerate() {
-                    if in_lanes & (1 << k) == 0 {
-                        let end = if alone & (1 << k) != 0 {
-                            self.ray_end(ray, stack)
-                        } else {
-                            RayEnd::new(found.best[k], found.tmax[k])
-                        };
-                        self.hit_at_into(ray, end, out, |hit| make(ray, hit));
-                        continue;
-                    }
-                    let (i, slot, b1, b2) = found.best[k].expect("a hit made in lanes");
-                    let inst = &self.instances[i as usize];
-                    let (object, prim) = hit_ids(inst, &self.blases[inst.blas as usize], slot);
-                    let lane = |c: &[[f32; 16]; 3]| glam::Vec3A::new(c[0][k], c[1][k], c[2][k]);
-                    let hit = SurfaceHit {
-                        t: found.tmax[k],
-                        p: lane(&surfaces.p),
-                        p_error: lane(&surfaces.p_error),
-                        normal: lane(&surfaces.normal),
-                        object,
-                        prim,
-                        bary: [b1, b2],
-                    };
-                    *out = Some(make(ray, hit));
-                }
+                let packet = (chunk, found, alone);
+                self.packet_hits_into(packet, stack, &mut lanes, &mut out[at..][..chunk.len()], &make);
             });
             return;
         }
@@ -160,6 +117,56 @@ impl SceneGeometry {
             let live = (1u32 << chunk.len()) - 1;
             let alone = self.closest_packet(into, chunk, live, &mut found, stack) | found.tied;
             each(c * width, chunk, &found, alone, stack);
+        }
+    }
+
+    /// The hits of one packet of [`SceneGeometry::intersect_many`] (its rays, their closest
+    /// hits and the lanes it leaves alone) made into `out` by `make`: the hits on triangle
+    /// packets of world-space instances with no plane before them as surfaces in lanes
+    /// (`lanes`' columns), the others one by one.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    fn packet_hits_into<T>(
+        &self,
+        (rays, found, alone): (&[Ray], &LaneHits<ClosestHit>, u32),
+        stack: &mut Vec<(u32, f32)>,
+        (columns, surfaces): &mut (HitColumns, SurfaceColumns),
+        out: &mut [Option<T>],
+        make: &impl Fn(&Ray, SurfaceHit) -> T,
+    ) {
+        let mut in_lanes = 0u32;
+        for (k, ray) in rays.iter().enumerate() {
+            if let Some((i, slot, b1, b2)) = found.best[k]
+                && alone & (1 << k) == 0
+                && let inst = &self.instances[i as usize]
+                && inst.identity
+                && let Some(packet) = self.blases[inst.blas as usize].packets.get(slot as usize / 4)
+                && !self.plane_before(ray, found.tmax[k])
+            {
+                columns.set(k, packet.vertices(slot as usize % 4), [b1, b2], ray.dir.to_array());
+                in_lanes |= 1 << k;
+            }
+        }
+        if in_lanes != 0 {
+            let kernel = SurfaceLanes { hits: columns, n: rays.len(), out: surfaces };
+            run_in(crate::simd::packet_lanes(), kernel).expect("eight or sixteen lanes");
+        }
+        for (k, (ray, out)) in rays.iter().zip(out.iter_mut()).enumerate() {
+            if in_lanes & (1 << k) == 0 {
+                let end = if alone & (1 << k) != 0 {
+                    self.ray_end(ray, stack)
+                } else {
+                    RayEnd::new(found.best[k], found.tmax[k])
+                };
+                self.hit_at_into(ray, end, out, |hit| make(ray, hit));
+                continue;
+            }
+            let (i, slot, b1, b2) = found.best[k].expect("a hit made in lanes");
+            let inst = &self.instances[i as usize];
+            let (object, prim) = hit_ids(inst, &self.blases[inst.blas as usize], slot);
+            let lane = |c: &[[f32; 16]; 3]| glam::Vec3A::new(c[0][k], c[1][k], c[2][k]);
+            let (p, p_error, normal) = (lane(&surfaces.p), lane(&surfaces.p_error), lane(&surfaces.normal));
+            *out = Some(make(ray, SurfaceHit { t: found.tmax[k], p, p_error, normal, object, prim, bary: [b1, b2] }));
         }
     }
 
