@@ -262,12 +262,13 @@ impl SampleSets {
 
     /// [`SampleSets::fill`] for runs of `count` samples of each of `runs` (pixel, first sample):
     /// run i's sample s into `out[i·count + s]`. Short runs (frames of a few samples a pixel)
-    /// are made together, in lanes where the sets allow ([`Cmj::fill_each`]), not a vector's
-    /// set-up for each run's few lanes.
+    /// are made together where the sets allow it in lanes ([`Cmj::fill_each`]), not a vector's
+    /// set-up for each run's few lanes; runs of one sample, made one by one otherwise, always.
     pub(crate) fn fill_runs(&self, runs: &[(u32, u32)], count: u32, dim: u32, out: &mut [Vec2]) {
         let n = count as usize;
         debug_assert_eq!(out.len(), runs.len() * n);
-        if n > Self::SHORT_RUN || self.kind != SamplerKind::CorrelatedMultiJittered {
+        let each = self.kind == SamplerKind::CorrelatedMultiJittered && (n == 1 || self.cmj.fills_each_in_lanes());
+        if n > Self::SHORT_RUN || !each {
             for (&(pixel, first), out) in runs.iter().zip(out.chunks_exact_mut(n.max(1))) {
                 self.fill(pixel, first, dim, out);
             }

@@ -107,13 +107,19 @@ impl Cmj {
         fill_in_lanes(self, first, p, out);
     }
 
+    /// Whether [`Cmj::fill_each`] runs in lanes: on this architecture, for patterns of a
+    /// power-of-two size.
+    pub(crate) fn fills_each_in_lanes(&self) -> bool {
+        cfg!(target_arch = "x86_64") && self.n.is_power_of_two()
+    }
+
     /// Sample `samples[j]` (< n) of pattern `patterns[j]` into `out[j]`, each element its own
-    /// pattern (all three of one length): [`Cmj::sample`]'s values, in lanes where the patterns'
-    /// size is a power of two.
+    /// pattern (all three of one length): [`Cmj::sample`]'s values, in lanes where
+    /// [`Cmj::fills_each_in_lanes`], else one by one.
     pub(crate) fn fill_each(&self, samples: &[u32], patterns: &[u32], out: &mut [Vec2]) {
         debug_assert!(samples.len() == out.len() && patterns.len() == out.len());
         #[cfg(target_arch = "x86_64")]
-        if self.n.is_power_of_two() {
+        if self.fills_each_in_lanes() {
             let kernel = FillEach { cmj: self, samples, patterns, out };
             return crate::simd::run_in(crate::simd::packet_lanes(), kernel).expect("eight or sixteen lanes");
         }
