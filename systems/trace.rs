@@ -521,7 +521,9 @@ fn trace_bands<C: CameraRays + Sync>(
         .map(|band| {
             band.tiles(job.width, size)
                 .into_par_iter()
-                .map(|mut pixels| trace_tile(scene, camera, &mut pixels, job, target))
+                .map_init(TileScratch::default, |scratch, mut pixels| {
+                    trace_tile(scene, camera, &mut pixels, job, target, scratch)
+                })
                 .reduce(TileResult::default, TileResult::merge)
         })
         .reduce(TileResult::default, TileResult::merge)
@@ -565,6 +567,15 @@ impl Job {
     }
 }
 
+/// A tracer and its buffers, kept from one tile to the next a thread traces: a frame of few
+/// samples a pixel would otherwise spend a noticeable part of its time allocating them anew
+/// for every tile. No result depends on what they held.
+#[derive(Default)]
+struct TileScratch {
+    tracer: Tracer,
+    own: OwnRays,
+}
+
 /// Traces one tile and adds its samples to its pixels (`acc`).
 fn trace_tile<C: CameraRays>(
     scene: &Scene,
@@ -572,12 +583,13 @@ fn trace_tile<C: CameraRays>(
     acc: &mut TilePixels,
     job: &Job,
     target: Option<f32>,
+    TileScratch { tracer, own }: &mut TileScratch,
 ) -> TileResult {
     let tile = acc.tile;
     // Counts from this thread's earlier work are not this tile's.
     counters::take();
     AlphaCounts::take();
-    let mut tracer = Tracer::default();
+    (tracer.rays, tracer.split) = Default::default();
     // One pixel's samples of this frame.
     let mut samples = Vec::with_capacity(job.count as usize);
     let mut radiance = Vec::new();
@@ -598,7 +610,6 @@ fn trace_tile<C: CameraRays>(
     let pooled_own = !one_ray_per_pixel && job.count <= POOLED_OWN_RUN_MAX;
     let (mut row_sums, mut row_runs, mut row_samples, mut own_run) = (Vec::new(), Vec::new(), Vec::new(), 0);
     let fixed_groups = scene.fixed_group_count();
-    let mut own = OwnRays::default();
     for y in tile.y0..tile.y1 {
         // Rows traced before their pixels: shared camera hits, or pooled runs of own rays.
         if one_ray_per_pixel || pooled_own {
@@ -611,7 +622,7 @@ fn trace_tile<C: CameraRays>(
                 row_pixels.extend(row_runs.iter().map(|&(_, pixel, first)| (pixel, first)));
                 let row = RowCamera { rays: &camera_rays, pixels: &row_pixels, skip_black: !job.aovs, timed };
                 let kept = acc.kept_row(y, fixed_groups);
-                row.hits_and_light(&mut tracer, scene, kept, &mut row_ends, &mut row_hits, &mut row_fixed);
+                row.hits_and_light(tracer, scene, kept, &mut row_ends, &mut row_hits, &mut row_fixed);
                 if pooled {
                     tracer.shade_row_sums(scene, &row_pixels, &row_hits, job.count, timed, &mut row_sums);
                 }
@@ -729,7 +740,7 @@ fn trace_tile<C: CameraRays>(
                 }
                 None => {
                     let run = [(x, pixel, first)];
-                    own.trace(&mut tracer, scene, camera, job, y, &run, count, &mut samples);
+                    own.trace(tracer, scene, camera, job, y, &run, count, &mut samples);
                 }
             }
             let mut add = |radiance: Vec3| {
@@ -773,7 +784,14 @@ fn trace_tile<C: CameraRays>(
     let (traversal, alpha) = (counters::take(), AlphaCounts::take());
     acc.add(&sums, &counts, &sq_sums, &aovs);
     let active = counts.iter().filter(|&&c| c > 0).count();
-    TileResult { rays: tracer.rays, split: tracer.split, traversal, alpha, nonfinite, active }
+    TileResult {
+        rays: std::mem::take(&mut tracer.rays),
+        split: std::mem::take(&mut tracer.split),
+        traversal,
+        alpha,
+        nonfinite,
+        active,
+    }
 }
 
 #[cfg(test)]
