@@ -607,6 +607,8 @@ fn trace_tile<C: CameraRays>(
     // Small runs of shared hits, summed without per-sample values, are lit a row at a time;
     // so are small runs of samples with camera rays of their own.
     let pooled = one_ray_per_pixel && !job.aovs && !job.adaptive && job.count <= POOLED_SHARED_RUN_MAX;
+    // With AOVs, such runs are lit a row at a time sample by sample.
+    let pooled_aovs = one_ray_per_pixel && job.aovs && job.count <= POOLED_SHARED_RUN_MAX;
     let pooled_own = !one_ray_per_pixel && job.count <= POOLED_OWN_RUN_MAX;
     let (mut row_sums, mut row_runs, mut row_samples, mut own_run) = (Vec::new(), Vec::new(), Vec::new(), 0);
     let fixed_groups = scene.fixed_group_count();
@@ -625,6 +627,9 @@ fn trace_tile<C: CameraRays>(
                 row.hits_and_light(tracer, scene, kept, &mut row_ends, &mut row_hits, &mut row_fixed);
                 if pooled {
                     tracer.shade_row_sums(scene, &row_pixels, &row_hits, job.count, timed, &mut row_sums);
+                }
+                if pooled_aovs {
+                    tracer.shade_row_samples(scene, &row_pixels, &row_hits, job.count, timed, &mut row_samples);
                 }
             } else {
                 // Each sample has a camera ray of its own, and a pixel's few of them would leave
@@ -724,9 +729,14 @@ fn trace_tile<C: CameraRays>(
                 }
                 Some((k, Some(hit))) => {
                     tracer.shade_fixed(scene, hit, !job.aovs, fixed_light(k), std::slice::from_mut(&mut fixed));
-                    // `shade` sets every field of every sample: no need to clear them first.
-                    samples.resize(count as usize, SampleResult::default());
-                    tracer.shade(scene, hit, pixel, first, !job.aovs, &mut samples[..]);
+                    if pooled_aovs {
+                        samples.clear();
+                        samples.extend_from_slice(&row_samples[k * count as usize..][..count as usize]);
+                    } else {
+                        // `shade` sets every field of every sample: no need to clear them first.
+                        samples.resize(count as usize, SampleResult::default());
+                        tracer.shade(scene, hit, pixel, first, !job.aovs, &mut samples[..]);
+                    }
                 }
                 Some((_, None)) => {
                     samples.clear();

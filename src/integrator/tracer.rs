@@ -195,6 +195,62 @@ impl Tracer {
         if n == 0 || hits.is_empty() {
             return;
         }
+        let started = |_: usize, _: &RunPoint| {};
+        self.shade_row_points(scene, pixels, hits, count, timed, true, started, |run, term, light| {
+            let reflectance = term.reflectance(&run[0].at.material);
+            if reflectance.max_element() > 0.0 {
+                out[run[0].j as usize / n] += Vec3A::from(reflectance) * light.iter().sum::<Vec3A>();
+            }
+        });
+    }
+
+    /// [`Tracer::shade_row_sums`] sample by sample, each light traced whatever its reflectance,
+    /// for the AOVs: sample s of `pixels[i]` into `out[i·count + s]`, exactly what
+    /// [`Tracer::shade`] gives it (the background where the camera ray escaped).
+    pub fn shade_row_samples(
+        &mut self,
+        scene: &Scene,
+        pixels: &[(u32, u32)],
+        hits: &[Option<PrimaryHit>],
+        count: u32,
+        timed: u64,
+        out: &mut Vec<SampleResult>,
+    ) {
+        let n = count as usize;
+        out.clear();
+        out.resize(hits.len() * n, SampleResult { radiance: scene.background, ..Default::default() });
+        if n == 0 || hits.is_empty() {
+            return;
+        }
+        let out = std::cell::RefCell::new(out);
+        let started = |i: usize, point: &RunPoint| {
+            let primary = hits[i].as_ref().expect("a point at a camera hit");
+            out.borrow_mut()[i * n..][..n].start(primary, &point.at.material);
+        };
+        self.shade_row_points(scene, pixels, hits, count, timed, false, started, |run, term, light| {
+            let first = run[0].j as usize;
+            out.borrow_mut()[first..first + n].add_light(term, term.reflectance(&run[0].at.material), light);
+        });
+    }
+
+    /// Lights the runs of `count` samples at each of a row's shared camera hits together
+    /// ([`Tracer::shade_row_sums`]): `started(i, point)` for each hit `hits[i]` as its point is
+    /// made, then, light group by light group (those that draw samples), `lit(run, term,
+    /// light)` for each hit's run of points and the light arriving at each of its samples.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn shade_row_points(
+        &mut self,
+        scene: &Scene,
+        pixels: &[(u32, u32)],
+        hits: &[Option<PrimaryHit>],
+        count: u32,
+        timed: u64,
+        skip_black: bool,
+        mut started: impl FnMut(usize, &RunPoint),
+        mut lit: impl FnMut(&[RunPoint], Term, &[Vec3A]),
+    ) {
+        let n = count as usize;
         self.prepare_runs(scene, pixels, count);
         let mut points = std::mem::take(&mut self.points);
         points.clear();
@@ -202,6 +258,7 @@ impl Tracer {
             let Some(primary) = hit else { continue };
             let symmetry = scene.sets.frame_symmetry(pixel);
             let point = RunPoint::new(scene, &primary.hit, i * n, (pixel, symmetry), first);
+            started(i, &point);
             points.extend((0..n).map(|s| RunPoint {
                 j: (i * n + s) as u32,
                 sample: first.wrapping_add(s as u32),
@@ -214,13 +271,10 @@ impl Tracer {
                 if group.dims() == 0 {
                     continue;
                 }
-                tracer.light_points(scene, group, first_dim, &points, true, &mut arriving);
+                tracer.light_points(scene, group, first_dim, &points, skip_black, &mut arriving);
                 let term = group.term();
                 for (run, light) in points.chunks_exact(n).zip(arriving.chunks_exact(n)) {
-                    let reflectance = term.reflectance(&run[0].at.material);
-                    if reflectance.max_element() > 0.0 {
-                        out[run[0].j as usize / n] += Vec3A::from(reflectance) * light.iter().sum::<Vec3A>();
-                    }
+                    lit(run, term, light);
                 }
             }
         });
