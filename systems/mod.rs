@@ -1,4 +1,5 @@
-//! The systems that make a frame, one file per stage, run in this order:
+//! The systems that make a frame, one file per stage (the trace stage's pixel buffers in
+//! `trace/pixels.rs`), run in this order:
 //!
 //! 0. [`animation`] then [`skinning`]: pose the node hierarchy for the current time and
 //!    deform skinned meshes (only when a glTF scene put a `NodeGraph` in the world).
