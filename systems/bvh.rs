@@ -39,9 +39,9 @@ use crate::{
 
 /// Samples per placed triangle (`max_spp` × pixels ÷ the triangles that baking the shared
 /// meshes would place) from which those meshes are baked rather than instanced: a baked tree
-/// traces faster but costs build time, which pays only once enough samples use it (the
-/// break-even measured on many_spheres is in docs/benchmarks.md; this asks twice that).
-const SHARED_BAKE_SAMPLES_PER_TRIANGLE: u64 = 64;
+/// traces faster but costs build time, which pays only once enough samples use it: the
+/// break-even measured on many_spheres (docs/benchmarks.md, "BVH build").
+const SHARED_BAKE_SAMPLES_PER_TRIANGLE: u64 = 128;
 
 /// Most triangles baking the shared meshes may place (a baked triangle takes about 150 bytes of
 /// tree and triangle data; instanced, it takes none).
