@@ -471,8 +471,11 @@ fn trace_tile<C: CameraRays>(
                     // and counted) again, one by one, and the non-finite ones dropped.
                     let quick = (!job.adaptive)
                         .then(|| {
-                            let sampled =
-                                if pooled { row_sums[k] } else { tracer.shade_sum(scene, hit, pixel, first, count) };
+                            let sampled = if pooled {
+                                row_sums[k]
+                            } else {
+                                tracer.shade_sum(scene, hit, (pixel, first, count), true).radiance
+                            };
                             sampled + fixed_radiance * count as f32
                         })
                         .filter(|&t| all_finite(t));
@@ -497,14 +500,26 @@ fn trace_tile<C: CameraRays>(
                     samples.clear();
                 }
                 Some((k, Some(hit))) => {
-                    tracer.shade_fixed(scene, hit, !job.aovs, fixed_light(k), std::slice::from_mut(&mut fixed));
+                    // With AOVs: black reflectance still has an AO value.
+                    tracer.shade_fixed(scene, hit, false, fixed_light(k), std::slice::from_mut(&mut fixed));
+                    samples.clear();
                     if pooled_aovs {
-                        samples.clear();
                         samples.extend_from_slice(&row_samples[k * count as usize..][..count as usize]);
                     } else {
-                        // `shade` sets every field of every sample: no need to clear them first.
-                        samples.resize(count as usize, SampleResult::default());
-                        tracer.shade(scene, hit, pixel, first, !job.aovs, &mut samples[..]);
+                        // Without adaptive sampling, the run's sums alone, as for the beauty
+                        // image: the AOVs that the hit decides are the same for every sample.
+                        // Where a sum is not finite the samples are made one by one, as there.
+                        let summed = (!job.adaptive)
+                            .then(|| fixed.with_run(&tracer.shade_sum(scene, hit, (pixel, first, count), false), count))
+                            .filter(|(radiance, values)| all_finite(*radiance) && values.iter().all(|v| v.is_finite()));
+                        if let Some((radiance, values)) = summed {
+                            sum = radiance.into();
+                            aov = values;
+                        } else {
+                            // `shade` sets every field of every sample: no need to clear them first.
+                            samples.resize(count as usize, SampleResult::default());
+                            tracer.shade(scene, hit, pixel, first, false, &mut samples[..]);
+                        }
                     }
                 }
                 Some((_, None)) => {

@@ -60,6 +60,32 @@ impl SampleResult {
         let (d, a, n) = (self.direct, self.albedo, self.normal);
         [self.ao, d.x, d.y, d.z, a.x, a.y, a.z, n.x, n.y, n.z, self.depth, f32::from(u8::from(self.hit))]
     }
+
+    /// The radiance and AOV sums of `count` samples at one hit, each this result (the hit and
+    /// the light of the lights that draw no samples) plus its share of `run`, the light of the
+    /// lights that draw samples summed over the run.
+    #[inline]
+    pub fn with_run(&self, run: &ShadedSum, count: u32) -> (Vec3A, AovValues) {
+        let n = count as f32;
+        let mut values = self.aov_values().map(|v| v * n);
+        values[0] += run.ao;
+        for (v, d) in values[1..4].iter_mut().zip(run.direct.to_array()) {
+            *v += d;
+        }
+        (run.radiance + Vec3A::from(self.radiance) * n, values)
+    }
+}
+
+/// The parts of [`SampleResult`] that vary from sample to sample, summed over a run of samples
+/// at one hit ([`Tracer::shade_sum`](super::Tracer::shade_sum)).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ShadedSum {
+    /// Radiance.
+    pub radiance: Vec3A,
+    /// Ambient light arriving, as [`SampleResult::ao`].
+    pub ao: f32,
+    /// Reflected radiance of the diffuse-term lights.
+    pub direct: Vec3A,
 }
 
 /// What [`Tracer::shade`](super::Tracer::shade) keeps of each of a run of samples at one hit: everything

@@ -6,7 +6,7 @@ use glam::{Vec2, Vec3, Vec3A};
 use super::{
     direction_rays::{CosinePoint, DirectionRays},
     light_groups::{LightGroup, RunSum},
-    sample::{PrimaryHit, SampleOut, SampleResult},
+    sample::{PrimaryHit, SampleOut, SampleResult, ShadedSum},
 };
 use crate::{
     components::Matte,
@@ -506,24 +506,36 @@ impl Tracer {
         });
     }
 
-    /// What [`Tracer::shade`] gives the beauty image, summed over the `count` samples (the
-    /// samples' radiance alone, lights whose reflectance is black skipped): where a light can
-    /// add a whole run at once ([`RunSum`]: the ambient occluder's whole quadrant passes, which
-    /// count their blocked rays), no per-sample values are made, added or summed. The same
-    /// rays as [`Tracer::shade`]; the sum may differ from adding its samples in the last bits.
+    /// What [`Tracer::shade`] gives the `count` samples from the lights that draw samples,
+    /// summed over them (lights whose reflectance is black skipped where `skip_black`): where a
+    /// light can add a whole run at once ([`RunSum`]: the ambient occluder's whole quadrant
+    /// passes, which count their blocked rays), no per-sample values are made, added or
+    /// summed. The same rays as [`Tracer::shade`]; the sums may differ from adding its samples
+    /// in the last bits.
     #[inline]
-    pub fn shade_sum(&mut self, scene: &Scene, primary: &PrimaryHit, pixel: u32, first: u32, count: u32) -> Vec3A {
+    pub fn shade_sum(
+        &mut self,
+        scene: &Scene,
+        primary: &PrimaryHit,
+        (pixel, first, count): (u32, u32, u32),
+        skip_black: bool,
+    ) -> ShadedSum {
         let (at, spawn) = scene.lit_point(&primary.hit, scene.sets.frame_symmetry(pixel));
-        let mut radiance = Vec3A::ZERO;
+        let mut total = ShadedSum::default();
         let sample = (pixel, first, count as usize);
-        self.shade_groups(scene, (&at, &spawn), sample, true, true, |_, reflectance, arriving, sum| {
+        self.shade_groups(scene, (&at, &spawn), sample, skip_black, true, |term, reflectance, arriving, sum| {
             let mut light = sum.light;
             if sum.per_sample {
                 light += arriving.iter().sum::<Vec3A>();
             }
-            radiance += Vec3A::from(reflectance) * light;
+            let reflected = Vec3A::from(reflectance) * light;
+            total.radiance += reflected;
+            match term {
+                Term::Ambient => total.ao += light.element_sum() / 3.0,
+                Term::Diffuse => total.direct += reflected,
+            }
         });
-        radiance
+        total
     }
 
     /// Lights the samples `first, first + 1, …` (`n` of them) of `pixel` at `at` with every
