@@ -5,7 +5,8 @@
 //! warping and taking two square roots for each (on this project's Zen 1 VM the occluder took
 //! 7–8 % less time for it). Elsewhere (progressive frames and adaptive batches that take part of
 //! a pass, sets of other sizes), in sample order: a run copies its samples' directions and
-//! sorts them into quadrants itself, without computing the points.
+//! sorts them into quadrants itself, without computing the points. Whole passes of patterns
+//! that do not split into quadrants (sets of 48, say) read theirs sorted by quadrant.
 
 #[cfg(target_arch = "x86_64")]
 use rayon::prelude::*;
@@ -31,6 +32,11 @@ pub(crate) enum TableOrder {
     Quadrants,
     /// Sample by sample as three columns: the pattern's n x, then its n y, then its n z.
     Samples,
+    /// Grouped by quadrant of azimuth, (+x, +y), (−x, +y), (−x, −y), (+x, −y), in sample order
+    /// within each, then cut into packets `lanes` wide as [`TableOrder::Quadrants`] lays them
+    /// out; the last packet's lanes past the pattern's n hold (0, 0, 1). For whole passes of
+    /// patterns without quadrants, whose packets then need no sort.
+    Sorted,
 }
 
 /// The local cosine directions (around +z) of patterns `first, first + 1, …` (`count` of
@@ -43,7 +49,7 @@ pub(crate) struct CosineTable {
     lanes: usize,
     first: u32,
     count: u32,
-    /// Floats per pattern: three per sample.
+    /// Floats per pattern: three per sample (and per padding lane).
     per_pattern: usize,
     /// The patterns' directions from `dirs[start]`, the first float on a 64-byte boundary,
     /// so that a pattern of a multiple of sixteen samples starts a cache line (a hint: a clone's
@@ -70,7 +76,7 @@ impl CosineTable {
         if !cmj.has_quadrants() {
             return None;
         }
-        Some(Self::filled(TableOrder::Quadrants, lanes, n, first, count, |p, out| {
+        Some(Self::filled(TableOrder::Quadrants, lanes, 3 * n as usize, first, count, |p, out| {
             crate::simd::run_in(lanes, FillPattern { cmj, p, out });
         }))
     }
@@ -83,26 +89,48 @@ impl CosineTable {
         if !crate::simd::avx512() || n > Self::MAX_SAMPLES {
             return None;
         }
-        Some(Self::filled(TableOrder::Samples, 16, n, first, count, |p, out| {
+        Some(Self::filled(TableOrder::Samples, 16, 3 * n as usize, first, count, |p, out| {
             crate::simd::run_in(16, FillSamples { cmj, p, out });
         }))
     }
 
-    /// A table of `count` patterns of `n` points from `first`, each pattern's `3n` floats
-    /// written by `fill(pattern, out)`, in parallel, each pattern on its own, so the table does
-    /// not depend on the thread count.
+    /// The table of `count` patterns from `first` of `n` ≤ [`CosineTable::MAX_SAMPLES`] points
+    /// sorted by quadrant ([`TableOrder::Sorted`]) for packets `lanes` wide: `None` where `cmj`
+    /// has quadrants (their own order is better), or for sixteen lanes where
+    /// [`crate::simd::isa`] does not allow AVX-512. Filled in parallel, each pattern on its
+    /// own, as [`CosineTable::build`] fills.
+    pub(crate) fn build_sorted(cmj: &Cmj, n: u32, first: u32, count: u32, lanes: usize) -> Option<Self> {
+        let lanes_allowed = match lanes {
+            16 => crate::simd::avx512(),
+            8 => true,
+            _ => false,
+        };
+        if !lanes_allowed || cmj.has_quadrants() || n > Self::MAX_SAMPLES {
+            return None;
+        }
+        let padded = (n as usize).next_multiple_of(lanes);
+        Some(Self::filled(TableOrder::Sorted, lanes, 3 * padded, first, count, |p, out| {
+            let mut samples = vec![0.0; 3 * n as usize];
+            crate::simd::run_in(lanes, FillSamples { cmj, p, out: &mut samples });
+            sort_by_quadrant(&samples, lanes, out);
+        }))
+    }
+
+    /// A table of `count` patterns from `first`, each pattern's `per_pattern` floats written
+    /// by `fill(pattern, out)`, in parallel, each pattern on its own, so the table does not
+    /// depend on the thread count.
     fn filled(
         order: TableOrder,
         lanes: usize,
-        n: u32,
+        per_pattern: usize,
         first: u32,
         count: u32,
         fill: impl Fn(u32, &mut [f32]) + Sync,
     ) -> Self {
-        let per_pattern = 3 * n as usize;
-        let (start, mut dirs) = aligned_floats(per_pattern * count as usize);
-        dirs[start..]
-            .par_chunks_mut(per_pattern)
+        let len = per_pattern * count as usize;
+        let (start, mut dirs) = aligned_floats(len);
+        dirs[start..start + len]
+            .par_chunks_exact_mut(per_pattern)
             .enumerate()
             .for_each(|(i, out)| fill(first.wrapping_add(i as u32), out));
         CosineTable { order, lanes, first, count, per_pattern, start, dirs }
@@ -147,6 +175,29 @@ fn aligned_floats(len: usize) -> (usize, Vec<f32>) {
     dirs.resize(len + LINE_FLOATS, 0.0f32);
     let start = dirs.as_ptr().align_offset(64).min(LINE_FLOATS);
     (start, dirs)
+}
+
+/// Writes the directions `samples` (n x, then n y, then n z) to `out` in [`TableOrder::Sorted`]
+/// for packets `lanes` wide.
+#[cfg(target_arch = "x86_64")]
+fn sort_by_quadrant(samples: &[f32], lanes: usize, out: &mut [f32]) {
+    let n = samples.len() / 3;
+    let (xs, ys) = (&samples[..n], &samples[n..2 * n]);
+    let quadrant = |i: usize| match (xs[i] < 0.0, ys[i] < 0.0) {
+        (false, false) => 0,
+        (true, false) => 1,
+        (true, true) => 2,
+        (false, true) => 3,
+    };
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by_key(|&i| quadrant(i));
+    for slot in 0..out.len() / 3 {
+        let (packet, lane) = (slot / lanes, slot % lanes);
+        let dir = order.get(slot).map_or([0.0, 0.0, 1.0], |&i| [xs[i], ys[i], samples[2 * n + i]]);
+        for (axis, v) in dir.into_iter().enumerate() {
+            out[packet * 3 * lanes + axis * lanes + lane] = v;
+        }
+    }
 }
 
 /// Writes pattern `p`'s directions to `out`, packet by packet in the kernel's lanes.
@@ -265,6 +316,52 @@ mod tests {
                     got.sort_unstable();
                     expected.sort_unstable();
                     assert_eq!(got, expected, "n {n}, p {p}, {lanes} lanes");
+                }
+            }
+        }
+    }
+
+    /// A table sorted by quadrant holds, bit for bit and once each, the directions the scalar
+    /// cosine map gives a pattern's samples ([`Cmj::sample`]), in sample order within each
+    /// quadrant and the quadrants in azimuth order, the last packet padded with (0, 0, 1);
+    /// for sizes without quadrants, with a partial last packet or not, for every width this
+    /// CPU has, with pattern numbers that wrap. Patterns with quadrants get none.
+    #[test]
+    fn a_table_sorted_by_quadrant_holds_each_quadrant_s_directions_in_sample_order() {
+        for n in [1u32, 7, 24, 37, 48, 100, 64, 257] {
+            let cmj = Cmj::new(n);
+            for lanes in [8, 16] {
+                let Some(table) = CosineTable::build_sorted(&cmj, n, u32::MAX - 1, 4, lanes) else {
+                    let has = lanes == 8 || crate::simd::avx512();
+                    assert!(!has || cmj.has_quadrants() || n > CosineTable::MAX_SAMPLES, "n {n}: no table");
+                    continue;
+                };
+                assert!(!cmj.has_quadrants(), "n {n}: a table");
+                assert_eq!(table.order(), TableOrder::Sorted);
+                let padded = (n as usize).next_multiple_of(lanes);
+                assert_eq!(table.memory_bytes(), (4 * 3 * padded + 16) * size_of::<f32>());
+                for p in [u32::MAX - 1, u32::MAX, 0, 1] {
+                    let quadrant = |x: f32, y: f32| match (x < 0.0, y < 0.0) {
+                        (false, false) => 0,
+                        (true, false) => 1,
+                        (true, true) => 2,
+                        (false, true) => 3,
+                    };
+                    let mut expected: Vec<(u32, [u32; 3])> = (0..n)
+                        .map(|i| {
+                            let dir = cosine_power_hemisphere(Vec2::from(cmj.sample(i, p)), 1.0).dir;
+                            (quadrant(dir.x, dir.y), dir.to_array().map(f32::to_bits))
+                        })
+                        .collect();
+                    // Stable: sample order within a quadrant.
+                    expected.sort_by_key(|&(q, _)| q);
+                    let dirs = table.pattern(p);
+                    for slot in 0..padded {
+                        let (packet, lane) = (slot / lanes, slot % lanes);
+                        let got = [0, 1, 2].map(|axis| dirs[packet * 3 * lanes + axis * lanes + lane].to_bits());
+                        let want = expected.get(slot).map_or([0.0f32, 0.0, 1.0].map(f32::to_bits), |e| e.1);
+                        assert_eq!(got, want, "n {n}, p {p}, {lanes} lanes: slot {slot}");
+                    }
                 }
             }
         }

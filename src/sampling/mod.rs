@@ -28,7 +28,7 @@ use glam::Vec2;
 use crate::random::{SplitMix64, mix64};
 use cmj::Cmj;
 #[cfg(target_arch = "x86_64")]
-use cosine_table::CosineTable;
+use cosine_table::{CosineTable, TableOrder};
 pub use generators::SamplerKind;
 use hash::{Modulus, hash_sample, permute, seed_key};
 use sobol::ZSobol;
@@ -104,9 +104,9 @@ impl SampleSets {
     }
 
     /// [`SampleSets::generate`] for renders whose runs of samples are `runs`, which decides the
-    /// order the occluder's cosine directions are tabled in (`cosine_table`): the quadrant
-    /// order where runs are whole passes of patterns with quadrants, else sample order. The
-    /// sets' samples are the same either way.
+    /// order the occluder's cosine directions are tabled in (`cosine_table`): where runs are
+    /// whole passes, the quadrant order for patterns with quadrants and sorted by quadrant
+    /// for the others; else sample order. The sets' samples are the same either way.
     pub fn generate_for(kind: SamplerKind, n: u32, seed: u64, width: u32, height: u32, runs: SampleRuns) -> Self {
         let n = n.max(1);
         let stored = match kind {
@@ -124,16 +124,17 @@ impl SampleSets {
         let zsobol = ZSobol::new(n, width.max(height));
         let (cmj, key) = (Cmj::new(n), seed_key(seed));
         let first_pattern = (key >> 32) as u32;
-        // Only the occluder's runs read the table: its quadrant packets in the width the CPU's
-        // packets have, or its sixteen-lane runs in sample order.
+        // Only the occluder's runs read the table: its packets of whole passes in the width the
+        // CPU's packets have, or its sixteen-lane runs in sample order.
         #[cfg(target_arch = "x86_64")]
         let cosine = (kind == SamplerKind::CorrelatedMultiJittered)
             .then(|| {
                 let lanes = crate::simd::packet_lanes();
-                let quadrants = (runs == SampleRuns::WholePasses)
-                    .then(|| CosineTable::build(&cmj, n, first_pattern, Self::PREFERRED_SETS, lanes))
-                    .flatten();
-                quadrants.or_else(|| {
+                let whole = (runs == SampleRuns::WholePasses).then(|| {
+                    CosineTable::build(&cmj, n, first_pattern, Self::PREFERRED_SETS, lanes)
+                        .or_else(|| CosineTable::build_sorted(&cmj, n, first_pattern, Self::PREFERRED_SETS, lanes))
+                });
+                whole.flatten().or_else(|| {
                     (lanes == 16 && runs != SampleRuns::OnePerPoint)
                         .then(|| CosineTable::build_in_sample_order(&cmj, n, first_pattern, Self::PREFERRED_SETS))
                         .flatten()
@@ -200,13 +201,14 @@ impl SampleSets {
         self.num_sets
     }
 
-    /// The order the occluder's cosine directions are tabled in (`cosine_table`): "quadrant"
-    /// or "sample"; `None` where they are not tabled.
+    /// The order the occluder's cosine directions are tabled in (`cosine_table`): "quadrant",
+    /// "quadrant-sorted" or "sample"; `None` where they are not tabled.
     pub fn cosine_table_order(&self) -> Option<&'static str> {
         #[cfg(target_arch = "x86_64")]
         return self.cosine.as_ref().map(|t| match t.order() {
             cosine_table::TableOrder::Quadrants => "quadrant",
             cosine_table::TableOrder::Samples => "sample",
+            cosine_table::TableOrder::Sorted => "quadrant-sorted",
         });
         #[cfg(not(target_arch = "x86_64"))]
         None
@@ -367,10 +369,11 @@ impl SampleSets {
     }
 
     /// Where samples `first, first + 1, …` (`len` of them) of `pixel` in dimension `dim` are
-    /// whole passes of correlated multi-jittered patterns that split into quadrants
-    /// ([`Cmj::has_quadrants`]) and their cosine directions are tabled: the sets' patterns, the
-    /// table, and each pass's pattern number, in order (pass k holds samples `k·n … k·n + n − 1`
-    /// of the run). `None` elsewhere.
+    /// whole passes of correlated multi-jittered patterns whose cosine directions are tabled in
+    /// packets: in the quadrant order of patterns that split into quadrants
+    /// ([`Cmj::has_quadrants`]), or sorted by quadrant. The sets' patterns, the table, and each
+    /// pass's pattern number, in order (pass k holds samples `k·n … k·n + n − 1` of the run).
+    /// `None` elsewhere.
     #[cfg(target_arch = "x86_64")]
     pub(crate) fn quadrant_passes(
         &self,
@@ -381,7 +384,8 @@ impl SampleSets {
     ) -> Option<(&Cmj, &CosineTable, impl Iterator<Item = u32> + '_)> {
         let n = self.n as usize;
         let whole = first.is_multiple_of(self.n) && len.is_multiple_of(n) && len > 0;
-        let table = self.table_in(cosine_table::TableOrder::Quadrants).filter(|_| whole)?;
+        let packets = |t: &&CosineTable| matches!(t.order(), TableOrder::Quadrants | TableOrder::Sorted);
+        let table = self.cosine.as_ref().filter(packets).filter(|_| whole)?;
         // Whole passes: each run of `passes` is one pass, from its first sample.
         let passes = self.passes(first, len).map(move |(pass, _, _)| self.cmj_pattern(pixel, pass, dim));
         Some((&self.cmj, table, passes))
@@ -603,9 +607,9 @@ mod tests {
 
     /// Sets for partial runs table the occluder's directions in sample order, and a run's
     /// copy from it across passes gives, bit for bit, the cosine map of [`SampleSets::sample`]
-    /// for each of its samples; sets for whole passes table them in quadrant order where the
-    /// patterns have quadrants, in sample order where not; the order is part of what
-    /// [`SampleSets::matches`] compares, for CMJ only.
+    /// for each of its samples; sets for whole passes table them in packets, in quadrant order
+    /// where the patterns have quadrants, sorted by quadrant where not; the order is part of
+    /// what [`SampleSets::matches`] compares, for CMJ only.
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn partial_runs_copy_their_directions_from_a_table_in_sample_order() {
@@ -618,13 +622,15 @@ mod tests {
             assert!(!sets.matches(cmj, n, 9, (37, 23), SampleRuns::WholePasses));
             let regular = SampleSets::generate_for(SamplerKind::Regular, n, 9, 37, 23, SampleRuns::Partial);
             assert!(regular.matches(SamplerKind::Regular, n, 9, (37, 23), SampleRuns::WholePasses));
+            let quadrants = n.is_power_of_two();
+            let packets = if quadrants { "quadrant" } else { "quadrant-sorted" };
             if !crate::simd::avx512() {
                 assert_eq!(sets.cosine_table_order(), None, "n {n}: sixteen-lane runs only");
+                assert_eq!(whole.cosine_table_order(), Some(packets), "n {n}: eight-lane packets");
                 continue;
             }
             assert_eq!(sets.cosine_table_order(), Some("sample"), "n {n}");
-            let quadrants = n.is_power_of_two();
-            assert_eq!(whole.cosine_table_order(), Some(if quadrants { "quadrant" } else { "sample" }), "n {n}");
+            assert_eq!(whole.cosine_table_order(), Some(packets), "n {n}");
             for (pixel, first, len) in [(0u32, 0u32, 40usize), (5, 7, 1), (100, 15, 33), (850, 3, 16)] {
                 let mut columns = [vec![f32::NAN; len], vec![f32::NAN; len], vec![f32::NAN; len]];
                 let [dx, dy, dz] = &mut columns;
@@ -637,7 +643,7 @@ mod tests {
             }
             let mut column = [0.0f32; 3];
             let [a, b, c] = column.each_mut().map(std::slice::from_mut);
-            assert_eq!(whole.fill_directions(0, 0, 4, [a, b, c]), !quadrants, "n {n}: whole passes");
+            assert!(!whole.fill_directions(0, 0, 4, [a, b, c]), "n {n}: whole passes");
             let single = SampleSets::generate_for(cmj, n, 9, 37, 23, SampleRuns::OnePerPoint);
             assert_eq!(single.cosine_table_order(), None, "n {n}: one sample per point");
         }

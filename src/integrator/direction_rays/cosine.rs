@@ -15,7 +15,7 @@ use crate::{
 };
 #[cfg(target_arch = "x86_64")]
 use crate::{
-    sampling::{cmj::QuadrantPattern, warp::cosine_hemisphere_lanes},
+    sampling::{cmj::QuadrantPattern, cosine_table::TableOrder, warp::cosine_hemisphere_lanes},
     simd::{CompressLanes, Kernel},
 };
 
@@ -199,16 +199,23 @@ impl DirectionRays {
         let tracing = clear.cmpne(floor).any();
         let (mut traced, mut cycles, mut dark) = (0, 0, 0);
         let all = (1u32 << L::WIDTH) - 1;
+        // A table sorted by quadrant pads its last packet (summed runs only).
+        let sorted = table.order() == TableOrder::Sorted;
+        debug_assert!(!sorted || matches!(out, QuadrantOut::Sum(..)), "a sorted table gives sums only");
         stack.clear();
         for (pass, p) in passes.enumerate() {
             // Bit t % 16 of entry t / 16: slot t is blocked.
             let mut blocked = [0u32; 16];
             if tracing {
                 for (packet, local) in table.pattern(p).chunks_exact(3 * L::WIDTH).enumerate() {
+                    let live = match n - packet * L::WIDTH {
+                        left if sorted && left < L::WIDTH => (1u32 << left) - 1,
+                        _ => all,
+                    };
                     let (hit, took) = {
                         let local = [0, 1, 2].map(|axis| L::load(isa, &local[axis * L::WIDTH..]));
                         let lanes = spawned_lanes(to_world(frame, local), spawn, terms.max_distance);
-                        occluded_lanes(geometry, stack, &lanes, all, self.timing)
+                        occluded_lanes(geometry, stack, &lanes, live, self.timing)
                     };
                     cycles += took;
                     let slot = packet * L::WIDTH;

@@ -23,7 +23,10 @@ mod points;
 use glam::{BVec3A, Vec2, Vec3A};
 
 #[cfg(target_arch = "x86_64")]
-use crate::sampling::{cmj::Cmj, cosine_table::CosineTable};
+use crate::sampling::{
+    cmj::Cmj,
+    cosine_table::{CosineTable, TableOrder},
+};
 use crate::{
     geometry::{
         accel::{RayOrder, SceneGeometry},
@@ -233,6 +236,8 @@ impl DirectionRays {
             && !geometry.has_alpha()
             && let Some((cmj, table, passes)) = sets.quadrant_passes(pixel, first, dim, arriving.len())
             && table.lanes() == lanes
+            // A table sorted by quadrant says nothing of which sample a ray is: sums only.
+            && (sum.is_some() || table.order() == TableOrder::Quadrants)
         {
             let passes = QuadrantPasses { cmj, table, n: sets.set_size() as usize, passes };
             let out = match sum {
