@@ -35,7 +35,8 @@ pub(crate) enum TableOrder {
     /// Grouped by quadrant of azimuth, (+x, +y), (−x, +y), (−x, −y), (+x, −y), in sample order
     /// within each, then cut into packets `lanes` wide as [`TableOrder::Quadrants`] lays them
     /// out; the last packet's lanes past the pattern's n hold (0, 0, 1). For whole passes of
-    /// patterns without quadrants, whose packets then need no sort.
+    /// patterns without quadrants that fill more than one packet, whose packets then need no
+    /// sort.
     Sorted,
 }
 
@@ -96,16 +97,17 @@ impl CosineTable {
 
     /// The table of `count` patterns from `first` of `n` ≤ [`CosineTable::MAX_SAMPLES`] points
     /// sorted by quadrant ([`TableOrder::Sorted`]) for packets `lanes` wide: `None` where `cmj`
-    /// has quadrants (their own order is better), or for sixteen lanes where
-    /// [`crate::simd::isa`] does not allow AVX-512. Filled in parallel, each pattern on its
-    /// own, as [`CosineTable::build`] fills.
+    /// has quadrants (their own order is better), where a pattern fits one packet (its order
+    /// does not matter, and a table in sample order is half the size or less), or for sixteen
+    /// lanes where [`crate::simd::isa`] does not allow AVX-512. Filled in parallel, each
+    /// pattern on its own, as [`CosineTable::build`] fills.
     pub(crate) fn build_sorted(cmj: &Cmj, n: u32, first: u32, count: u32, lanes: usize) -> Option<Self> {
         let lanes_allowed = match lanes {
             16 => crate::simd::avx512(),
             8 => true,
             _ => false,
         };
-        if !lanes_allowed || cmj.has_quadrants() || n > Self::MAX_SAMPLES {
+        if !lanes_allowed || cmj.has_quadrants() || n as usize <= lanes || n > Self::MAX_SAMPLES {
             return None;
         }
         let padded = (n as usize).next_multiple_of(lanes);
@@ -325,7 +327,8 @@ mod tests {
     /// cosine map gives a pattern's samples ([`Cmj::sample`]), in sample order within each
     /// quadrant and the quadrants in azimuth order, the last packet padded with (0, 0, 1);
     /// for sizes without quadrants, with a partial last packet or not, for every width this
-    /// CPU has, with pattern numbers that wrap. Patterns with quadrants get none.
+    /// CPU has, with pattern numbers that wrap. Patterns with quadrants get none, nor do
+    /// patterns that fit one packet.
     #[test]
     fn a_table_sorted_by_quadrant_holds_each_quadrant_s_directions_in_sample_order() {
         for n in [1u32, 7, 24, 37, 48, 100, 64, 257] {
@@ -333,10 +336,11 @@ mod tests {
             for lanes in [8, 16] {
                 let Some(table) = CosineTable::build_sorted(&cmj, n, u32::MAX - 1, 4, lanes) else {
                     let has = lanes == 8 || crate::simd::avx512();
-                    assert!(!has || cmj.has_quadrants() || n > CosineTable::MAX_SAMPLES, "n {n}: no table");
+                    let needs = !cmj.has_quadrants() && n as usize > lanes && n <= CosineTable::MAX_SAMPLES;
+                    assert!(!has || !needs, "n {n}: no table");
                     continue;
                 };
-                assert!(!cmj.has_quadrants(), "n {n}: a table");
+                assert!(!cmj.has_quadrants() && n as usize > lanes, "n {n}, {lanes} lanes: a table");
                 assert_eq!(table.order(), TableOrder::Sorted);
                 let padded = (n as usize).next_multiple_of(lanes);
                 assert_eq!(table.memory_bytes(), (4 * 3 * padded + 16) * size_of::<f32>());

@@ -106,7 +106,8 @@ impl SampleSets {
     /// [`SampleSets::generate`] for renders whose runs of samples are `runs`, which decides the
     /// order the occluder's cosine directions are tabled in (`cosine_table`): where runs are
     /// whole passes, the quadrant order for patterns with quadrants and sorted by quadrant
-    /// for the others; else sample order. The sets' samples are the same either way.
+    /// for the others of more than one packet; else sample order. The sets' samples are the
+    /// same either way.
     pub fn generate_for(kind: SamplerKind, n: u32, seed: u64, width: u32, height: u32, runs: SampleRuns) -> Self {
         let n = n.max(1);
         let stored = match kind {
