@@ -461,6 +461,95 @@ impl PlacedLight for PlacedPerSample {
     }
 }
 
+/// A point light behind a light type that only has the per-sample `sample`: the core's general
+/// path, where the point light itself is lit in lanes.
+#[derive(Component, Clone, Copy, PartialEq)]
+struct PerSamplePoint(PointLight);
+
+/// [`PerSamplePoint`] placed.
+struct PlacedPerSamplePoint(<PointLight as Light>::Placed);
+
+impl Light for PerSamplePoint {
+    type Placed = PlacedPerSamplePoint;
+    const NAME: &'static str = "per-sample point light";
+
+    fn validate(&self, t: &Transform) -> Result<(), String> {
+        Light::validate(&self.0, t)
+    }
+
+    fn place(&self, t: &Transform) -> Option<PlacedPerSamplePoint> {
+        self.0.place(t).map(PlacedPerSamplePoint)
+    }
+}
+
+impl PlacedLight for PlacedPerSamplePoint {
+    const DIMS: u32 = 0;
+
+    fn sample(&self, at: &ShadingPoint, u: &LightSamples) -> Option<LightSample> {
+        self.0.sample(at, u)
+    }
+}
+
+/// Point lights lit in lanes at many points (jittered camera hits, and rows of shared hits)
+/// give every pixel exactly the light and the shadow rays of the per-sample path: with and
+/// without falloff and shadows, lights above and level with the floor (points facing away get
+/// none), over an analytic sphere, a mesh and instances, with and without AOVs.
+#[test]
+fn point_lights_in_lanes_match_the_per_sample_path() {
+    let mesh = std::sync::Arc::new(hemi::scene::mesh_gen::uv_sphere(0.3, 12, 24));
+    for blockers in [Blockers::Sphere, Blockers::Mesh, Blockers::Instances] {
+        for (falloff, shadows, height) in
+            [(true, true, 2.0), (false, true, 0.3), (true, false, 2.0), (false, false, 0.0)]
+        {
+            for (jitter, aovs) in [(true, false), (true, true), (false, false)] {
+                let render = |per_sample: bool| {
+                    let settings =
+                        RenderSettings { jitter, aovs, ..settings(13, 11, 8, SamplerKind::CorrelatedMultiJittered) };
+                    let mut r = Renderer::new(settings);
+                    r.add_light::<PerSamplePoint>();
+                    let w = r.world_mut();
+                    w.spawn((Plane::default(), white()));
+                    match blockers {
+                        Blockers::Sphere => {
+                            w.spawn((Sphere { radius: 0.5 }, Transform::from_xyz(0.0, 0.5, 0.0), white()));
+                        }
+                        Blockers::Mesh => {
+                            w.spawn((TriangleMesh(mesh.clone()), Transform::from_xyz(0.0, 0.3, 0.0), white()));
+                        }
+                        Blockers::Instances => {
+                            for x in [-0.5, 0.0, 0.5] {
+                                w.spawn((TriangleMesh(mesh.clone()), Transform::from_xyz(x, 0.3, 0.0), white()));
+                            }
+                        }
+                    }
+                    let light = PointLight { ls: 3.0, color: Vec3::new(1.0, 0.8, 0.6), shadows, falloff };
+                    let at = Transform::from_xyz(0.7, height, 0.4);
+                    if per_sample {
+                        w.spawn((PerSamplePoint(light), at));
+                    } else {
+                        w.spawn((light, at));
+                    }
+                    w.spawn(occluder(0.2));
+                    w.spawn(Camera::look_at(Vec3::new(0.0, 1.5, 2.5), Vec3::new(0.0, 0.3, 0.0), 60.0));
+                    let rays = r.run_frame().unwrap().rays;
+                    let aov = r.image().aov(Aov::Direct).unwrap_or_default();
+                    (r.image().linear.clone(), aov, rays)
+                };
+                let (lanes, per_sample) = (render(false), render(true));
+                let case = format!(
+                    "{blockers:?}, falloff {falloff}, shadows {shadows}, height {height}, jitter {jitter}, aovs {aovs}"
+                );
+                assert_eq!(lanes.2, per_sample.2, "{case}: ray counts");
+                assert!(lanes.0 == per_sample.0 && lanes.1 == per_sample.1, "{case}: images differ");
+                assert!(lanes.0.iter().any(|p| p.max_element() > 0.0), "{case}: a lit image");
+                if shadows && height > 1.0 {
+                    assert!(lanes.2.shadow > 0, "{case}: shadow rays traced");
+                }
+            }
+        }
+    }
+}
+
 /// Asserts that two images agree pixel by pixel to within float rounding (a relative 2e-6 of
 /// the brighter channel): far below what one sample of a pixel's run weighs.
 fn assert_close(a: &[Vec3], b: &[Vec3], case: &str) {

@@ -11,7 +11,7 @@ use super::{
 use crate::{
     components::Matte,
     geometry::{Ray, RayEnd, RayOrder, SceneGeometry, SpawnOrigins, SurfaceHit},
-    light::{DirectionRun, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term},
+    light::{DirectionRun, LightSample, LightSamples, PlacedLight, ShadingPoint, Shadow, Term, point::PointSource},
     sampling::{SampleSets, dims},
     stats::{RayCounts, TraceSplit, cycle_count, cycles_since},
 };
@@ -676,6 +676,12 @@ impl Tracer {
                 &run.values[start..start + P::DIMS as usize * run.stride]
             };
             let lit = |p: &RunPoint| !(skip_black && P::TERM.reflectance(&p.at.material).max_element() <= 0.0);
+            // A point's light at all the points in lanes, where the CPU and scene allow.
+            if let Some(source) = light.point_source().filter(|_| P::DIMS == 0)
+                && self.shade_point_source(scene, points, &source, P::TERM, skip_black, arriving)
+            {
+                continue;
+            }
             // A cosine run over the points in one pass, where the CPU and scene allow.
             if let Some(terms) = light.cosine_run().filter(|_| P::DIMS > 0) {
                 let u = |p: &RunPoint| columns[p.j as usize];
@@ -705,6 +711,35 @@ impl Tracer {
         }
         self.drawn = drawn;
         self.run = run;
+    }
+
+    /// Adds `source`'s light at `points` to `arriving` (one element each), lit as `term`'s
+    /// light (points whose reflectance for it is black skipped where `skip_black`), in lanes
+    /// ([`DirectionRays::add_point_source`]): the general path's light and shadow rays. False,
+    /// having done nothing, where the CPU or scene does not allow it. Out of line: the generic
+    /// per-light loop that calls it stays as small as before for the lights that are no point.
+    #[inline(never)]
+    fn shade_point_source(
+        &mut self,
+        scene: &Scene,
+        points: &[RunPoint],
+        source: &PointSource,
+        term: Term,
+        skip_black: bool,
+        arriving: &mut [Vec3A],
+    ) -> bool {
+        let lit = |p: &RunPoint| !(skip_black && term.reflectance(&p.at.material).max_element() <= 0.0);
+        let (geometry, rays) = (scene.geometry, &mut self.direction_rays);
+        rays.timing = self.timing_queries;
+        let far = 1.0 - SHADOW_EPSILON;
+        let Some((traced, cycles)) =
+            rays.add_point_source(geometry, &mut self.stack, points, lit, (source, far), arriving)
+        else {
+            return false;
+        };
+        self.rays.count(term, traced);
+        self.split.add_queries(term, cycles);
+        true
     }
 
     /// Adds a run of drawn samples to `arriving`, tracing the shadow rays whose answer matters in

@@ -317,6 +317,17 @@ pub trait PlacedLight: Send + Sync + 'static {
         None
     }
 
+    /// `Some(source)` when every sample at every shading point is exactly `source`'s
+    /// [`PointSource::sample`] (the light draws no samples): the core then lights the many
+    /// points of jittered camera hits in lanes, shadow rays included, where the CPU allows.
+    /// `None` (the default) otherwise.
+    ///
+    /// [`PointSource::sample`]: point::PointSource::sample
+    #[inline]
+    fn point_source(&self) -> Option<point::PointSource> {
+        None
+    }
+
     /// [`PlacedLight::sample`] for each sample of a run at one shading point: `out[j]` for the
     /// sample values whose dimension `k` is `values[k * out.len() + j]`. An implementation may
     /// compute several samples at once, but must give the same values as `sample`.

@@ -32,11 +32,39 @@ impl Default for PointLight {
 
 /// A [`PointLight`] placed in world space.
 #[derive(Clone, Copy, Debug)]
-pub struct PlacedPoint {
-    position: Vec3A,
-    intensity: Vec3,
-    shadows: bool,
-    falloff: bool,
+pub struct PlacedPoint(PointSource);
+
+/// Light from one point that every shading point sees alike (a placed [`PointLight`]): what
+/// [`PlacedLight::point_source`] hands the core, which then lights many points in lanes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PointSource {
+    /// Where the light is.
+    pub position: Vec3A,
+    /// Intensity (`ls·color`).
+    pub intensity: Vec3,
+    /// Whether a lit point's light depends on a shadow ray to `position`.
+    pub shadows: bool,
+    /// Whether the light falls off with the squared distance.
+    pub falloff: bool,
+}
+
+impl PointSource {
+    /// Irradiance `I·cos θ/d²` (`I·cos θ` without falloff) at `at`; nothing behind the surface.
+    #[inline]
+    pub fn sample(&self, at: &ShadingPoint) -> Option<LightSample> {
+        let to_light = self.position - at.p;
+        let dist2 = to_light.length_squared();
+        let cos = at.normal.dot(to_light);
+        if cos <= 0.0 || dist2 == 0.0 {
+            return None;
+        }
+        let cos = cos / dist2.sqrt();
+        Some(LightSample {
+            unoccluded: self.intensity * if self.falloff { cos / dist2 } else { cos },
+            occluded: Vec3::ZERO,
+            shadow: self.shadows.then_some(Shadow::ToPoint(self.position)),
+        })
+    }
 }
 
 impl Light for PointLight {
@@ -50,12 +78,12 @@ impl Light for PointLight {
 
     fn place(&self, transform: &Transform) -> Option<PlacedPoint> {
         let intensity = self.color * self.ls;
-        (intensity.max_element() > 0.0).then_some(PlacedPoint {
+        (intensity.max_element() > 0.0).then_some(PlacedPoint(PointSource {
             position: transform.translation.into(),
             intensity,
             shadows: self.shadows,
             falloff: self.falloff,
-        })
+        }))
     }
 }
 
@@ -65,17 +93,11 @@ impl PlacedLight for PlacedPoint {
     /// Irradiance `I·cos θ/d²` (`I·cos θ` without falloff); nothing behind the surface.
     #[inline]
     fn sample(&self, at: &ShadingPoint, _: &LightSamples) -> Option<LightSample> {
-        let to_light = self.position - at.p;
-        let dist2 = to_light.length_squared();
-        let cos = at.normal.dot(to_light);
-        if cos <= 0.0 || dist2 == 0.0 {
-            return None;
-        }
-        let cos = cos / dist2.sqrt();
-        Some(LightSample {
-            unoccluded: self.intensity * if self.falloff { cos / dist2 } else { cos },
-            occluded: Vec3::ZERO,
-            shadow: self.shadows.then_some(Shadow::ToPoint(self.position)),
-        })
+        self.0.sample(at)
+    }
+
+    #[inline]
+    fn point_source(&self) -> Option<PointSource> {
+        Some(self.0)
     }
 }

@@ -34,7 +34,7 @@ use crate::{
         ray::Ray,
     },
     integrator::RunSum,
-    light::{DirectionRun, DirectionTerms},
+    light::{DirectionRun, DirectionTerms, point::PointSource},
     math::Onb,
     sampling::SampleSets,
     stats::{cycle_count, cycles_since},
@@ -309,6 +309,39 @@ impl DirectionRays {
             return Some(<crate::simd::Avx512 as crate::simd::Lanes>::compiled(isa, kernel));
         }
         let _ = (geometry, stack, points, u, lit, terms, arriving);
+        None
+    }
+
+    /// The light of `source` at each of `points` into `arriving[i]` for `points[i]`, where
+    /// `lit(p)` (elsewhere nothing added): [`PointSource::sample`] and, where its light is not
+    /// zero and the source casts shadows, a shadow ray to it from the point's side of its
+    /// surface, `far` of the way there (what the tracer's general path traces for it). The
+    /// same light and rays bit for bit, set up in lanes and traced as packets of neighbouring
+    /// points, where the scene's packets are sixteen wide. `None`, having done nothing,
+    /// elsewhere, and in scenes with alpha-tested meshes (as for
+    /// [`DirectionRays::add_cosine`]).
+    ///
+    /// [`PointSource::sample`]: crate::light::point::PointSource::sample
+    pub(crate) fn add_point_source<P: CosinePoint>(
+        &mut self,
+        geometry: &SceneGeometry,
+        stack: &mut Vec<(u32, f32)>,
+        points: &[P],
+        lit: impl Fn(&P) -> bool,
+        (source, far): (&PointSource, f32),
+        arriving: &mut [Vec3A],
+    ) -> Option<(u64, u64)> {
+        debug_assert_eq!(points.len(), arriving.len(), "one sample per point");
+        #[cfg(target_arch = "x86_64")]
+        if geometry.packet_lanes() == 16
+            && !geometry.has_alpha()
+            && let Some(isa) = crate::simd::HasAvx512::allowed()
+        {
+            self.points.gather(points, |_| Vec2::ZERO, lit);
+            let kernel = points::PointSourceRun { rays: self, geometry, stack, source, far, arriving };
+            return Some(<crate::simd::Avx512 as crate::simd::Lanes>::compiled(isa, kernel));
+        }
+        let _ = (geometry, stack, points, lit, source, far, arriving);
         None
     }
 
