@@ -432,58 +432,31 @@ fn new_lights_are_bit_identical_with_one_or_two_threads() {
     assert_eq!(scene(1), scene(2));
 }
 
-/// The ambient occluder behind a light type that only has the per-sample `sample`: it takes the
-/// core's general path, where the occluder itself takes the bulk direction path.
+/// A light behind a light type that only has the per-sample `sample`: it takes the core's
+/// general path, where the light itself takes a bulk one (the occluder's direction runs, the
+/// point light's lanes).
 #[derive(Component, Clone, Copy, PartialEq)]
-struct PerSampleOccluder(AmbientOccluder);
+struct PerSample<L: Light + Copy>(L);
 
-/// [`PerSampleOccluder`] placed.
-struct PlacedPerSample(<AmbientOccluder as Light>::Placed);
+/// [`PerSample`] placed.
+struct PlacedPerSample<P>(P);
 
-impl Light for PerSampleOccluder {
-    type Placed = PlacedPerSample;
-    const NAME: &'static str = "per-sample occluder";
+impl<L: Light + Copy> Light for PerSample<L> {
+    type Placed = PlacedPerSample<L::Placed>;
+    const NAME: &'static str = "per-sample light";
 
     fn validate(&self, t: &Transform) -> Result<(), String> {
         Light::validate(&self.0, t)
     }
 
-    fn place(&self, t: &Transform) -> Option<PlacedPerSample> {
+    fn place(&self, t: &Transform) -> Option<Self::Placed> {
         self.0.place(t).map(PlacedPerSample)
     }
 }
 
-impl PlacedLight for PlacedPerSample {
-    const TERM: Term = Term::Ambient;
-
-    fn sample(&self, at: &ShadingPoint, u: &LightSamples) -> Option<LightSample> {
-        self.0.sample(at, u)
-    }
-}
-
-/// A point light behind a light type that only has the per-sample `sample`: the core's general
-/// path, where the point light itself is lit in lanes.
-#[derive(Component, Clone, Copy, PartialEq)]
-struct PerSamplePoint(PointLight);
-
-/// [`PerSamplePoint`] placed.
-struct PlacedPerSamplePoint(<PointLight as Light>::Placed);
-
-impl Light for PerSamplePoint {
-    type Placed = PlacedPerSamplePoint;
-    const NAME: &'static str = "per-sample point light";
-
-    fn validate(&self, t: &Transform) -> Result<(), String> {
-        Light::validate(&self.0, t)
-    }
-
-    fn place(&self, t: &Transform) -> Option<PlacedPerSamplePoint> {
-        self.0.place(t).map(PlacedPerSamplePoint)
-    }
-}
-
-impl PlacedLight for PlacedPerSamplePoint {
-    const DIMS: u32 = 0;
+impl<P: PlacedLight> PlacedLight for PlacedPerSample<P> {
+    const DIMS: u32 = P::DIMS;
+    const TERM: Term = P::TERM;
 
     fn sample(&self, at: &ShadingPoint, u: &LightSamples) -> Option<LightSample> {
         self.0.sample(at, u)
@@ -506,26 +479,14 @@ fn point_lights_in_lanes_match_the_per_sample_path() {
                     let settings =
                         RenderSettings { jitter, aovs, ..settings(13, 11, 8, SamplerKind::CorrelatedMultiJittered) };
                     let mut r = Renderer::new(settings);
-                    r.add_light::<PerSamplePoint>();
+                    r.add_light::<PerSample<PointLight>>();
                     let w = r.world_mut();
                     w.spawn((Plane::default(), white()));
-                    match blockers {
-                        Blockers::Sphere => {
-                            w.spawn((Sphere { radius: 0.5 }, Transform::from_xyz(0.0, 0.5, 0.0), white()));
-                        }
-                        Blockers::Mesh => {
-                            w.spawn((TriangleMesh(mesh.clone()), Transform::from_xyz(0.0, 0.3, 0.0), white()));
-                        }
-                        Blockers::Instances => {
-                            for x in [-0.5, 0.0, 0.5] {
-                                w.spawn((TriangleMesh(mesh.clone()), Transform::from_xyz(x, 0.3, 0.0), white()));
-                            }
-                        }
-                    }
+                    blockers.spawn(w, &mesh);
                     let light = PointLight { ls: 3.0, color: Vec3::new(1.0, 0.8, 0.6), shadows, falloff };
                     let at = Transform::from_xyz(0.7, height, 0.4);
                     if per_sample {
-                        w.spawn((PerSamplePoint(light), at));
+                        w.spawn((PerSample(light), at));
                     } else {
                         w.spawn((light, at));
                     }
@@ -560,14 +521,34 @@ fn assert_close(a: &[Vec3], b: &[Vec3], case: &str) {
     }
 }
 
-/// What stands on the plane in [`the_occluder_s_bulk_path_matches_the_per_sample_path`]:
-/// an analytic sphere, one triangle mesh (a world-space tree of triangle packets), or three
-/// instances of one mesh (traced through the top level).
+/// What stands on the plane in [`the_occluder_s_bulk_path_matches_the_per_sample_path`] and
+/// [`point_lights_in_lanes_match_the_per_sample_path`]: an analytic sphere, one triangle mesh
+/// (a world-space tree of triangle packets), or three instances of one mesh (traced through the
+/// top level).
 #[derive(Clone, Copy, Debug)]
 enum Blockers {
     Sphere,
     Mesh,
     Instances,
+}
+
+impl Blockers {
+    /// Spawns them (white) into `w`, the meshes as `mesh`.
+    fn spawn(self, w: &mut World, mesh: &std::sync::Arc<Mesh>) {
+        match self {
+            Blockers::Sphere => {
+                w.spawn((Sphere { radius: 0.5 }, Transform::from_xyz(0.0, 0.5, 0.0), white()));
+            }
+            Blockers::Mesh => {
+                w.spawn((TriangleMesh(mesh.clone()), Transform::from_xyz(0.0, 0.3, 0.0), white()));
+            }
+            Blockers::Instances => {
+                for x in [-0.5, 0.0, 0.5] {
+                    w.spawn((TriangleMesh(mesh.clone()), Transform::from_xyz(x, 0.3, 0.0), white()));
+                }
+            }
+        }
+    }
 }
 
 /// The occluder's bulk paths (rays made in lanes, sorted or in quadrant order, whole-run sums,
@@ -619,25 +600,13 @@ fn the_occluder_s_bulk_path_matches_the_per_sample_path() {
                         let base = settings(12, 10, spp, sampler);
                         let settings = RenderSettings { jitter, aovs, samples_per_set: set, ..base };
                         let mut r = Renderer::new(settings);
-                        r.add_light::<PerSampleOccluder>();
+                        r.add_light::<PerSample<AmbientOccluder>>();
                         let w = r.world_mut();
                         w.spawn((Plane::default(), plane));
-                        match blockers {
-                            Blockers::Sphere => {
-                                w.spawn((Sphere { radius: 0.5 }, Transform::from_xyz(0.0, 0.5, 0.0), white()));
-                            }
-                            Blockers::Mesh => {
-                                w.spawn((TriangleMesh(mesh.clone()), Transform::from_xyz(0.0, 0.3, 0.0), white()));
-                            }
-                            Blockers::Instances => {
-                                for x in [-0.5, 0.0, 0.5] {
-                                    w.spawn((TriangleMesh(mesh.clone()), Transform::from_xyz(x, 0.3, 0.0), white()));
-                                }
-                            }
-                        }
+                        blockers.spawn(w, &mesh);
                         w.spawn((PointLight::default(), Transform::from_xyz(1.0, 2.0, 1.0)));
                         if per_sample {
-                            w.spawn(PerSampleOccluder(occluder));
+                            w.spawn(PerSample(occluder));
                         } else {
                             w.spawn(occluder);
                         }

@@ -133,6 +133,13 @@ struct QuadrantPasses<'a, P> {
     passes: P,
 }
 
+/// The token for runs over many points in sixteen lanes, where `geometry`'s packets are sixteen
+/// wide and it has no alpha-tested meshes (which those packet queries do not see).
+#[cfg(target_arch = "x86_64")]
+fn point_lanes(geometry: &SceneGeometry) -> Option<crate::simd::HasAvx512> {
+    (geometry.packet_lanes() == 16 && !geometry.has_alpha()).then(crate::simd::HasAvx512::allowed).flatten()
+}
+
 /// Scratch buffers for [`DirectionRays::add`], kept between runs.
 #[derive(Debug, Default)]
 pub(crate) struct DirectionRays {
@@ -300,10 +307,7 @@ impl DirectionRays {
     ) -> Option<(u64, u64)> {
         debug_assert_eq!(points.len(), arriving.len(), "one sample per point");
         #[cfg(target_arch = "x86_64")]
-        if geometry.packet_lanes() == 16
-            && !geometry.has_alpha()
-            && let Some(isa) = crate::simd::HasAvx512::allowed()
-        {
+        if let Some(isa) = point_lanes(geometry) {
             self.points.gather(points, u, lit);
             let kernel = points::PointsRun { rays: self, geometry, stack, terms, arriving };
             return Some(<crate::simd::Avx512 as crate::simd::Lanes>::compiled(isa, kernel));
@@ -333,10 +337,7 @@ impl DirectionRays {
     ) -> Option<(u64, u64)> {
         debug_assert_eq!(points.len(), arriving.len(), "one sample per point");
         #[cfg(target_arch = "x86_64")]
-        if geometry.packet_lanes() == 16
-            && !geometry.has_alpha()
-            && let Some(isa) = crate::simd::HasAvx512::allowed()
-        {
+        if let Some(isa) = point_lanes(geometry) {
             self.points.gather(points, |_| Vec2::ZERO, lit);
             let kernel = points::PointSourceRun { rays: self, geometry, stack, source, far, arriving };
             return Some(<crate::simd::Avx512 as crate::simd::Lanes>::compiled(isa, kernel));
