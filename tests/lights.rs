@@ -464,9 +464,9 @@ impl<P: PlacedLight> PlacedLight for PlacedPerSample<P> {
 }
 
 /// Point lights lit in lanes at many points (jittered camera hits, and rows of shared hits)
-/// give every pixel exactly the light and the shadow rays of the per-sample path: with and
-/// without falloff and shadows, lights above and level with the floor (points facing away get
-/// none), over an analytic sphere, a mesh and instances, with and without AOVs.
+/// give every pixel exactly the light and the shadow rays of the per-sample path: two lights of
+/// the type, with and without falloff and shadows, one above or level with the floor (points
+/// facing away get none), over an analytic sphere, a mesh and instances, with and without AOVs.
 #[test]
 fn point_lights_in_lanes_match_the_per_sample_path() {
     let mesh = std::sync::Arc::new(hemi::scene::mesh_gen::uv_sphere(0.3, 12, 24));
@@ -484,11 +484,15 @@ fn point_lights_in_lanes_match_the_per_sample_path() {
                     w.spawn((Plane::default(), white()));
                     blockers.spawn(w, &mesh);
                     let light = PointLight { ls: 3.0, color: Vec3::new(1.0, 0.8, 0.6), shadows, falloff };
-                    let at = Transform::from_xyz(0.7, height, 0.4);
-                    if per_sample {
-                        w.spawn((PerSample(light), at));
-                    } else {
-                        w.spawn((light, at));
+                    // Two lights of one type: the lanes take them one after the other.
+                    let second = PointLight { ls: 0.5, color: Vec3::ONE, ..light };
+                    for (light, at) in [(light, (0.7, height, 0.4)), (second, (-1.0, 1.5, -0.5))] {
+                        let at = Transform::from_xyz(at.0, at.1, at.2);
+                        if per_sample {
+                            w.spawn((PerSample(light), at));
+                        } else {
+                            w.spawn((light, at));
+                        }
                     }
                     w.spawn(occluder(0.2));
                     w.spawn(Camera::look_at(Vec3::new(0.0, 1.5, 2.5), Vec3::new(0.0, 0.3, 0.0), 60.0));

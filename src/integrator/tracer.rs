@@ -78,6 +78,8 @@ pub struct Tracer {
     arriving_zero: bool,
     /// One light's samples for a run of samples.
     drawn: Vec<Option<LightSample>>,
+    /// The point sources of a group of lights ([`PlacedLight::point_source`]), kept between runs.
+    point_sources: Vec<PointSource>,
     /// One direction light's samples for a run at one point.
     directions: DirectionRun,
     /// The shadow rays of a run, and which of them are blocked.
@@ -664,6 +666,18 @@ impl Tracer {
         skip_black: bool,
         arriving: &mut [Vec3A],
     ) {
+        // Lights that shine from a point: all at once in lanes, where the CPU and scene allow.
+        if P::DIMS == 0 {
+            let mut sources = std::mem::take(&mut self.point_sources);
+            sources.clear();
+            sources.extend(lights.iter().map_while(PlacedLight::point_source));
+            let done = sources.len() == lights.len()
+                && self.shade_point_sources(scene, points, &sources, P::TERM, skip_black, arriving);
+            self.point_sources = sources;
+            if done {
+                return;
+            }
+        }
         let run = std::mem::take(&mut self.run);
         let mut drawn = std::mem::take(&mut self.drawn);
         for (l, light) in lights.iter().enumerate() {
@@ -676,12 +690,6 @@ impl Tracer {
                 &run.values[start..start + P::DIMS as usize * run.stride]
             };
             let lit = |p: &RunPoint| !(skip_black && P::TERM.reflectance(&p.at.material).max_element() <= 0.0);
-            // A point's light at all the points in lanes, where the CPU and scene allow.
-            if let Some(source) = light.point_source().filter(|_| P::DIMS == 0)
-                && self.shade_point_source(scene, points, &source, P::TERM, skip_black, arriving)
-            {
-                continue;
-            }
             // A cosine run over the points in one pass, where the CPU and scene allow.
             if let Some(terms) = light.cosine_run().filter(|_| P::DIMS > 0) {
                 let u = |p: &RunPoint| columns[p.j as usize];
@@ -713,17 +721,17 @@ impl Tracer {
         self.run = run;
     }
 
-    /// Adds `source`'s light at `points` to `arriving` (one element each), lit as `term`'s
-    /// light (points whose reflectance for it is black skipped where `skip_black`), in lanes
-    /// ([`DirectionRays::add_point_source`]): the general path's light and shadow rays. False,
-    /// having done nothing, where the CPU or scene does not allow it. Out of line: the generic
-    /// per-light loop that calls it stays as small as before for the lights that are no point.
+    /// Adds the light of `sources` (in order) at `points` to `arriving` (one element each), lit
+    /// as `term`'s light (points whose reflectance for it is black skipped where `skip_black`),
+    /// in lanes ([`DirectionRays::add_point_sources`]): the general path's light and shadow
+    /// rays. False, having done nothing, where the CPU or scene does not allow it. Out of line:
+    /// the generic per-light loop that calls it stays as small as before for other lights.
     #[inline(never)]
-    fn shade_point_source(
+    fn shade_point_sources(
         &mut self,
         scene: &Scene,
         points: &[RunPoint],
-        source: &PointSource,
+        sources: &[PointSource],
         term: Term,
         skip_black: bool,
         arriving: &mut [Vec3A],
@@ -733,7 +741,7 @@ impl Tracer {
         rays.timing = self.timing_queries;
         let far = 1.0 - SHADOW_EPSILON;
         let Some((traced, cycles)) =
-            rays.add_point_source(geometry, &mut self.stack, points, lit, (source, far), arriving)
+            rays.add_point_sources(geometry, &mut self.stack, points, lit, (sources, far), arriving)
         else {
             return false;
         };

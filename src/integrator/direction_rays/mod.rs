@@ -316,33 +316,34 @@ impl DirectionRays {
         None
     }
 
-    /// The light of `source` at each of `points` into `arriving[i]` for `points[i]`, where
-    /// `lit(p)` (elsewhere nothing added): [`PointSource::sample`] and, where its light is not
-    /// zero and the source casts shadows, a shadow ray to it from the point's side of its
-    /// surface, `far` of the way there (what the tracer's general path traces for it). The
-    /// same light and rays bit for bit, set up in lanes and traced as packets of neighbouring
-    /// points, where the scene's packets are sixteen wide. `None`, having done nothing,
-    /// elsewhere, and in scenes with alpha-tested meshes (as for
+    /// The light of each of `sources`, one after the other, at each of `points` added to
+    /// `arriving[i]` for `points[i]`, where `lit(p)` (elsewhere nothing added):
+    /// [`PointSource::sample`] and, where its light is not zero and the source casts shadows, a
+    /// shadow ray to it from the point's side of its surface, `far` of the way there (what the
+    /// tracer's general path traces for it). The same light and rays bit for bit, set up in
+    /// lanes and traced as packets of neighbouring points, where the scene's packets are
+    /// sixteen wide; the points are gathered into columns once for all the sources. `None`,
+    /// having done nothing, elsewhere, and in scenes with alpha-tested meshes (as for
     /// [`DirectionRays::add_cosine`]).
     ///
     /// [`PointSource::sample`]: crate::light::point::PointSource::sample
-    pub(crate) fn add_point_source<P: CosinePoint>(
+    pub(crate) fn add_point_sources<P: CosinePoint>(
         &mut self,
         geometry: &SceneGeometry,
         stack: &mut Vec<(u32, f32)>,
         points: &[P],
         lit: impl Fn(&P) -> bool,
-        (source, far): (&PointSource, f32),
+        (sources, far): (&[PointSource], f32),
         arriving: &mut [Vec3A],
     ) -> Option<(u64, u64)> {
         debug_assert_eq!(points.len(), arriving.len(), "one sample per point");
         #[cfg(target_arch = "x86_64")]
         if let Some(isa) = point_lanes(geometry) {
             self.points.gather(points, |_| Vec2::ZERO, lit);
-            let kernel = points::PointSourceRun { rays: self, geometry, stack, source, far, arriving };
+            let kernel = points::PointSourcesRun { rays: self, geometry, stack, sources, far, arriving };
             return Some(<crate::simd::Avx512 as crate::simd::Lanes>::compiled(isa, kernel));
         }
-        let _ = (geometry, stack, points, lit, source, far, arriving);
+        let _ = (geometry, stack, points, lit, sources, far, arriving);
         None
     }
 

@@ -217,67 +217,87 @@ impl DirectionRays {
     }
 }
 
-/// [`DirectionRays::add_point_source`] as a kernel over the lane type, the points already in
+/// [`DirectionRays::add_point_sources`] as a kernel over the lane type, the points already in
 /// `rays.points`.
-pub(super) struct PointSourceRun<'a> {
+pub(super) struct PointSourcesRun<'a> {
     pub(super) rays: &'a mut DirectionRays,
     pub(super) geometry: &'a SceneGeometry,
     pub(super) stack: &'a mut Vec<(u32, f32)>,
-    pub(super) source: &'a PointSource,
+    pub(super) sources: &'a [PointSource],
     pub(super) far: f32,
     pub(super) arriving: &'a mut [Vec3A],
 }
 
-impl<L: PassLanes + BitLanes> Kernel<L> for PointSourceRun<'_> {
+impl<L: PassLanes + BitLanes> Kernel<L> for PointSourcesRun<'_> {
     type Output = (u64, u64);
     #[inline(always)]
     fn run(self, isa: L::Isa) -> (u64, u64) {
-        let PointSourceRun { rays, geometry, stack, source, far, arriving } = self;
-        let w = L::WIDTH;
-        debug_assert_eq!(w, 16, "the columns hold points in groups of sixteen");
-        let points = &rays.points;
-        let (zero, one) = (L::splat(isa, 0.0), L::splat(isa, 1.0));
-        let q = source.position.to_array().map(|x| L::splat(isa, x));
-        let intensity = source.intensity.to_array().map(|x| L::splat(isa, x));
-        let (mut traced, mut cycles) = (0, 0);
+        let PointSourcesRun { rays, geometry, stack, sources, far, arriving } = self;
         stack.clear();
-        for (g, sums) in arriving.chunks_mut(w).enumerate() {
-            let at = g * w;
-            let c = |k: usize| L::load(isa, &points.columns[k][at..]);
-            let (p, normal) = ([c(POINT), c(POINT + 1), c(POINT + 2)], [c(NORMAL), c(NORMAL + 1), c(NORMAL + 2)]);
-            // `PointSource::sample`: the scalar code's operations, lane by lane.
-            let to_light = [0, 1, 2].map(|a| q[a].sub(p[a]));
-            let dist2 = dot3(&to_light, &to_light);
-            let cos = dot3(&normal, &to_light);
-            let dark = L::or(cos.le(zero), dist2.le(zero));
-            let lit = L::bits(L::andnot(dark, L::mask(isa, points.lit[g]))) & ((1u32 << sums.len()) - 1);
-            let cos = cos.div(dist2.sqrt());
-            let scale = if source.falloff { cos.div(dist2) } else { cos };
-            let light = intensity.map(|i| i.mul(scale));
-            let nonzero = L::or(L::or(light[0].ne(zero), light[1].ne(zero)), light[2].ne(zero));
-            let needs_ray = if source.shadows { lit & L::bits(nonzero) } else { 0 };
-            let mut blocked = 0;
-            if needs_ray != 0 {
-                // `SpawnOrigins::towards(q − p)`, then the ray from there to `q`.
-                let behind = dot3(&to_light, &normal).lt(zero);
-                let origin = [0, 1, 2].map(|a| {
-                    let push = c(OFFSET + a).select(behind, c(OFFSET + a).neg());
-                    p[a].add(push).step_away(push)
-                });
-                let dir = [0, 1, 2].map(|a| q[a].sub(origin[a]));
-                let lanes = RayLanes { origin, dir, inv_dir: dir.map(|d| one.div(d)), tmax: L::splat(isa, far) };
-                let took;
-                (blocked, took) = occluded_lanes(geometry, stack, &lanes, needs_ray, rays.timing);
-                cycles += took;
-                traced += u64::from(needs_ray.count_ones());
-            }
-            // Lit points get their light, or +0 where blocked; the others −0, which adds nothing.
-            let (unlit, blocked) = (L::mask(isa, !lit), L::mask(isa, blocked));
-            let pick = |x: L| x.select(blocked, zero).select(unlit, L::splat(isa, -0.0));
-            add_group(pick(light[0]), pick(light[1]), pick(light[2]), sums);
+        let (mut traced, mut cycles) = (0, 0);
+        for source in sources {
+            let (t, c) =
+                point_source_lanes::<L>(isa, &rays.points, (geometry, &mut *stack, rays.timing), source, far, arriving);
+            (traced, cycles) = (traced + t, cycles + c);
         }
         (traced, cycles)
     }
+}
+
+/// One source's light at the points in `points` added to `arriving`, with its shadow rays
+/// traced in `geometry` (queries timed where `timing`): [`DirectionRays::add_point_sources`]
+/// for one source. Returns the rays traced and the cycles their queries took.
+#[inline(always)]
+fn point_source_lanes<L: PassLanes + BitLanes>(
+    isa: L::Isa,
+    points: &PointColumns,
+    (geometry, stack, timing): (&SceneGeometry, &mut Vec<(u32, f32)>, bool),
+    source: &PointSource,
+    far: f32,
+    arriving: &mut [Vec3A],
+) -> (u64, u64) {
+    let w = L::WIDTH;
+    debug_assert_eq!(w, 16, "the columns hold points in groups of sixteen");
+    let (zero, one) = (L::splat(isa, 0.0), L::splat(isa, 1.0));
+    let q = source.position.to_array().map(|x| L::splat(isa, x));
+    let intensity = source.intensity.to_array().map(|x| L::splat(isa, x));
+    let (mut traced, mut cycles) = (0, 0);
+    for (g, sums) in arriving.chunks_mut(w).enumerate() {
+        let at = g * w;
+        let c = |k: usize| L::load(isa, &points.columns[k][at..]);
+        let (p, normal) = ([c(POINT), c(POINT + 1), c(POINT + 2)], [c(NORMAL), c(NORMAL + 1), c(NORMAL + 2)]);
+        // `PointSource::sample`: the scalar code's operations, lane by lane.
+        let to_light = [0, 1, 2].map(|a| q[a].sub(p[a]));
+        let dist2 = dot3(&to_light, &to_light);
+        let cos = dot3(&normal, &to_light);
+        let dark = L::or(cos.le(zero), dist2.le(zero));
+        let lit = L::bits(L::andnot(dark, L::mask(isa, points.lit[g]))) & ((1u32 << sums.len()) - 1);
+        let cos = cos.div(dist2.sqrt());
+        let scale = if source.falloff { cos.div(dist2) } else { cos };
+        let light = intensity.map(|i| i.mul(scale));
+        let nonzero = L::or(L::or(light[0].ne(zero), light[1].ne(zero)), light[2].ne(zero));
+        let needs_ray = if source.shadows { lit & L::bits(nonzero) } else { 0 };
+        let mut blocked = 0;
+        if needs_ray != 0 {
+            // `SpawnOrigins::towards(q − p)`, then the ray from there to `q`.
+            let behind = dot3(&to_light, &normal).lt(zero);
+            let origin = [0, 1, 2].map(|a| {
+                let push = c(OFFSET + a).select(behind, c(OFFSET + a).neg());
+                p[a].add(push).step_away(push)
+            });
+            let dir = [0, 1, 2].map(|a| q[a].sub(origin[a]));
+            let lanes = RayLanes { origin, dir, inv_dir: dir.map(|d| one.div(d)), tmax: L::splat(isa, far) };
+            let took;
+            (blocked, took) = occluded_lanes(geometry, stack, &lanes, needs_ray, timing);
+            cycles += took;
+            traced += u64::from(needs_ray.count_ones());
+        }
+        // Lit points get their light, or +0 where blocked; the others −0, which adds nothing.
+        let (unlit, blocked) = (L::mask(isa, !lit), L::mask(isa, blocked));
+        let pick = |x: L| x.select(blocked, zero).select(unlit, L::splat(isa, -0.0));
+        add_group(pick(light[0]), pick(light[1]), pick(light[2]), sums);
+    }
+    (traced, cycles)
 }
 
 /// The tangents u and v of each lane's shading frame around unit normal `n`, turned by its
