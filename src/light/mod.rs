@@ -318,8 +318,9 @@ pub trait PlacedLight: Send + Sync + 'static {
     }
 
     /// `Some(source)` when every sample at every shading point is exactly `source`'s
-    /// [`PointSource::sample`] (the light draws no samples): the core then lights the many
-    /// points of jittered camera hits in lanes, shadow rays included, where the CPU allows.
+    /// [`PointSource::sample`] (the light draws no samples): the core then lights many points
+    /// at once (a row's camera hits, or the jittered hits of a run) in lanes, shadow rays
+    /// included, where the CPU allows.
     /// `None` (the default) otherwise.
     ///
     /// [`PointSource::sample`]: point::PointSource::sample

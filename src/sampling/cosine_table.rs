@@ -66,12 +66,7 @@ impl CosineTable {
     /// AVX-512 (eight lanes run anywhere, AVX2's or the portable ones). Patterns are filled in parallel, each on its own, so the table does not
     /// depend on the thread count.
     pub(crate) fn build(cmj: &Cmj, n: u32, first: u32, count: u32, lanes: usize) -> Option<Self> {
-        let lanes_allowed = match lanes {
-            16 => crate::simd::avx512(),
-            8 => true,
-            _ => false,
-        };
-        if !lanes_allowed {
+        if !lanes_allowed(lanes) {
             return None;
         }
         if !cmj.has_quadrants() {
@@ -102,12 +97,7 @@ impl CosineTable {
     /// lanes where [`crate::simd::isa`] does not allow AVX-512. Filled in parallel, each
     /// pattern on its own, as [`CosineTable::build`] fills.
     pub(crate) fn build_sorted(cmj: &Cmj, n: u32, first: u32, count: u32, lanes: usize) -> Option<Self> {
-        let lanes_allowed = match lanes {
-            16 => crate::simd::avx512(),
-            8 => true,
-            _ => false,
-        };
-        if !lanes_allowed || cmj.has_quadrants() || n as usize <= lanes || n > Self::MAX_SAMPLES {
+        if !lanes_allowed(lanes) || cmj.has_quadrants() || n as usize <= lanes || n > Self::MAX_SAMPLES {
             return None;
         }
         let padded = (n as usize).next_multiple_of(lanes);
@@ -164,6 +154,17 @@ impl CosineTable {
     /// Bytes held by the directions (with up to one cache line of alignment).
     pub(crate) fn memory_bytes(&self) -> usize {
         self.dirs.len() * size_of::<f32>()
+    }
+}
+
+/// Whether packets `lanes` wide may be tabled for: eight lanes run anywhere (AVX2's or the
+/// portable ones), sixteen where [`crate::simd::isa`] allows AVX-512.
+#[cfg(target_arch = "x86_64")]
+fn lanes_allowed(lanes: usize) -> bool {
+    match lanes {
+        16 => crate::simd::avx512(),
+        8 => true,
+        _ => false,
     }
 }
 
