@@ -576,10 +576,11 @@ fn the_occluder_s_bulk_path_matches_the_per_sample_path() {
     // of 16 and 37 samples a run spans three passes, the first and last partial (with
     // AVX-512, directions copied from the table in sample order and sorted into quadrants);
     // with sets of 24 and 48 samples two whole passes of a set without quadrants (the same);
-    // with 32 it is two whole passes and with sets of 64 one (rays made in the patterns'
-    // quadrant order, a packet of sixteen spanning the quadrants of a set of 16 and holding
-    // one quadrant of a set of 64, a packet of eight spanning two quadrants of a set of 16 and
-    // holding half of one of a set of 64). Frames of four samples or fewer light the shared
+    // with sets of 16 and 32 samples two whole passes and with sets of 64 one (rays made in
+    // the patterns' quadrant order, a packet of sixteen spanning the quadrants of a set of 16
+    // and holding one quadrant of a set of 64, a packet of eight spanning two quadrants of a
+    // set of 16 and holding half of one of a set of 64); 16 samples of a set of 64 (a
+    // progressive frame's run) fill one packet, traced in sample order. Frames of four samples or fewer light the shared
     // hits of a row of pixels together (`Tracer::shade_row_sums`, with AOVs
     // `Tracer::shade_row_samples`): a row's runs pooled, the occluder's rays from neighbouring
     // pixels in shared packets.
@@ -590,6 +591,7 @@ fn the_occluder_s_bulk_path_matches_the_per_sample_path() {
         (SamplerKind::CorrelatedMultiJittered, 16, 37),
         (SamplerKind::CorrelatedMultiJittered, 24, 48),
         (SamplerKind::CorrelatedMultiJittered, 16, 32),
+        (SamplerKind::CorrelatedMultiJittered, 64, 16),
         (SamplerKind::CorrelatedMultiJittered, 64, 64),
     ];
     for (sampler, set, spp) in samplers {
@@ -628,7 +630,7 @@ fn the_occluder_s_bulk_path_matches_the_per_sample_path() {
                         assert!(bulk.0 == per_sample.0 && bulk.2 == per_sample.2, "{case}: images differ");
                     } else {
                         // Shared hits sum each pixel's samples as a whole (`Tracer::shade_sum`),
-                        // AOVs too: whole quadrant passes count their blocked rays instead of
+                        // AOVs too: cosine runs in lanes count their blocked rays instead of
                         // adding a value per sample. The same up to rounding.
                         assert_close(&bulk.0, &per_sample.0, &case);
                         for (a, b) in bulk.2.iter().zip(&per_sample.2) {

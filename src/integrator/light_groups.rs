@@ -58,8 +58,8 @@ pub trait LightGroup: Send + Sync {
 }
 
 /// A run's light summed over its samples, for callers that need only the sum (the beauty
-/// image without adaptive sampling): lights that can add a whole run at once (cosine runs of
-/// whole quadrant passes, which count their blocked rays) add it to `light`; the others still
+/// image without adaptive sampling): lights that can add a whole run at once (cosine runs in
+/// lanes, which count their blocked rays) add it to `light`; the others still
 /// add theirs sample by sample to the run's `arriving`, and set `per_sample`.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct RunSum {

@@ -510,8 +510,8 @@ impl Tracer {
 
     /// What [`Tracer::shade`] gives the `count` samples from the lights that draw samples,
     /// summed over them (lights whose reflectance is black skipped where `skip_black`): where a
-    /// light can add a whole run at once ([`RunSum`]: the ambient occluder's whole quadrant
-    /// passes, which count their blocked rays), no per-sample values are made, added or
+    /// light can add a whole run at once ([`RunSum`]: the ambient occluder's cosine runs in
+    /// lanes, which count their blocked rays), no per-sample values are made, added or
     /// summed. The same rays as [`Tracer::shade`]; the sums may differ from adding its samples
     /// in the last bits.
     #[inline]

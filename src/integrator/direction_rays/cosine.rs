@@ -4,7 +4,7 @@
 use glam::Vec3A;
 
 use super::{
-    DirectionRays, QuadrantOut, QuadrantPasses, clear_and_floor,
+    DirectionRays, QuadrantPasses, RunOut, clear_and_floor,
     lanes::{PassLanes, add_clear_or_floor, along, occluded_lanes, spawned_lanes, to_world},
     mark_blocked, quadrant_lanes, quadrant_starts, scatter_by_quadrant,
 };
@@ -45,7 +45,7 @@ pub(super) struct CompressedRun<'a> {
     /// Whether the run's local directions are already in the direction columns (else its
     /// sample points are in the point columns).
     pub(super) local: bool,
-    pub(super) arriving: &'a mut [Vec3A],
+    pub(super) out: RunOut<'a>,
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -53,8 +53,8 @@ impl<L: PassLanes + CompressLanes> Kernel<L> for CompressedRun<'_> {
     type Output = (u64, u64);
     #[inline(always)]
     fn run(self, isa: L::Isa) -> (u64, u64) {
-        let CompressedRun { rays, geometry, stack, spawn, frame, terms, local, arriving } = self;
-        rays.add_cosine_compressed::<L>(isa, geometry, stack, spawn, frame, terms, local, arriving)
+        let CompressedRun { rays, geometry, stack, spawn, frame, terms, local, out } = self;
+        rays.add_cosine_compressed::<L>(isa, geometry, stack, spawn, frame, terms, local, out)
     }
 }
 
@@ -64,7 +64,8 @@ impl DirectionRays {
     /// `samples[0]` and `samples[1]`, mapped to directions ([`cosine_hemisphere_lanes`]) a
     /// group of `L::WIDTH` at a time. Each group is turned into the world and sorted into the
     /// quadrants of [`DirectionRays::add_lanes`] by lane compression; packets load their lanes
-    /// straight from those columns.
+    /// straight from those columns. A run that fits one packet is traced in sample order. A
+    /// summed run ([`RunOut::Sum`]) counts its blocked rays.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
@@ -77,10 +78,10 @@ impl DirectionRays {
         frame: &Onb,
         terms: &DirectionTerms,
         local: bool,
-        arriving: &mut [Vec3A],
+        out: RunOut,
     ) -> (u64, u64) {
         let w = L::WIDTH;
-        let n = arriving.len();
+        let n = out.len();
         let groups = n.div_ceil(w);
         // Every sample has weight 1: one clear value and one floor for all.
         let (clear, floor) = clear_and_floor(terms, 1.0);
@@ -102,7 +103,7 @@ impl DirectionRays {
                 );
                 let (hit, took) = occluded_lanes(geometry, stack, &lanes, live, self.timing);
                 self.dark[0] = hit;
-                return self.add_run_light::<L>(isa, (clear, floor), arriving, (n as u64, took));
+                return self.add_run_light::<L>(isa, (clear, floor), out, (n as u64, took));
             }
             for column in [&mut *dx, &mut *dy, &mut *dz] {
                 column.resize(groups * w, 0.0);
@@ -153,22 +154,31 @@ impl DirectionRays {
                 mark_blocked(&mut self.dark, &self.ray_samples, p, hit, w);
             }
         }
-        self.add_run_light::<L>(isa, (clear, floor), arriving, (traced as u64, cycles))
+        self.add_run_light::<L>(isa, (clear, floor), out, (traced as u64, cycles))
     }
 
-    /// Adds each sample's light to `arriving`: `floor` where `dark` marks it blocked, else
-    /// `clear`; passes `counts` (rays traced, cycles) through.
+    /// Adds each sample's light to `out`: `floor` where `dark` marks it blocked, else `clear`,
+    /// sample by sample or, for a sum, the blocked samples counted; passes `counts` (rays
+    /// traced, cycles) through.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     fn add_run_light<L: PassLanes>(
         &self,
         isa: L::Isa,
         (clear, floor): (Vec3A, Vec3A),
-        arriving: &mut [Vec3A],
+        out: RunOut,
         counts: (u64, u64),
     ) -> (u64, u64) {
-        for (sums, &dark) in arriving.chunks_mut(L::WIDTH).zip(&self.dark) {
-            add_clear_or_floor::<L>(isa, clear, floor, dark, sums);
+        match out {
+            RunOut::Each(arriving) => {
+                for (sums, &dark) in arriving.chunks_mut(L::WIDTH).zip(&self.dark) {
+                    add_clear_or_floor::<L>(isa, clear, floor, dark, sums);
+                }
+            }
+            RunOut::Sum(samples, sum) => {
+                let dark = self.dark.iter().map(|d| d.count_ones()).sum();
+                add_counted(sum, (clear, floor), samples, dark);
+            }
         }
         counts
     }
@@ -192,7 +202,7 @@ impl DirectionRays {
         frame: &Onb,
         QuadrantPasses { cmj, table, n, passes }: QuadrantPasses<impl Iterator<Item = u32>>,
         terms: &DirectionTerms,
-        mut out: QuadrantOut,
+        mut out: RunOut,
     ) -> (u64, u64) {
         // Every sample has weight 1: one clear value and one floor for all.
         let (clear, floor) = clear_and_floor(terms, 1.0);
@@ -201,7 +211,7 @@ impl DirectionRays {
         let all = (1u32 << L::WIDTH) - 1;
         // A table sorted by quadrant pads its last packet (summed runs only).
         let sorted = table.order() == TableOrder::Sorted;
-        debug_assert!(!sorted || matches!(out, QuadrantOut::Sum(..)), "a sorted table gives sums only");
+        debug_assert!(!sorted || matches!(out, RunOut::Sum(..)), "a sorted table gives sums only");
         stack.clear();
         for (pass, p) in passes.enumerate() {
             // Bit t % 16 of entry t / 16: slot t is blocked.
@@ -223,7 +233,7 @@ impl DirectionRays {
                 }
                 traced += n;
             }
-            let QuadrantOut::Each(arriving) = &mut out else {
+            let RunOut::Each(arriving) = &mut out else {
                 dark += blocked.iter().map(|b| b.count_ones()).sum::<u32>();
                 continue;
             };
@@ -232,10 +242,18 @@ impl DirectionRays {
                 add_clear_or_floor::<L>(isa, clear, floor, pattern.marked(group, &blocked), sums);
             }
         }
-        if let QuadrantOut::Sum(samples, sum) = out {
-            // Whole numbers of samples (at most 2²⁴): exact as floats.
-            *sum += clear * (samples as u32 - dark) as f32 + floor * dark as f32;
+        if let RunOut::Sum(samples, sum) = out {
+            add_counted(sum, (clear, floor), samples, dark);
         }
         (traced as u64, cycles)
     }
+}
+
+/// Adds to `sum` the light of `samples` samples, `dark` of them blocked: `floor` for each of
+/// those, `clear` for the others.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn add_counted(sum: &mut Vec3A, (clear, floor): (Vec3A, Vec3A), samples: usize, dark: u32) {
+    // Whole numbers of samples (at most 2²⁴): exact as floats.
+    *sum += clear * (samples as u32 - dark) as f32 + floor * dark as f32;
 }

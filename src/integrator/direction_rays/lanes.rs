@@ -3,7 +3,7 @@
 
 use glam::Vec3A;
 
-use super::{DirectionRays, QuadrantOut, QuadrantPasses, quadrant_lanes, quadrant_starts};
+use super::{DirectionRays, QuadrantPasses, RunOut, quadrant_lanes, quadrant_starts};
 #[cfg(target_arch = "x86_64")]
 use crate::{
     geometry::{
@@ -195,7 +195,7 @@ pub(super) struct QuadrantRun<'a, I> {
     pub(super) frame: &'a Onb,
     pub(super) passes: QuadrantPasses<'a, I>,
     pub(super) terms: &'a DirectionTerms,
-    pub(super) out: QuadrantOut<'a>,
+    pub(super) out: RunOut<'a>,
 }
 
 #[cfg(target_arch = "x86_64")]

@@ -114,12 +114,32 @@ fn quadrant_lanes(needs: u32, negative: [u32; 2]) -> QuadrantLanes {
     [pu & !nv, nu & !nv, nu & nv, pu & nv]
 }
 
-/// Where [`DirectionRays::add_cosine_quadrants`] puts a run's light: one element per sample,
-/// or summed over the run (its samples, and the sum it adds to).
+/// Where a cosine run in lanes ([`DirectionRays::add_cosine_quadrants`],
+/// [`DirectionRays::add_cosine_compressed`]) puts its light: one element per sample, or summed
+/// over the run (its samples, and the sum it adds to).
 #[cfg(target_arch = "x86_64")]
-enum QuadrantOut<'a> {
+enum RunOut<'a> {
     Each(&'a mut [Vec3A]),
     Sum(usize, &'a mut Vec3A),
+}
+
+#[cfg(target_arch = "x86_64")]
+impl<'a> RunOut<'a> {
+    /// Per-sample output, or the sum where one is asked for.
+    fn new(arriving: &'a mut [Vec3A], sum: Option<&'a mut RunSum>) -> Self {
+        match sum {
+            Some(sum) => RunOut::Sum(arriving.len(), &mut sum.light),
+            None => RunOut::Each(arriving),
+        }
+    }
+
+    /// The run's samples.
+    fn len(&self) -> usize {
+        match self {
+            RunOut::Each(arriving) => arriving.len(),
+            RunOut::Sum(samples, _) => *samples,
+        }
+    }
 }
 
 /// A run of whole passes of quadrant patterns ([`SampleSets::quadrant_passes`]): the sets'
@@ -223,8 +243,8 @@ impl DirectionRays {
     /// quadrants ([`SampleSets::quadrant_passes`]), else, with sixteen-lane packets, sorted
     /// into quadrants from columns ([`SampleSets::fill_columns`], any sampler). `None`, having
     /// done nothing, elsewhere, and in scenes with alpha-tested meshes, which those packet queries
-    /// do not see (the general path's queries do). With `sum`, whole quadrant passes add the
-    /// run's light there, summed, instead of to `arriving`.
+    /// do not see (the general path's queries do). With `sum`, the run's light is added there,
+    /// its blocked rays counted, instead of to `arriving`.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn add_cosine(
         &mut self,
@@ -247,10 +267,7 @@ impl DirectionRays {
             && (sum.is_some() || table.order() == TableOrder::Quadrants)
         {
             let passes = QuadrantPasses { cmj, table, n: sets.set_size() as usize, passes };
-            let out = match sum {
-                Some(sum) => QuadrantOut::Sum(arriving.len(), &mut sum.light),
-                None => QuadrantOut::Each(arriving),
-            };
+            let out = RunOut::new(arriving, sum);
             let kernel = lanes::QuadrantRun { rays: self, geometry, stack, spawn, frame, passes, terms, out };
             return crate::simd::run_in(lanes, kernel);
         }
@@ -276,10 +293,8 @@ impl DirectionRays {
                 ys.resize(n, 0.5);
                 sets.fill_columns(pixel, first, dim, &mut xs[..len], &mut ys[..len]);
             }
-            if let Some(sum) = sum {
-                sum.per_sample = true;
-            }
-            let kernel = cosine::CompressedRun { rays: self, geometry, stack, spawn, frame, terms, local, arriving };
+            let out = RunOut::new(arriving, sum);
+            let kernel = cosine::CompressedRun { rays: self, geometry, stack, spawn, frame, terms, local, out };
             return Some(<crate::simd::Avx512 as crate::simd::Lanes>::compiled(isa, kernel));
         }
         let _ = (geometry, stack, spawn, frame, sets, pixel, first, dim, terms, arriving, sum);
