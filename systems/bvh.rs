@@ -8,7 +8,7 @@
 //! - static meshes used by one entity each (not [`Dynamic`], not deforming) are baked in world
 //!   space into one BLAS, rebuilt when one of them changes (or which meshes qualify does);
 //!   static meshes that several entities share are baked too where the render's samples pay
-//!   for the bake (`max_spp` × pixels at least 64 per triangle they place), and instanced
+//!   for the bake (`max_spp` × pixels at least 128 per triangle they place), and instanced
 //!   otherwise;
 //! - each sphere and cuboid is a small world-space BLAS, rebuilt when one of them changes;
 //! - a textured mesh ([`Surface`]) is baked like any other, its triangles' indices kept for
