@@ -352,6 +352,22 @@ impl SampleSets {
         true
     }
 
+    /// [`SampleSets::fill_directions`] read in place: the local cosine directions of samples
+    /// `first, first + 1, …` (`len` of them) of `pixel` in dimension `dim`, one slice per axis,
+    /// where the run lies within one pass and the sets keep a table in sample order. `None`
+    /// elsewhere.
+    #[cfg(target_arch = "x86_64")]
+    pub(crate) fn table_directions(&self, pixel: u32, first: u32, dim: u32, len: usize) -> Option<[&[f32]; 3]> {
+        let table = self.table_in(cosine_table::TableOrder::Samples)?;
+        let (pass, i, run) = self.passes(first, len).next()?;
+        if run.len() != len {
+            return None;
+        }
+        let (n, i) = (self.n as usize, i as usize);
+        let dirs = table.pattern(self.cmj_pattern(pixel, pass, dim));
+        Some([0, 1, 2].map(|axis| &dirs[axis * n + i..][..len]))
+    }
+
     /// Asks the CPU to start loading what [`SampleSets::fill_directions`] of the same
     /// arguments (`len` samples) will read, so that a run issued for the next pixel finds it
     /// in cache (a hint; no effect on results).

@@ -4,7 +4,7 @@
 use glam::Vec3A;
 
 use super::{
-    DirectionRays, QuadrantPasses, RunOut, clear_and_floor,
+    DirectionRays, QuadrantPasses, RunDirections, RunOut, clear_and_floor,
     lanes::{PassLanes, add_clear_or_floor, along, occluded_lanes, spawned_lanes, to_world},
     mark_blocked, quadrant_lanes, quadrant_starts, scatter_by_quadrant,
 };
@@ -20,16 +20,21 @@ use crate::{
 };
 
 /// The local directions of a cosine run's group of `L::WIDTH` samples from `at`: from the
-/// direction columns `dx`, `dy`, `dz` where they are `local` (tabled), else mapped from the
-/// sample points in `xs` and `ys`.
+/// table where the run reads it in place, from the direction columns `dx`, `dy`, `dz` where
+/// they were copied there, else mapped from the sample points in `xs` and `ys`.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-fn local_group<L: PassLanes>(isa: L::Isa, local: bool, columns: [&[f32]; 5], at: usize) -> [L; 3] {
+fn local_group<L: PassLanes + CompressLanes>(
+    isa: L::Isa,
+    directions: &RunDirections,
+    columns: [&[f32]; 5],
+    at: usize,
+) -> [L; 3] {
     let [xs, ys, dx, dy, dz] = columns;
-    if local {
-        [L::load(isa, &dx[at..]), L::load(isa, &dy[at..]), L::load(isa, &dz[at..])]
-    } else {
-        cosine_hemisphere_lanes(L::load(isa, &xs[at..]), L::load(isa, &ys[at..]))
+    match directions {
+        RunDirections::Table(table) => table.map(|axis| L::load_partial(isa, &axis[at..])),
+        RunDirections::Columns => [L::load(isa, &dx[at..]), L::load(isa, &dy[at..]), L::load(isa, &dz[at..])],
+        RunDirections::Points => cosine_hemisphere_lanes(L::load(isa, &xs[at..]), L::load(isa, &ys[at..])),
     }
 }
 
@@ -42,9 +47,8 @@ pub(super) struct CompressedRun<'a> {
     pub(super) spawn: &'a SpawnOrigins,
     pub(super) frame: &'a Onb,
     pub(super) terms: &'a DirectionTerms,
-    /// Whether the run's local directions are already in the direction columns (else its
-    /// sample points are in the point columns).
-    pub(super) local: bool,
+    /// Where the run's samples are.
+    pub(super) directions: RunDirections<'a>,
     pub(super) out: RunOut<'a>,
 }
 
@@ -53,16 +57,16 @@ impl<L: PassLanes + CompressLanes> Kernel<L> for CompressedRun<'_> {
     type Output = (u64, u64);
     #[inline(always)]
     fn run(self, isa: L::Isa) -> (u64, u64) {
-        let CompressedRun { rays, geometry, stack, spawn, frame, terms, local, out } = self;
-        rays.add_cosine_compressed::<L>(isa, geometry, stack, spawn, frame, terms, local, out)
+        let CompressedRun { rays, geometry, stack, spawn, frame, terms, directions, out } = self;
+        rays.add_cosine_compressed::<L>(isa, geometry, stack, spawn, frame, terms, &directions, out)
     }
 }
 
 impl DirectionRays {
     /// [`DirectionRays::add_cosine`] in lanes that compress ([`CompressLanes`]), the local
-    /// directions already in `samples[2..5]` where `local` (tabled), else the sample points in
-    /// `samples[0]` and `samples[1]`, mapped to directions ([`cosine_hemisphere_lanes`]) a
-    /// group of `L::WIDTH` at a time. Each group is turned into the world and sorted into the
+    /// directions read from the table or already copied to `samples[2..5]`, else the sample
+    /// points in `samples[0]` and `samples[1]` mapped to directions
+    /// ([`cosine_hemisphere_lanes`]), as `directions` says, a group of `L::WIDTH` at a time. Each group is turned into the world and sorted into the
     /// quadrants of [`DirectionRays::add_lanes`] by lane compression; packets load their lanes
     /// straight from those columns. A run that fits one packet is traced in sample order. A
     /// summed run ([`RunOut::Sum`]) counts its blocked rays.
@@ -77,7 +81,7 @@ impl DirectionRays {
         spawn: &SpawnOrigins,
         frame: &Onb,
         terms: &DirectionTerms,
-        local: bool,
+        directions: &RunDirections,
         out: RunOut,
     ) -> (u64, u64) {
         let w = L::WIDTH;
@@ -97,7 +101,7 @@ impl DirectionRays {
                 // samples): traced in sample order, as answers do not depend on the lanes'.
                 let live = (1u32 << n) - 1;
                 let lanes = spawned_lanes(
-                    to_world(frame, local_group::<L>(isa, local, [xs, ys, dx, dy, dz], 0)),
+                    to_world(frame, local_group::<L>(isa, directions, [xs, ys, dx, dy, dz], 0)),
                     spawn,
                     terms.max_distance,
                 );
@@ -117,7 +121,7 @@ impl DirectionRays {
             for g in 0..groups {
                 let at = g * w;
                 let masks = {
-                    let d = to_world(frame, local_group::<L>(isa, local, [xs, ys, dx, dy, dz], at));
+                    let d = to_world(frame, local_group::<L>(isa, directions, [xs, ys, dx, dy, dz], at));
                     for (column, lanes) in [&mut *dx, &mut *dy, &mut *dz].into_iter().zip(d) {
                         lanes.store(&mut column[at..]);
                     }

@@ -142,6 +142,18 @@ impl<'a> RunOut<'a> {
     }
 }
 
+/// Where a cosine run in lanes ([`DirectionRays::add_cosine_compressed`]) finds its samples.
+#[cfg(target_arch = "x86_64")]
+enum RunDirections<'a> {
+    /// Sample points, in the point columns.
+    Points,
+    /// Local directions copied from the table into the direction columns.
+    Columns,
+    /// Local directions in place in the table (a run that fills one packet within one pass):
+    /// x, y and z, one slice each.
+    Table([&'a [f32]; 3]),
+}
+
 /// A run of whole passes of quadrant patterns ([`SampleSets::quadrant_passes`]): the sets'
 /// patterns, the table of their cosine directions, the patterns' size n, and each pass's
 /// pattern number.
@@ -278,23 +290,33 @@ impl DirectionRays {
         {
             let n = arriving.len().next_multiple_of(16);
             let len = arriving.len();
-            let [xs, ys, dx, dy, dz] = &mut self.samples;
-            for column in [&mut *dx, &mut *dy, &mut *dz] {
-                column.resize(n, 0.0);
-            }
-            // Local directions from the table where it is in sample order, else sample points.
-            let local = sets.fill_directions(pixel, first, dim, [&mut dx[..len], &mut dy[..len], &mut dz[..len]]);
-            if local {
+            // Local directions from the table where it is in sample order (read in place where
+            // the run fills one packet within one pass), else sample points.
+            let in_table = if len <= 16 { sets.table_directions(pixel, first, dim, len) } else { None };
+            let directions = match in_table {
+                Some(columns) => RunDirections::Table(columns),
+                None => {
+                    let [xs, ys, dx, dy, dz] = &mut self.samples;
+                    for column in [&mut *dx, &mut *dy, &mut *dz] {
+                        column.resize(n, 0.0);
+                    }
+                    if sets.fill_directions(pixel, first, dim, [&mut dx[..len], &mut dy[..len], &mut dz[..len]]) {
+                        RunDirections::Columns
+                    } else {
+                        xs.resize(n, 0.5);
+                        ys.resize(n, 0.5);
+                        sets.fill_columns(pixel, first, dim, &mut xs[..len], &mut ys[..len]);
+                        RunDirections::Points
+                    }
+                }
+            };
+            if !matches!(directions, RunDirections::Points) {
                 // Pixels of a row come one after the other: the next one's directions load
                 // while this one's rays are traced.
                 sets.prefetch_directions(pixel.wrapping_add(1), first, dim, len);
-            } else {
-                xs.resize(n, 0.5);
-                ys.resize(n, 0.5);
-                sets.fill_columns(pixel, first, dim, &mut xs[..len], &mut ys[..len]);
             }
             let out = RunOut::new(arriving, sum);
-            let kernel = cosine::CompressedRun { rays: self, geometry, stack, spawn, frame, terms, local, out };
+            let kernel = cosine::CompressedRun { rays: self, geometry, stack, spawn, frame, terms, directions, out };
             return Some(<crate::simd::Avx512 as crate::simd::Lanes>::compiled(isa, kernel));
         }
         let _ = (geometry, stack, spawn, frame, sets, pixel, first, dim, terms, arriving, sum);
