@@ -61,17 +61,24 @@ impl Onb {
     }
 
     /// The frame under symmetry `k` (0..8) of the square its tangents span: turned about the
-    /// normal by k quarter turns, then mirrored (v negated) for k ≥ 4. Exact (only swaps and
-    /// negations), and a quadrant of the tangent plane stays a quadrant.
+    /// normal by k quarter turns ((u, v) → (v, −u) each), then mirrored (v negated) for k ≥ 4.
+    /// Exact (only swaps and negations), and a quadrant of the tangent plane stays a quadrant.
+    /// Made by bit masks, without branches: `k` changes unpredictably from one block of pixels
+    /// to the next.
     #[inline]
     pub fn symmetry(&self, k: u32) -> Self {
-        let (u, v) = match k % 4 {
-            0 => (self.u, self.v),
-            1 => (self.v, -self.u),
-            2 => (-self.u, -self.v),
-            _ => (-self.v, self.u),
+        // An odd number of quarter turns swaps the tangents; u's new value is negated from two
+        // quarter turns on, v's for one or two of them, and again when mirrored.
+        let swap = 0u32.wrapping_sub(k & 1);
+        let negate_u = (k >> 1 & 1) << 31;
+        let negate_v = ((k ^ k >> 1 ^ k >> 2) & 1) << 31;
+        let pick = |a: Vec3, b: Vec3, negate: u32| {
+            let (a, b) = (a.to_array(), b.to_array());
+            Vec3::from_array(std::array::from_fn(|i| {
+                f32::from_bits((a[i].to_bits() & !swap | b[i].to_bits() & swap) ^ negate)
+            }))
         };
-        Onb { u, v: if k >= 4 { -v } else { v }, w: self.w }
+        Onb { u: pick(self.u, self.v, negate_u), v: pick(self.v, self.u, negate_v), w: self.w }
     }
 
     /// Maps a direction from the local frame (z along the normal) to world space.
@@ -113,6 +120,25 @@ mod tests {
             }
             // Right-handed: u × v = w.
             assert!(f.u.cross(f.v).distance(n) < 1e-5, "left-handed for n = {n}");
+        }
+    }
+
+    #[test]
+    fn symmetries_turn_and_mirror_the_tangents_exactly() {
+        let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+        // Signed zeros too: a negation must flip them as `-x` does.
+        for n in [Vec3::Z, -Vec3::Z, Vec3::Y, Vec3::new(0.48, -0.6, 0.64), Vec3::new(-0.0, 0.0, 1.0)] {
+            let f = Onb::from_normal(n);
+            for k in 0..8 {
+                // k quarter turns, (u, v) → (v, −u) each, then v negated for k ≥ 4.
+                let (mut u, mut v) = (f.u, f.v);
+                for _ in 0..k % 4 {
+                    (u, v) = (v, -u);
+                }
+                let v = if k >= 4 { -v } else { v };
+                let g = f.symmetry(k);
+                assert_eq!([bits(g.u), bits(g.v), bits(g.w)], [bits(u), bits(v), bits(f.w)], "n = {n}, k = {k}");
+            }
         }
     }
 
