@@ -6,7 +6,7 @@
 //! 7–8 % less time for it). Elsewhere (progressive frames and adaptive batches that take part of
 //! a pass, sets of other sizes), in sample order: a run copies its samples' directions and
 //! sorts them into quadrants itself, without computing the points. Whole passes of patterns
-//! that do not split into quadrants (sets of 48, say) read theirs sorted by quadrant.
+//! that do not split into quadrants (sets of 48, say) read theirs sorted by azimuth.
 
 #[cfg(target_arch = "x86_64")]
 use rayon::prelude::*;
@@ -32,9 +32,10 @@ pub(crate) enum TableOrder {
     Quadrants,
     /// Sample by sample as three columns: the pattern's n x, then its n y, then its n z.
     Samples,
-    /// Grouped by quadrant of azimuth, (+x, +y), (−x, +y), (−x, −y), (+x, −y), in sample order
-    /// within each, then cut into packets `lanes` wide as [`TableOrder::Quadrants`] lays them
-    /// out; the last packet's lanes past the pattern's n hold (0, 0, 1). For whole passes of
+    /// Sorted by azimuth: grouped by quadrant, (+x, +y), (−x, +y), (−x, −y), (+x, −y), and
+    /// counter-clockwise within each, then cut into packets `lanes` wide
+    /// as [`TableOrder::Quadrants`] lays them out, so that each packet is one wedge of azimuth;
+    /// the last packet's lanes past the pattern's n hold (0, 0, 1). For whole passes of
     /// patterns without quadrants that fill more than one packet, whose packets then need no
     /// sort.
     Sorted,
@@ -91,7 +92,7 @@ impl CosineTable {
     }
 
     /// The table of `count` patterns from `first` of `n` ≤ [`CosineTable::MAX_SAMPLES`] points
-    /// sorted by quadrant ([`TableOrder::Sorted`]) for packets `lanes` wide: `None` where `cmj`
+    /// sorted by azimuth ([`TableOrder::Sorted`]) for packets `lanes` wide: `None` where `cmj`
     /// has quadrants (their own order is better), where a pattern fits one packet (its order
     /// does not matter, and a table in sample order is half the size or less), or for sixteen
     /// lanes where [`crate::simd::isa`] does not allow AVX-512. Filled in parallel, each
@@ -104,7 +105,7 @@ impl CosineTable {
         Some(Self::filled(TableOrder::Sorted, lanes, 3 * padded, first, count, |p, out| {
             let mut samples = vec![0.0; 3 * n as usize];
             crate::simd::run_in(lanes, FillSamples { cmj, p, out: &mut samples });
-            sort_by_quadrant(&samples, lanes, out);
+            sort_by_azimuth(&samples, lanes, out);
         }))
     }
 
@@ -181,25 +182,37 @@ fn aligned_floats(len: usize) -> (usize, Vec<f32>) {
 }
 
 /// Writes the directions `samples` (n x, then n y, then n z) to `out` in [`TableOrder::Sorted`]
-/// for packets `lanes` wide.
+/// for packets `lanes` wide: by [`quadrant`], then counter-clockwise within a quadrant (by the
+/// sign of two directions' cross product, whose terms are exact in f64).
 #[cfg(target_arch = "x86_64")]
-fn sort_by_quadrant(samples: &[f32], lanes: usize, out: &mut [f32]) {
+fn sort_by_azimuth(samples: &[f32], lanes: usize, out: &mut [f32]) {
     let n = samples.len() / 3;
     let (xs, ys) = (&samples[..n], &samples[n..2 * n]);
-    let quadrant = |i: usize| match (xs[i] < 0.0, ys[i] < 0.0) {
+    let mut order: Vec<(u8, usize)> = (0..n).map(|i| (quadrant(xs[i], ys[i]), i)).collect();
+    // a comes first where b lies counter-clockwise of it: ax·by > ay·bx (the samples' distinct
+    // azimuths leave no ties).
+    let term = |u: f32, v: f32| f64::from(u) * f64::from(v);
+    order.sort_unstable_by(|&(qa, a), &(qb, b)| {
+        qa.cmp(&qb).then_with(|| term(xs[b], ys[a]).total_cmp(&term(xs[a], ys[b])))
+    });
+    for slot in 0..out.len() / 3 {
+        let (packet, lane) = (slot / lanes, slot % lanes);
+        let dir = order.get(slot).map_or([0.0, 0.0, 1.0], |&(_, i)| [xs[i], ys[i], samples[2 * n + i]]);
+        for (axis, v) in dir.into_iter().enumerate() {
+            out[packet * 3 * lanes + axis * lanes + lane] = v;
+        }
+    }
+}
+
+/// The quadrant of azimuth of a direction (its x and y), in counter-clockwise order: (+x, +y),
+/// (−x, +y), (−x, −y), (+x, −y).
+#[cfg(target_arch = "x86_64")]
+fn quadrant(x: f32, y: f32) -> u8 {
+    match (x < 0.0, y < 0.0) {
         (false, false) => 0,
         (true, false) => 1,
         (true, true) => 2,
         (false, true) => 3,
-    };
-    let mut order: Vec<usize> = (0..n).collect();
-    order.sort_by_key(|&i| quadrant(i));
-    for slot in 0..out.len() / 3 {
-        let (packet, lane) = (slot / lanes, slot % lanes);
-        let dir = order.get(slot).map_or([0.0, 0.0, 1.0], |&i| [xs[i], ys[i], samples[2 * n + i]]);
-        for (axis, v) in dir.into_iter().enumerate() {
-            out[packet * 3 * lanes + axis * lanes + lane] = v;
-        }
     }
 }
 
@@ -324,14 +337,14 @@ mod tests {
         }
     }
 
-    /// A table sorted by quadrant holds, bit for bit and once each, the directions the scalar
-    /// cosine map gives a pattern's samples ([`Cmj::sample`]), in sample order within each
-    /// quadrant and the quadrants in azimuth order, the last packet padded with (0, 0, 1);
-    /// for sizes without quadrants, with a partial last packet or not, for every width this
-    /// CPU has, with pattern numbers that wrap. Patterns with quadrants get none, nor do
-    /// patterns that fit one packet.
+    /// A table sorted by azimuth holds, bit for bit and once each, the directions the scalar
+    /// cosine map gives a pattern's samples ([`Cmj::sample`]), quadrant by quadrant and in
+    /// order of azimuth (`atan2`) within each, the last packet padded with (0, 0, 1); for
+    /// sizes without quadrants, with a partial last packet or not, for every width this CPU
+    /// has, with pattern numbers that wrap. Patterns with quadrants get none, nor do patterns
+    /// that fit one packet.
     #[test]
-    fn a_table_sorted_by_quadrant_holds_each_quadrant_s_directions_in_sample_order() {
+    fn a_table_sorted_by_azimuth_holds_each_direction_once_in_azimuth_order() {
         for n in [1u32, 7, 24, 37, 48, 100, 64, 257] {
             let cmj = Cmj::new(n);
             for lanes in [8, 16] {
@@ -346,26 +359,29 @@ mod tests {
                 let padded = (n as usize).next_multiple_of(lanes);
                 assert_eq!(table.memory_bytes(), (4 * 3 * padded + 16) * size_of::<f32>());
                 for p in [u32::MAX - 1, u32::MAX, 0, 1] {
-                    let quadrant = |x: f32, y: f32| match (x < 0.0, y < 0.0) {
-                        (false, false) => 0,
-                        (true, false) => 1,
-                        (true, true) => 2,
-                        (false, true) => 3,
-                    };
-                    let mut expected: Vec<(u32, [u32; 3])> = (0..n)
+                    let mut expected: Vec<[u32; 3]> = (0..n)
                         .map(|i| {
-                            let dir = cosine_power_hemisphere(Vec2::from(cmj.sample(i, p)), 1.0).dir;
-                            (quadrant(dir.x, dir.y), dir.to_array().map(f32::to_bits))
+                            cosine_power_hemisphere(Vec2::from(cmj.sample(i, p)), 1.0).dir.to_array().map(f32::to_bits)
                         })
                         .collect();
-                    // Stable: sample order within a quadrant.
-                    expected.sort_by_key(|&(q, _)| q);
                     let dirs = table.pattern(p);
-                    for slot in 0..padded {
-                        let (packet, lane) = (slot / lanes, slot % lanes);
-                        let got = [0, 1, 2].map(|axis| dirs[packet * 3 * lanes + axis * lanes + lane].to_bits());
-                        let want = expected.get(slot).map_or([0.0f32, 0.0, 1.0].map(f32::to_bits), |e| e.1);
-                        assert_eq!(got, want, "n {n}, p {p}, {lanes} lanes: slot {slot}");
+                    let slots: Vec<[f32; 3]> = (0..padded)
+                        .map(|slot| {
+                            let (packet, lane) = (slot / lanes, slot % lanes);
+                            [0, 1, 2].map(|axis| dirs[packet * 3 * lanes + axis * lanes + lane])
+                        })
+                        .collect();
+                    let (held, padding) = slots.split_at(n as usize);
+                    assert!(padding.iter().all(|d| *d == [0.0, 0.0, 1.0]), "n {n}, p {p}, {lanes} lanes: padding");
+                    let mut got: Vec<[u32; 3]> = held.iter().map(|d| d.map(f32::to_bits)).collect();
+                    got.sort_unstable();
+                    expected.sort_unstable();
+                    assert_eq!(got, expected, "n {n}, p {p}, {lanes} lanes: the pattern's directions");
+                    // Quadrant by quadrant, counter-clockwise within each.
+                    let key = |d: &[f32; 3]| (quadrant(d[0], d[1]), f64::from(d[1]).atan2(f64::from(d[0])));
+                    for (slot, pair) in held.windows(2).enumerate() {
+                        let (a, b) = (key(&pair[0]), key(&pair[1]));
+                        assert!(a.0 < b.0 || (a.0 == b.0 && a.1 <= b.1), "n {n}, p {p}, {lanes} lanes: slot {slot}");
                     }
                 }
             }

@@ -105,7 +105,7 @@ impl SampleSets {
 
     /// [`SampleSets::generate`] for renders whose runs of samples are `runs`, which decides the
     /// order the occluder's cosine directions are tabled in (`cosine_table`): where runs are
-    /// whole passes, the quadrant order for patterns with quadrants and sorted by quadrant
+    /// whole passes, the quadrant order for patterns with quadrants and sorted by azimuth
     /// for the others of more than one packet; else sample order. The sets' samples are the
     /// same either way.
     pub fn generate_for(kind: SamplerKind, n: u32, seed: u64, width: u32, height: u32, runs: SampleRuns) -> Self {
@@ -203,13 +203,13 @@ impl SampleSets {
     }
 
     /// The order the occluder's cosine directions are tabled in (`cosine_table`): "quadrant",
-    /// "quadrant-sorted" or "sample"; `None` where they are not tabled.
+    /// "azimuth" or "sample"; `None` where they are not tabled.
     pub fn cosine_table_order(&self) -> Option<&'static str> {
         #[cfg(target_arch = "x86_64")]
         return self.cosine.as_ref().map(|t| match t.order() {
             cosine_table::TableOrder::Quadrants => "quadrant",
             cosine_table::TableOrder::Samples => "sample",
-            cosine_table::TableOrder::Sorted => "quadrant-sorted",
+            cosine_table::TableOrder::Sorted => "azimuth",
         });
         #[cfg(not(target_arch = "x86_64"))]
         None
@@ -388,7 +388,7 @@ impl SampleSets {
     /// Where samples `first, first + 1, …` (`len` of them) of `pixel` in dimension `dim` are
     /// whole passes of correlated multi-jittered patterns whose cosine directions are tabled in
     /// packets: in the quadrant order of patterns that split into quadrants
-    /// ([`Cmj::has_quadrants`]), or sorted by quadrant. The sets' patterns, the table, and each
+    /// ([`Cmj::has_quadrants`]), or sorted by azimuth. The sets' patterns, the table, and each
     /// pass's pattern number, in order (pass k holds samples `k·n … k·n + n − 1` of the run).
     /// `None` elsewhere.
     #[cfg(target_arch = "x86_64")]
@@ -625,7 +625,7 @@ mod tests {
     /// Sets for partial runs table the occluder's directions in sample order, and a run's
     /// copy from it across passes gives, bit for bit, the cosine map of [`SampleSets::sample`]
     /// for each of its samples; sets for whole passes table them in packets, in quadrant order
-    /// where the patterns have quadrants, sorted by quadrant where not; the order is part of
+    /// where the patterns have quadrants, sorted by azimuth where not; the order is part of
     /// what [`SampleSets::matches`] compares, for CMJ only.
     #[cfg(target_arch = "x86_64")]
     #[test]
@@ -640,7 +640,7 @@ mod tests {
             let regular = SampleSets::generate_for(SamplerKind::Regular, n, 9, 37, 23, SampleRuns::Partial);
             assert!(regular.matches(SamplerKind::Regular, n, 9, (37, 23), SampleRuns::WholePasses));
             let quadrants = n.is_power_of_two();
-            let packets = if quadrants { "quadrant" } else { "quadrant-sorted" };
+            let packets = if quadrants { "quadrant" } else { "azimuth" };
             if !crate::simd::avx512() {
                 assert_eq!(sets.cosine_table_order(), None, "n {n}: sixteen-lane runs only");
                 assert_eq!(whole.cosine_table_order(), Some(packets), "n {n}: eight-lane packets");

@@ -213,7 +213,7 @@ impl DirectionRays {
         let tracing = clear.cmpne(floor).any();
         let (mut traced, mut cycles, mut dark) = (0, 0, 0);
         let all = (1u32 << L::WIDTH) - 1;
-        // A table sorted by quadrant pads its last packet (summed runs only).
+        // A table sorted by azimuth pads its last packet (summed runs only).
         let sorted = table.order() == TableOrder::Sorted;
         debug_assert!(!sorted || matches!(out, RunOut::Sum(..)), "a sorted table gives sums only");
         stack.clear();

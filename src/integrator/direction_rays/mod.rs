@@ -275,7 +275,7 @@ impl DirectionRays {
             && !geometry.has_alpha()
             && let Some((cmj, table, passes)) = sets.quadrant_passes(pixel, first, dim, arriving.len())
             && table.lanes() == lanes
-            // A table sorted by quadrant says nothing of which sample a ray is: sums only.
+            // A table sorted by azimuth says nothing of which sample a ray is: sums only.
             && (sum.is_some() || table.order() == TableOrder::Quadrants)
         {
             let passes = QuadrantPasses { cmj, table, n: sets.set_size() as usize, passes };
