@@ -6,10 +6,11 @@
 #
 #   scripts/compare-builds.sh [--spp N] [--threads N] [--rounds N] A B [SCENE ...]   (default: all five)
 #
-# A and B are hemi binaries (copy one aside before rebuilding), each optionally preceded by
-# comma-separated environment settings: 'HEMI_NO_AVX512=1,target/release/hemi'. Defaults: 64 spp,
-# 2 threads, 6 rounds. On this project's VM a median moves by ±5 % between runs of 4–8 rounds:
-# read smaller differences as none.
+# A and B are hemi binaries (copy one aside before rebuilding; each is timed from a fresh copy,
+# scripts/fresh-copy.sh), each optionally preceded by comma-separated environment settings:
+# 'HEMI_NO_AVX512=1,target/release/hemi'. Defaults: 64 spp, 2 threads, 6 rounds. On this
+# project's VM a median moves by ±5 % between runs of 4–8 rounds: read smaller differences as
+# none.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 scenes_dir="$root/../shared/peers/scenes"
@@ -22,7 +23,7 @@ while [ $# -gt 0 ]; do
         --spp) spp="$2"; shift 2 ;;
         --threads) threads="$2"; shift 2 ;;
         --rounds) rounds="$2"; shift 2 ;;
-        -h|--help) sed -n '2,12p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,13p' "$0"; exit 0 ;;
         *) args+=("$1"); shift ;;
     esac
 done
@@ -38,14 +39,19 @@ import json, os, statistics, subprocess, sys, tempfile
 scenes_dir, spp, threads, rounds, a, b, *scenes = sys.argv[1:]
 scenes = scenes or ["sphere_plane", "cornell", "many_spheres", "dragon", "sponza"]
 
-def build(spec):
+copies = tempfile.mkdtemp()
+
+def build(spec, name):
     *env, binary = spec.split(",")
     settings = dict(e.split("=", 1) for e in env)
     if not os.access(binary, os.X_OK):
         sys.exit(f"compare-builds: {binary} is not an executable hemi binary")
-    return binary, settings
+    # Timed from a fresh copy, as scripts/fresh-copy.sh explains.
+    copy = os.path.join(copies, name)
+    subprocess.run(["cp", binary, copy], check=True)
+    return copy, settings
 
-builds = {"A": build(a), "B": build(b)}
+builds = {"A": build(a, "A"), "B": build(b, "B")}
 for s in scenes:
     if not os.path.isfile(f"{scenes_dir}/{s}.json"):
         sys.exit(f"compare-builds: no scene {s} in {scenes_dir}")

@@ -33,6 +33,10 @@ for n in "$spp" "$threads" "$rounds"; do
 done
 [ -x "$binary" ] || { echo "compare-paths: $binary is not an executable hemi binary" >&2; exit 1; }
 [ -d "$scenes_dir" ] || { echo "compare-paths: $scenes_dir not found (../shared must sit beside the repo)" >&2; exit 1; }
+copies="$(mktemp -d)"
+trap 'rm -rf "$copies"' EXIT
+. "$root/scripts/fresh-copy.sh"
+binary="$(fresh_copy "$binary" "$copies")"
 
 python3 - "$scenes_dir" "$spp" "$threads" "$rounds" "$binary" "${scenes[@]}" <<'PY'
 import json, statistics, subprocess, sys, tempfile

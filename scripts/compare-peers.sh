@@ -43,8 +43,9 @@ done
 . "$root/scripts/native-embree.sh"
 
 (cd "$root" && cargo build --release -q)
-hemi="$root/target/release/hemi"
 out="$(mktemp -d)"
+. "$root/scripts/fresh-copy.sh"
+hemi="$(fresh_copy "$root/target/release/hemi" "$out")"
 json() { python3 -c "import json,sys; d=json.loads(sys.stdin.read().strip().splitlines()[-1]); print($1)"; }
 
 printf '%-13s %5s | %-49s | %-19s | %-28s | %-28s | %s\n' scene spp "hemi: s, AO Mrays/s (trace, kernel, queries)" "native: AO, robust" "embree: s, AO Mrays/s" "mitsuba: s, AO Mrays/s" "hemi kernel/native, /native robust, hemi/mitsuba (kernel, trace), hemi/embree (trace)"

@@ -36,9 +36,10 @@ done
 . "$root/scripts/native-embree.sh"
 
 (cd "$root" && cargo build --release -q)
-hemi="$root/target/release/hemi"
 out="$(mktemp -d)"
 trap 'rm -rf "$out"' EXIT
+. "$root/scripts/fresh-copy.sh"
+hemi="$(fresh_copy "$root/target/release/hemi" "$out")"
 json() { python3 -c "import json,sys; d=json.loads(sys.stdin.read().strip().splitlines()[-1]); print($1)"; }
 # RMSE of an AO image (.ao.npy) against the scene's reference over the reference's hit pixels.
 rmse() {

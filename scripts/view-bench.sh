@@ -7,10 +7,11 @@
 #   scripts/view-bench.sh [target/release/hemi] [threads]
 set -euo pipefail
 cd "$(dirname "$0")/.."
-hemi=${1:-target/release/hemi}
 threads=${2:-2}
 assets=../shared/assets
 out=$(mktemp -d)
+. scripts/fresh-copy.sh
+hemi=$(fresh_copy "${1:-target/release/hemi}" "$out")
 display=:$((90 + RANDOM % 100))
 Xvfb "$display" -screen 0 1280x1024x24 >/dev/null 2>&1 &
 xvfb=$!
