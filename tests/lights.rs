@@ -580,10 +580,10 @@ fn the_occluder_s_bulk_path_matches_the_per_sample_path() {
     // the patterns' quadrant order, a packet of sixteen spanning the quadrants of a set of 16
     // and holding one quadrant of a set of 64, a packet of eight spanning two quadrants of a
     // set of 16 and holding half of one of a set of 64); 16 samples of a set of 64 (a
-    // progressive frame's run) fill one packet, traced in sample order. Frames of four samples or fewer light the shared
-    // hits of a row of pixels together (`Tracer::shade_row_sums`, with AOVs
-    // `Tracer::shade_row_samples`): a row's runs pooled, the occluder's rays from neighbouring
-    // pixels in shared packets.
+    // progressive frame's run) fill one packet, traced in sample order. Frames of four samples
+    // or fewer light the shared hits of a row of pixels together (`Tracer::shade_row_sums`,
+    // with AOVs `Tracer::shade_row_samples`): a row's runs pooled, the occluder's rays from
+    // neighbouring pixels in shared packets.
     let samplers = [
         (SamplerKind::CorrelatedMultiJittered, 16, 4),
         (SamplerKind::MultiJittered, 9, 3),

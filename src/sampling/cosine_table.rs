@@ -33,9 +33,9 @@ pub(crate) enum TableOrder {
     /// Sample by sample as three columns: the pattern's n x, then its n y, then its n z.
     Samples,
     /// Sorted by azimuth: grouped by quadrant, (+x, +y), (−x, +y), (−x, −y), (+x, −y), and
-    /// counter-clockwise within each, then cut into packets `lanes` wide
-    /// as [`TableOrder::Quadrants`] lays them out, so that each packet is one wedge of azimuth;
-    /// the last packet's lanes past the pattern's n hold (0, 0, 1). For whole passes of
+    /// counter-clockwise within each, then cut into packets `lanes` wide as
+    /// [`TableOrder::Quadrants`] lays them out, so that each packet is one wedge of azimuth; the
+    /// last packet's lanes past the pattern's n hold (0, 0, 1). For whole passes of
     /// patterns without quadrants that fill more than one packet, whose packets then need no
     /// sort.
     Sorted,

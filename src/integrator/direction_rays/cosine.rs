@@ -66,9 +66,10 @@ impl DirectionRays {
     /// [`DirectionRays::add_cosine`] in lanes that compress ([`CompressLanes`]), the local
     /// directions read from the table or already copied to `samples[2..5]`, else the sample
     /// points in `samples[0]` and `samples[1]` mapped to directions
-    /// ([`cosine_hemisphere_lanes`]), as `directions` says, a group of `L::WIDTH` at a time. Each group is turned into the world and sorted into the
-    /// quadrants of [`DirectionRays::add_lanes`] by lane compression; packets load their lanes
-    /// straight from those columns. A run that fits one packet is traced in sample order. A
+    /// ([`cosine_hemisphere_lanes`]), as `directions` says, a group of `L::WIDTH` at a time.
+    /// Each group is turned into the world and sorted into the quadrants of
+    /// [`DirectionRays::add_lanes`] by lane compression; packets load their lanes straight from
+    /// those columns. A run that fits one packet is traced in sample order. A
     /// summed run ([`RunOut::Sum`]) counts its blocked rays.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]

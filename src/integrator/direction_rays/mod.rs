@@ -165,10 +165,11 @@ struct QuadrantPasses<'a, P> {
     passes: P,
 }
 
-/// The token for runs over many points in sixteen lanes, where `geometry`'s packets are sixteen
-/// wide and it has no alpha-tested meshes (which those packet queries do not see).
+/// The token for the sixteen-lane runs (a run at one point sorted into quadrants from columns,
+/// or runs over many points), where `geometry`'s packets are sixteen wide and it has no
+/// alpha-tested meshes (which those packet queries do not see).
 #[cfg(target_arch = "x86_64")]
-fn point_lanes(geometry: &SceneGeometry) -> Option<crate::simd::HasAvx512> {
+fn sixteen_lane_runs(geometry: &SceneGeometry) -> Option<crate::simd::HasAvx512> {
     (geometry.packet_lanes() == 16 && !geometry.has_alpha()).then(crate::simd::HasAvx512::allowed).flatten()
 }
 
@@ -284,10 +285,7 @@ impl DirectionRays {
             return crate::simd::run_in(lanes, kernel);
         }
         #[cfg(target_arch = "x86_64")]
-        if geometry.packet_lanes() == 16
-            && !geometry.has_alpha()
-            && let Some(isa) = crate::simd::HasAvx512::allowed()
-        {
+        if let Some(isa) = sixteen_lane_runs(geometry) {
             let n = arriving.len().next_multiple_of(16);
             let len = arriving.len();
             // Local directions from the table where it is in sample order (read in place where
@@ -344,7 +342,7 @@ impl DirectionRays {
     ) -> Option<(u64, u64)> {
         debug_assert_eq!(points.len(), arriving.len(), "one sample per point");
         #[cfg(target_arch = "x86_64")]
-        if let Some(isa) = point_lanes(geometry) {
+        if let Some(isa) = sixteen_lane_runs(geometry) {
             self.points.gather(points, u, lit);
             let kernel = points::PointsRun { rays: self, geometry, stack, terms, arriving };
             return Some(<crate::simd::Avx512 as crate::simd::Lanes>::compiled(isa, kernel));
@@ -375,7 +373,7 @@ impl DirectionRays {
     ) -> Option<(u64, u64)> {
         debug_assert_eq!(points.len(), arriving.len(), "one sample per point");
         #[cfg(target_arch = "x86_64")]
-        if let Some(isa) = point_lanes(geometry) {
+        if let Some(isa) = sixteen_lane_runs(geometry) {
             self.points.gather(points, |_| Vec2::ZERO, lit);
             let kernel = points::PointSourcesRun { rays: self, geometry, stack, sources, far, arriving };
             return Some(<crate::simd::Avx512 as crate::simd::Lanes>::compiled(isa, kernel));
