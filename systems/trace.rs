@@ -17,7 +17,7 @@ use pixels::{Band, KeptRow, TilePixels, bands};
 use crate::{
     camera::{ActiveCamera, CameraRays, Cameras},
     geometry::{Ray, RayEnd, SceneGeometry, TraversalCounts, accel::AlphaCounts, counters},
-    integrator::{LightGroup, LightRegistry, PrimaryHit, SampleResult, Scene, Tracer},
+    integrator::{LightGroup, LightRegistry, OwnSample, PrimaryHit, SampleResult, Scene, Tracer},
     resources::{AOV_FLOATS, Accumulation, FrameSamples, RenderSettings, SceneProblems, luminance},
     sampling::{SampleSets, dims},
     stats::{FrameStats, RayCounts, TraceSplit, cycle_count, cycles_since, query_timed_pixel, timed_pixel},
@@ -239,7 +239,7 @@ impl OwnRays {
     /// samples computed ahead, the camera rays traced in one call, then every hit lit by one
     /// call per light type for all the runs ([`Tracer::shade_runs`]).
     #[allow(clippy::too_many_arguments)]
-    fn trace<C: CameraRays>(
+    fn trace<C: CameraRays, O: OwnSample>(
         &mut self,
         tracer: &mut Tracer,
         scene: &Scene,
@@ -248,7 +248,7 @@ impl OwnRays {
         y: u32,
         runs: &[(u32, u32, u32)],
         count: u32,
-        out: &mut Vec<SampleResult>,
+        out: &mut Vec<O>,
     ) {
         let n = count as usize;
         self.pixels.clear();
@@ -270,7 +270,7 @@ impl OwnRays {
             self.rays.extend(films.iter().zip(lenses).map(|(&film, &lens)| camera.ray(x, y, film, lens)));
         }
         tracer.primaries(scene, &self.rays, &mut self.hits);
-        out.resize(self.rays.len(), SampleResult::default());
+        out.resize(self.rays.len(), O::missed(Vec3::ZERO));
         tracer.shade_runs(scene, &self.hits, &self.pixels, count, !job.aovs, out);
     }
 }
@@ -359,9 +359,9 @@ fn trace_tile<C: CameraRays>(
     counters::take();
     AlphaCounts::take();
     (tracer.rays, tracer.split) = Default::default();
-    // One pixel's samples of this frame.
-    let mut samples = Vec::with_capacity(job.count as usize);
-    let mut radiance = Vec::new();
+    // One pixel's samples of this frame: all of each with AOVs, else each one's radiance.
+    let mut samples = Vec::with_capacity(if job.aovs { job.count as usize } else { 0 });
+    let mut radiance = Vec::with_capacity(if job.aovs { 0 } else { job.count as usize });
     let mut camera_rays = Vec::new();
     let mut nonfinite = 0;
     let pixels = ((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize;
@@ -380,6 +380,7 @@ fn trace_tile<C: CameraRays>(
     let pooled_aovs = one_ray_per_pixel && job.aovs && job.count <= POOLED_SHARED_RUN_MAX;
     let pooled_own = !one_ray_per_pixel && job.count <= POOLED_OWN_RUN_MAX;
     let (mut row_sums, mut row_runs, mut row_samples, mut own_run) = (Vec::new(), Vec::new(), Vec::new(), 0);
+    let mut row_radiance = Vec::new();
     let fixed_groups = scene.fixed_group_count();
     for y in tile.y0..tile.y1 {
         // Rows traced before their pixels: shared camera hits, or pooled runs of own rays.
@@ -405,7 +406,11 @@ fn trace_tile<C: CameraRays>(
                 // most of a packet empty: the row's runs are traced and lit together.
                 if !row_runs.is_empty() {
                     tracer.for_row(timed, row_runs.len(), |tracer| {
-                        own.trace(tracer, scene, camera, job, y, &row_runs, job.count, &mut row_samples);
+                        if job.aovs {
+                            own.trace(tracer, scene, camera, job, y, &row_runs, job.count, &mut row_samples);
+                        } else {
+                            own.trace(tracer, scene, camera, job, y, &row_runs, job.count, &mut row_radiance);
+                        }
                     });
                 }
                 own_run = 0;
@@ -460,7 +465,7 @@ fn trace_tile<C: CameraRays>(
             match shared {
                 Some((k, Some(hit))) if !job.aovs => {
                     // The beauty image alone: each sample's radiance, no other AOV, summed here
-                    // (no `samples` for the loop below).
+                    // (no `radiance` left for the loop below).
                     let mut fixed_radiance = [Vec3A::ZERO];
                     tracer.shade_fixed(scene, hit, true, fixed_light(k), &mut fixed_radiance[..]);
                     let fixed_radiance = fixed_radiance[0];
@@ -497,7 +502,7 @@ fn trace_tile<C: CameraRays>(
                         total
                     });
                     sum = total.into();
-                    samples.clear();
+                    radiance.clear();
                 }
                 Some((k, Some(hit))) => {
                     // With AOVs: black reflectance still has an AO value.
@@ -522,19 +527,33 @@ fn trace_tile<C: CameraRays>(
                         }
                     }
                 }
-                Some((_, None)) => {
+                Some((_, None)) if job.aovs => {
                     samples.clear();
                     samples.resize(count as usize, SampleResult { radiance: scene.background, ..Default::default() })
                 }
+                Some((_, None)) => {
+                    radiance.clear();
+                    radiance.resize(count as usize, scene.background.into());
+                }
                 None if pooled_own => {
                     // Lit with the row's other pixels before the loop.
-                    samples.clear();
-                    samples.extend_from_slice(&row_samples[own_run * count as usize..][..count as usize]);
+                    let run = own_run * count as usize..(own_run + 1) * count as usize;
+                    if job.aovs {
+                        samples.clear();
+                        samples.extend_from_slice(&row_samples[run]);
+                    } else {
+                        radiance.clear();
+                        radiance.extend_from_slice(&row_radiance[run]);
+                    }
                     own_run += 1;
                 }
                 None => {
                     let run = [(x, pixel, first)];
-                    own.trace(tracer, scene, camera, job, y, &run, count, &mut samples);
+                    if job.aovs {
+                        own.trace(tracer, scene, camera, job, y, &run, count, &mut samples);
+                    } else {
+                        own.trace(tracer, scene, camera, job, y, &run, count, &mut radiance);
+                    }
                 }
             }
             let mut add = |radiance: Vec3| {
@@ -555,13 +574,13 @@ fn trace_tile<C: CameraRays>(
                     aov.iter_mut().zip(values).for_each(|(a, v)| *a += v);
                 }
             } else {
-                for s in &samples {
-                    let radiance = s.radiance + fixed.radiance;
-                    if !all_finite(radiance.into()) {
+                // `fixed` is the AOV arm's alone: the beauty image's shared hits sum above.
+                for &r in &radiance {
+                    if !all_finite(r) {
                         nonfinite += 1;
                         continue;
                     }
-                    add(radiance);
+                    add(r.into());
                 }
             }
             sums.push(sum);

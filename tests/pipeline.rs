@@ -50,6 +50,39 @@ fn point_lights_give_the_same_image_whatever_the_width_of_a_row() {
     }
 }
 
+/// Jittered samples, each with a camera hit of its own, keep their radiance alone when no AOV
+/// is asked for: the beauty image is the AOV render's bit for bit, for runs lit a row at a
+/// time (two samples a frame), a pixel's own runs (sixteen) and adaptive sampling.
+#[test]
+fn jittered_beauty_images_are_the_same_with_aovs_or_without() {
+    for (spf, target_error) in [(2, None), (16, None), (4, Some(0.05))] {
+        let render = |aovs| {
+            let s = RenderSettings {
+                width: 48,
+                height: 27,
+                samples_per_frame: spf,
+                samples_per_set: 16,
+                max_spp: Some(32),
+                target_error,
+                aovs,
+                ..Default::default()
+            };
+            assert!(s.jitter);
+            let mut r = Renderer::with_default_scene(s);
+            let mut rays = Vec::new();
+            while !r.converged() {
+                rays.push(r.run_frame().unwrap().rays);
+            }
+            (r.image().linear.clone(), rays)
+        };
+        let ((beauty, beauty_rays), (with_aovs, aov_rays)) = (render(false), render(true));
+        assert!(beauty_rays.len() >= 2, "spf {spf}: {} frames", beauty_rays.len());
+        assert_eq!(beauty_rays, aov_rays, "spf {spf}");
+        assert!(beauty == with_aovs, "spf {spf}, target {target_error:?}: the images differ");
+        assert!(beauty.iter().any(|p| *p != beauty[0]), "spf {spf}: a flat image");
+    }
+}
+
 #[test]
 fn a_64x64_frame_renders_in_memory() {
     let mut r = Renderer::with_default_scene(RenderSettings { width: 64, height: 64, ..Default::default() });

@@ -141,6 +141,53 @@ impl SampleOut for [Vec3A] {
     }
 }
 
+/// What [`Tracer::shade_runs`](super::Tracer::shade_runs) keeps of each sample at a camera hit
+/// of its own: everything ([`SampleResult`], for AOVs) or the radiance alone (`Vec3A`, for the
+/// beauty image), each with the same radiance bit for bit.
+pub trait OwnSample: Copy {
+    /// A sample whose camera ray escaped, seeing `background`.
+    fn missed(background: Vec3) -> Self;
+    /// A sample at a camera hit on `material`, before any light.
+    fn at_hit(primary: &PrimaryHit, material: &Matte) -> Self;
+    /// Adds light `a` arriving from a light of `term`, reflected by `reflectance`.
+    fn add_light(&mut self, term: Term, reflectance: Vec3, a: Vec3A);
+}
+
+impl OwnSample for SampleResult {
+    #[inline(always)]
+    fn missed(background: Vec3) -> Self {
+        SampleResult { radiance: background, ..Default::default() }
+    }
+
+    #[inline(always)]
+    fn at_hit(primary: &PrimaryHit, material: &Matte) -> Self {
+        SampleResult::at_hit(primary, material)
+    }
+
+    #[inline(always)]
+    fn add_light(&mut self, term: Term, reflectance: Vec3, a: Vec3A) {
+        SampleResult::add_light(self, term, reflectance, a.into());
+    }
+}
+
+impl OwnSample for Vec3A {
+    #[inline(always)]
+    fn missed(background: Vec3) -> Self {
+        background.into()
+    }
+
+    #[inline(always)]
+    fn at_hit(_: &PrimaryHit, _: &Matte) -> Self {
+        Vec3A::ZERO
+    }
+
+    /// `SampleResult::add_light`'s radiance, in one SIMD operation per step (same bits).
+    #[inline(always)]
+    fn add_light(&mut self, _: Term, reflectance: Vec3, a: Vec3A) {
+        *self += Vec3A::from(reflectance) * a;
+    }
+}
+
 /// A camera ray's first hit.
 #[derive(Clone, Copy, Debug)]
 pub struct PrimaryHit {

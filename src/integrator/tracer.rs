@@ -6,7 +6,7 @@ use glam::{Vec2, Vec3, Vec3A};
 use super::{
     direction_rays::{CosinePoint, DirectionRays},
     light_groups::{LightGroup, RunSum},
-    sample::{PrimaryHit, SampleOut, SampleResult, ShadedSum},
+    sample::{OwnSample, PrimaryHit, SampleOut, SampleResult, ShadedSum},
 };
 use crate::{
     components::Matte,
@@ -290,15 +290,16 @@ impl Tracer {
     /// `skip_black` lets lights whose reflectance is zero at a hit be skipped there (no rays);
     /// AOVs need them traced. Every light dimension's samples are computed ahead, and each
     /// light type is called once for all the runs: a row of pixels' few samples each share
-    /// packets as one pixel's many do.
-    pub fn shade_runs(
+    /// packets as one pixel's many do. Each sample is kept as `O` ([`OwnSample`]): all of it
+    /// or its radiance alone.
+    pub fn shade_runs<O: OwnSample>(
         &mut self,
         scene: &Scene,
         hits: &[Option<PrimaryHit>],
         pixels: &[(u32, u32)],
         count: u32,
         skip_black: bool,
-        out: &mut [SampleResult],
+        out: &mut [O],
     ) {
         self.prepare_runs(scene, pixels, count);
         let mut points = std::mem::take(&mut self.points);
@@ -310,11 +311,11 @@ impl Tracer {
             for s in 0..n {
                 let (j, o) = (i * n + s, &mut out[i * n + s]);
                 let Some(primary) = &hits[j] else {
-                    *o = SampleResult { radiance: scene.background, ..Default::default() };
+                    *o = O::missed(scene.background);
                     continue;
                 };
                 let point = RunPoint::new(scene, &primary.hit, j, pixel, first.wrapping_add(s as u32));
-                *o = SampleResult::at_hit(primary, &point.at.material);
+                *o = O::at_hit(primary, &point.at.material);
                 points.push(point);
             }
         }
@@ -323,7 +324,7 @@ impl Tracer {
             self.light_points(scene, group, first_dim, &points, skip_black, &mut arriving);
             let term = group.term();
             for (p, &a) in points.iter().zip(&arriving) {
-                out[p.j as usize].add_light(term, term.reflectance(&p.at.material), a.into());
+                out[p.j as usize].add_light(term, term.reflectance(&p.at.material), a);
             }
         }
         self.arriving = arriving;
