@@ -7,9 +7,9 @@
 //! - a moved mesh instance only rebuilds the top-level BVH over the instances;
 //! - static meshes used by one entity each (not [`Dynamic`], not deforming) are baked in world
 //!   space into one BLAS, rebuilt when one of them changes (or which meshes qualify does);
-//!   static meshes that several entities share are baked too where the render's samples pay
-//!   for the bake (`max_spp` × pixels at least 128 per triangle they place), and instanced
-//!   otherwise;
+//!   static meshes that several entities share are baked too where a jittered render's camera
+//!   rays pay for the bake (`max_spp` × pixels at least 8 per triangle they place), and
+//!   instanced otherwise;
 //! - each sphere and cuboid is a small world-space BLAS, rebuilt when one of them changes;
 //! - a textured mesh ([`Surface`]) is baked like any other, its triangles' indices kept for
 //!   texture lookups; an alpha-tested one is never baked: it goes into the scene's alpha layer
@@ -37,11 +37,14 @@ use crate::{
     stats::FrameStats,
 };
 
-/// Samples per placed triangle (`max_spp` × pixels ÷ the triangles that baking the shared
-/// meshes would place) from which those meshes are baked rather than instanced: a baked tree
-/// traces faster but costs build time, which pays only once enough samples use it: the
-/// break-even measured on many_spheres (docs/benchmarks.md, "BVH build").
-const SHARED_BAKE_SAMPLES_PER_TRIANGLE: u64 = 128;
+/// Camera rays per placed triangle (`max_spp` × pixels ÷ the triangles that baking the shared
+/// meshes would place) from which a jittered render bakes those meshes rather than instancing
+/// them: camera rays travel in packets only where every instance is in world space, and a
+/// camera ray traced alone through placed instances costs about three times one in a packet
+/// through the bake, which pays for the bake's build from about four camera rays per triangle
+/// (docs/benchmarks.md, "BVH build"). Occlusion rays trace placed instances in packets as fast
+/// as the bake, so a render at pixel centres (one camera ray a pixel) keeps them instanced.
+const SHARED_BAKE_CAMERA_RAYS_PER_TRIANGLE: u64 = 8;
 
 /// Most triangles baking the shared meshes may place (a baked triangle takes about 150 bytes of
 /// tree and triangle data; instanced, it takes none).
@@ -413,9 +416,10 @@ fn static_mesh<'a>(entry: &ShapeData<'a>, users: &HashMap<usize, usize>) -> Opti
 }
 
 /// Whether the static meshes that several entities share are baked as well: when the render
-/// has a sample target (`max_spp`) that comes to at least [`SHARED_BAKE_SAMPLES_PER_TRIANGLE`]
-/// samples per triangle they would place, and they would place at most
-/// [`SHARED_BAKE_MAX_TRIANGLES`]. Without a target they stay instanced.
+/// is jittered (every sample traces a camera ray) and has a sample target (`max_spp`) that
+/// comes to at least [`SHARED_BAKE_CAMERA_RAYS_PER_TRIANGLE`] camera rays per triangle they
+/// would place, and they would place at most [`SHARED_BAKE_MAX_TRIANGLES`]. Without a target
+/// (progressive rendering, the window) they stay instanced.
 fn bakes_shared(settings: &RenderSettings, users: &HashMap<usize, usize>, entries: &[ShapeData]) -> bool {
     let shared: usize = entries
         .iter()
@@ -426,7 +430,8 @@ fn bakes_shared(settings: &RenderSettings, users: &HashMap<usize, usize>, entrie
     let samples = |spp: u32| u64::from(settings.width) * u64::from(settings.height) * u64::from(spp);
     shared > 0
         && shared <= SHARED_BAKE_MAX_TRIANGLES
-        && settings.max_spp.is_some_and(|spp| samples(spp) >= SHARED_BAKE_SAMPLES_PER_TRIANGLE * shared as u64)
+        && settings.jitter
+        && settings.max_spp.is_some_and(|spp| samples(spp) >= SHARED_BAKE_CAMERA_RAYS_PER_TRIANGLE * shared as u64)
 }
 
 /// Bakes the static meshes (no [`Dynamic`] marker, not deforming, no other shape component)

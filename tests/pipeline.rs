@@ -303,6 +303,8 @@ fn shared_meshes_are_instanced_by_many_entities() {
     assert_eq!(geometry.instances().len(), 6);
 }
 
+/// A jittered render bakes shared meshes once its camera rays pay for the bake: from 8 per
+/// triangle the placements add; at pixel centres they stay instanced whatever the target.
 #[test]
 fn shared_meshes_are_baked_where_the_sample_target_pays_for_it() {
     let mesh = Arc::new(hemi::scene::mesh_gen::uv_sphere(0.4, 8, 16));
@@ -312,8 +314,8 @@ fn shared_meshes_are_baked_where_the_sample_target_pays_for_it() {
         r.world_mut().spawn((TriangleMesh(mesh.clone()), Transform::from_xyz(i as f32 - 2.0, 0.4, -1.0)));
     }
     let instances = |r: &Renderer| r.world().resource::<SceneGeometry>().instances().len();
-    // The bake pays from 128 samples (16 × 16 pixels × max_spp) per triangle it places.
-    let enough = (128 * 5 * mesh.triangle_count()).div_ceil(16 * 16) as u32;
+    // The bake pays from 8 camera rays (16 × 16 pixels × max_spp) per triangle it places.
+    let enough = (8 * 5 * mesh.triangle_count()).div_ceil(16 * 16) as u32;
     r.run_frame().unwrap();
     assert_eq!(instances(&r), 6, "no sample target: the plane's sphere and five instances");
     let instanced = r.image().linear.clone();
@@ -336,6 +338,15 @@ fn shared_meshes_are_baked_where_the_sample_target_pays_for_it() {
     let stats = r.run_frame().unwrap();
     assert_eq!(stats.bvh_work.blas_built, 2, "instanced again: the sphere and the shared mesh's BLAS");
     assert_eq!(instances(&r), 6);
+
+    // At pixel centres the camera rays are one a pixel: any target keeps the instances.
+    r.settings_mut().jitter = false;
+    r.settings_mut().max_spp = Some(64 * enough);
+    r.run_frame().unwrap();
+    assert_eq!(instances(&r), 6, "pixel centres: instanced");
+    r.settings_mut().jitter = true;
+    let stats = r.run_frame().unwrap();
+    assert_eq!((stats.bvh_work.blas_built, instances(&r)), (2, 2), "jittered again: baked");
 }
 
 #[test]
