@@ -8,7 +8,7 @@
 //! - static meshes used by one entity each (not [`Dynamic`], not deforming) are baked in world
 //!   space into one BLAS, rebuilt when one of them changes (or which meshes qualify does);
 //!   static meshes that several entities share are baked too where a jittered render's camera
-//!   rays pay for the bake (`max_spp` × pixels at least 8 per triangle they place), and
+//!   rays pay for the bake (`max_spp` × pixels at least 64 per triangle they place), and
 //!   instanced otherwise;
 //! - each sphere and cuboid is a small world-space BLAS, rebuilt when one of them changes;
 //! - a textured mesh ([`Surface`]) is baked like any other, its triangles' indices kept for
@@ -39,12 +39,12 @@ use crate::{
 
 /// Camera rays per placed triangle (`max_spp` × pixels ÷ the triangles that baking the shared
 /// meshes would place) from which a jittered render bakes those meshes rather than instancing
-/// them: camera rays travel in packets only where every instance is in world space, and a
-/// camera ray traced alone through placed instances costs about three times one in a packet
-/// through the bake, which pays for the bake's build from about four camera rays per triangle
-/// (docs/benchmarks.md, "BVH build"). Occlusion rays trace placed instances in packets as fast
-/// as the bake, so a render at pixel centres (one camera ray a pixel) keeps them instanced.
-const SHARED_BAKE_CAMERA_RAYS_PER_TRIANGLE: u64 = 8;
+/// them: its camera rays, one per sample, trace the bake about a tenth faster than the placed
+/// instances, which pays for the bake's build (and its memory) from about twice the break-even
+/// of some 32 camera rays per triangle (docs/benchmarks.md, "BVH build"). Occlusion rays trace
+/// placed instances as fast as the bake, so a render at pixel centres (one camera ray a pixel)
+/// keeps them instanced.
+const SHARED_BAKE_CAMERA_RAYS_PER_TRIANGLE: u64 = 64;
 
 /// Most triangles baking the shared meshes may place (a baked triangle takes about 150 bytes of
 /// tree and triangle data; instanced, it takes none).

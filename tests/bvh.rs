@@ -385,7 +385,7 @@ fn runs_of_camera_rays_get_the_hits_of_single_queries() {
     // The same without the plane: every hit on a triangle packet.
     let baked_alone = SceneGeometry::build(pieces.concat(), Vec::new(), (0..33).map(|_| matte()).collect());
     // As world-space instances under a top level, with a BLAS of spheres (traced ray by ray);
-    // and once more with a rotated, scaled instance besides (camera rays then go one by one).
+    // and once more with a rotated, scaled instance besides (entered lane by lane in its frame).
     let mut blases: Vec<Arc<Blas>> = pieces.into_iter().map(|p| Arc::new(Blas::build(p))).collect();
     let spheres = (0..6)
         .map(|i| Prim {
@@ -409,8 +409,18 @@ fn runs_of_camera_rays_get_the_hits_of_single_queries() {
         Vec3::new(1.0, 2.0, 0.5),
     );
     instances.push(Instance::new(33, blases[33].bounds().unwrap(), m, Some(38)).unwrap());
-    let transformed = SceneGeometry::from_instances(blases, instances, plane(), objects());
-    for geometry in [&baked, &baked_alone, &world, &transformed] {
+    let transformed = SceneGeometry::from_instances(blases.clone(), instances.clone(), plane(), objects());
+    // And copies of the ground's halves placed over the right half: the left half moved by n,
+    // and the right half turned half a turn about its middle (onto its own triangles, but for
+    // the rounding of the turn): their hits there lie at or within rounding of the right
+    // half's own, ties that only a ray traced alone settles.
+    let moved = Affine3A::from_translation(Vec3::new(n as f32, 0.0, 0.0));
+    let turned =
+        Affine3A::from_rotation_translation(Quat::from_rotation_y(std::f32::consts::PI), Vec3::new(n as f32, 0.0, 0.0));
+    instances.push(Instance::new(30, blases[30].bounds().unwrap(), moved, Some(39)).unwrap());
+    instances.push(Instance::new(31, blases[31].bounds().unwrap(), turned, Some(39)).unwrap());
+    let coincident = SceneGeometry::from_instances(blases, instances, plane(), objects());
+    for geometry in [&baked, &baked_alone, &world, &transformed, &coincident] {
         bundles_get_single_hits(geometry, &vertices, &seam, &mut rng);
     }
 }

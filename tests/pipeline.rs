@@ -303,7 +303,7 @@ fn shared_meshes_are_instanced_by_many_entities() {
     assert_eq!(geometry.instances().len(), 6);
 }
 
-/// A jittered render bakes shared meshes once its camera rays pay for the bake: from 8 per
+/// A jittered render bakes shared meshes once its camera rays pay for the bake: from 64 per
 /// triangle the placements add; at pixel centres they stay instanced whatever the target.
 #[test]
 fn shared_meshes_are_baked_where_the_sample_target_pays_for_it() {
@@ -314,8 +314,8 @@ fn shared_meshes_are_baked_where_the_sample_target_pays_for_it() {
         r.world_mut().spawn((TriangleMesh(mesh.clone()), Transform::from_xyz(i as f32 - 2.0, 0.4, -1.0)));
     }
     let instances = |r: &Renderer| r.world().resource::<SceneGeometry>().instances().len();
-    // The bake pays from 8 camera rays (16 × 16 pixels × max_spp) per triangle it places.
-    let enough = (8 * 5 * mesh.triangle_count()).div_ceil(16 * 16) as u32;
+    // The bake pays from 64 camera rays (16 × 16 pixels × max_spp) per triangle it places.
+    let enough = (64 * 5 * mesh.triangle_count()).div_ceil(16 * 16) as u32;
     r.run_frame().unwrap();
     assert_eq!(instances(&r), 6, "no sample target: the plane's sphere and five instances");
     let instanced = r.image().linear.clone();

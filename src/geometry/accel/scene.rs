@@ -54,8 +54,8 @@ pub struct SceneGeometry {
     tlas: Vec<Bvh2Node>,
     /// The top-level BVH2 collapsed to a wide tree, which traversal uses.
     pub(super) top: Tree,
-    /// Whether runs of camera rays go through the top level in packets: every instance is in
-    /// world space (no transform) and some BLAS holds triangle packets.
+    /// Whether runs of camera rays go through the top level in packets: some BLAS holds
+    /// triangle packets.
     pub(super) top_packets: bool,
     /// The BLAS of a scene that is one world-space instance (a baked static scene), which
     /// queries take directly, with no top level: held here so that a query reaches it in one
@@ -129,7 +129,7 @@ impl SceneGeometry {
             _ => None,
         };
         SceneGeometry {
-            top_packets: instances.iter().all(|i| i.identity) && blases.iter().any(|b| !b.packets.is_empty()),
+            top_packets: blases.iter().any(|b| !b.packets.is_empty()),
             world_blas,
             blases,
             instances,

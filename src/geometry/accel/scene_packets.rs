@@ -30,9 +30,10 @@ use crate::simd::{Kernel, run_in};
 
 impl SceneGeometry {
     /// [`SceneGeometry::intersect`] for each of `rays`, the same hits:
-    /// in packets where the trees are eight-wide, every instance is in world space and there are
-    /// triangle packets (straight into the one BLAS of a static scene, else through the top
-    /// level), which suits runs of rays that travel together, such as one pixel's camera rays.
+    /// in packets where the trees are eight-wide and there are triangle packets (straight into
+    /// the one BLAS of a static scene, else through the top level and into each instance in its
+    /// own frame), which suits runs of rays that travel together, such as one pixel's camera
+    /// rays.
     /// Writes `make(ray, hit)` of each `rays[k]`'s hit (`None` where it has none) to `out[k]`.
     pub fn intersect_many<T>(
         &self,
@@ -172,7 +173,7 @@ impl SceneGeometry {
 
     /// Where [`SceneGeometry::intersect_many`] traces packets, if anywhere: straight into the
     /// one world-space BLAS of triangle packets of a static scene, else through an eight-wide
-    /// top level whose instances are all in world space, with some triangle packets.
+    /// top level, with some triangle packets.
     #[cfg(target_arch = "x86_64")]
     fn camera_packets(&self) -> Option<CameraPackets<'_>> {
         if let Some(blas) = &self.world_blas
@@ -263,17 +264,18 @@ impl SceneGeometry {
 enum CameraPackets<'a> {
     /// Straight into a static scene's one world-space BLAS of triangle packets, and its tree.
     World(&'a Blas, &'a Bvh8),
-    /// Through the top level (every instance in world space).
+    /// Through the top level.
     Top(&'a Bvh8),
 }
 
 /// The closest hits of `rays` (one packet; lanes of `live`) through the top-level tree `top`,
-/// whose instances must all be in world space, traced together and offered to `hits`
-/// (instance, slot, b1, b2): exactly what [`SceneGeometry::intersect`] finds before the planes,
-/// except that a second hit at exactly a lane's closest distance (in another triangle or
-/// instance) is marked a tie. An instance's BLAS of triangle packets takes the rays it gets as
-/// a packet, any other BLAS each ray alone. Returns the lanes whose subtree overflowed a
-/// packet's stack; trace those, and the tied ones, alone.
+/// traced together and offered to `hits` (instance, slot, b1, b2): exactly what
+/// [`SceneGeometry::intersect`] finds before the planes, except that a second hit at exactly a
+/// lane's closest distance (in another triangle or instance), or within rounding of it where a
+/// placed instance's distance is one of the two, is marked a tie. An instance's BLAS of
+/// triangle packets takes the rays it gets as a packet (a placed instance's moved into its
+/// frame lane by lane, [`placed_closest`]), any other BLAS each ray alone. Returns the lanes
+/// whose subtree overflowed a packet's stack; trace those, and the tied ones, alone.
 #[cfg(target_arch = "x86_64")]
 struct TopClosestLanes<'a> {
     scene: &'a SceneGeometry,
@@ -293,7 +295,12 @@ impl<L: KernelLanes> Kernel<L> for TopClosestLanes<'_> {
         let mut overflow = 0u32;
         let leaf = |first: u32, count: u32, lanes: u32, hits: &mut LaneHits<ClosestHit>| {
             for i in first..first + count {
-                let blas = &scene.blases[scene.instances[i as usize].blas as usize];
+                let inst = &scene.instances[i as usize];
+                let blas = &scene.blases[inst.blas as usize];
+                if !inst.identity {
+                    overflow |= placed_closest::<L>(isa, (i, inst, blas), rays, lanes, hits, stack);
+                    continue;
+                }
                 match &blas.tree {
                     Tree::Eight(tree, _) if !blas.packets.is_empty() && lanes.count_ones() >= 2 => {
                         let kernel = BlasClosestLanes { blas, tree, rays, live: lanes, instance: i, hits };
@@ -319,6 +326,63 @@ impl<L: KernelLanes> Kernel<L> for TopClosestLanes<'_> {
         };
         overflow | top_overflow
     }
+}
+
+/// The closest hits in placed instance `i` (`inst`, of `blas`) of the lanes `lanes` of
+/// `rays`, offered to `hits` at their world distances ([`LaneHits::offer_inexact`]): each lane
+/// moved into the instance's frame as [`SceneGeometry::intersect`] moves its ray there
+/// (`Instance::local_ray` of its probe), and the moved rays traced as one packet in the
+/// instance's tree where it has triangle packets and two or more lanes enter, else one by
+/// one. Returns the lanes to trace alone (their subtree overflowed the packet's stack, or two
+/// hits in the instance tied).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn placed_closest<L: KernelLanes>(
+    isa: L::Isa,
+    (i, inst, blas): (u32, &Instance, &Blas),
+    rays: &[Ray],
+    lanes: u32,
+    hits: &mut LaneHits<ClosestHit>,
+    stack: &mut Vec<(u32, f32)>,
+) -> u32 {
+    let mut local: [Ray; 16] = std::array::from_fn(|k| rays[k.min(rays.len() - 1)]);
+    let (mut shift, mut live) = ([0.0f32; 16], 0u32);
+    let mut each = lanes;
+    while each != 0 {
+        let k = each.trailing_zeros() as usize;
+        each &= each - 1;
+        if let Some((ray, dt)) = inst.local_ray(&hits.probe(rays, k)) {
+            (local[k], shift[k], live) = (ray, dt, live | 1 << k);
+        }
+    }
+    let local = &mut local[..rays.len()];
+    let mut found = LaneHits::new(local);
+    let mut alone = 0;
+    match &blas.tree {
+        Tree::Eight(tree, _) if !blas.packets.is_empty() && live.count_ones() >= 2 => {
+            let kernel = BlasClosestLanes { blas, tree, rays: local, live, instance: i, hits: &mut found };
+            alone = L::compiled(isa, kernel) | found.tied;
+        }
+        _ => {
+            let mut each = live;
+            while each != 0 {
+                let k = each.trailing_zeros() as usize;
+                each &= each - 1;
+                if let Some((slot, b1, b2)) = blas.closest(&mut local[k], stack) {
+                    (found.tmax[k], found.best[k]) = (local[k].tmax, Some((i, slot, b1, b2)));
+                }
+            }
+        }
+    }
+    let mut each = live & !alone;
+    while each != 0 {
+        let k = each.trailing_zeros() as usize;
+        each &= each - 1;
+        if let Some(hit) = found.best[k] {
+            hits.offer_inexact(k, found.tmax[k] + shift[k], hit);
+        }
+    }
+    alone
 }
 
 /// [`SceneGeometry::occluded_many`] through the top level by packets of consecutive rays, as

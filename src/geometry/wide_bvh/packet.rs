@@ -419,10 +419,19 @@ pub(crate) struct LaneHits<T> {
     pub tmax: [f32; 16],
     /// Each lane's closest hit so far.
     pub best: [Option<T>; 16],
-    /// Lanes offered a second hit at exactly their closest distance so far: which one a
+    /// Lanes offered a second hit at exactly their closest distance so far (or within
+    /// rounding of it, where either distance is [`LaneHits::offer_inexact`]'s): which one a
     /// single-ray traversal keeps depends on its order, so the caller traces them alone.
     pub tied: u32,
+    /// Lanes whose closest hit so far came through [`LaneHits::offer_inexact`].
+    inexact: u32,
 }
+
+/// How far apart, relative to the larger, two distances may lie and still count as tied when
+/// one of them is rounded ([`LaneHits::offer_inexact`]): twice the few ulps its rounding and the
+/// single-ray traversal's comparison with it can each move it.
+#[cfg(target_arch = "x86_64")]
+const ROUNDED_TIE: f32 = 8.0 * f32::EPSILON;
 
 #[cfg(target_arch = "x86_64")]
 impl<T: Copy + PartialEq> LaneHits<T> {
@@ -432,7 +441,7 @@ impl<T: Copy + PartialEq> LaneHits<T> {
         for (t, ray) in tmax.iter_mut().zip(rays) {
             *t = ray.tmax;
         }
-        LaneHits { tmax, best: [None; 16], tied: 0 }
+        LaneHits { tmax, best: [None; 16], tied: 0, inexact: 0 }
     }
 
     /// Lane `k`'s ray from `rays`, reaching one step past its closest distance so far, so that
@@ -447,12 +456,35 @@ impl<T: Copy + PartialEq> LaneHits<T> {
     /// closest hit itself offered again (a triangle that spatial splits put in several leaves).
     #[inline(always)]
     pub fn offer(&mut self, k: usize, t: f32, hit: T) {
+        self.offer_rounded(k, t, hit, false);
+    }
+
+    /// [`LaneHits::offer`] of a hit whose distance is rounded: a hit in an instance's own
+    /// frame, at its local distance plus the origin's shift (`Instance::local_ray`). A ray
+    /// traced alone compares it with its closest hit so far in the instance's frame, so where
+    /// two hits lie within rounding of each other, which one it keeps depends on the order it
+    /// meets them in: such lanes are tied.
+    #[inline(always)]
+    pub fn offer_inexact(&mut self, k: usize, t: f32, hit: T) {
+        self.offer_rounded(k, t, hit, true);
+    }
+
+    #[inline(always)]
+    fn offer_rounded(&mut self, k: usize, t: f32, hit: T, inexact: bool) {
+        let bit = 1 << k;
+        let rounded = (inexact || self.inexact & bit != 0)
+            && self.best[k].is_some_and(|best| best != hit)
+            && (t - self.tmax[k]).abs() <= ROUNDED_TIE * t.max(self.tmax[k]);
         if t < self.tmax[k] {
             self.tmax[k] = t;
             self.best[k] = Some(hit);
-            self.tied &= !(1 << k);
+            self.tied &= !bit;
+            self.inexact = (self.inexact & !bit) | if inexact { bit } else { 0 };
         } else if self.best[k] != Some(hit) {
-            self.tied |= 1 << k;
+            self.tied |= bit;
+        }
+        if rounded {
+            self.tied |= bit;
         }
     }
 }

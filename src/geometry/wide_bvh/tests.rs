@@ -485,3 +485,29 @@ fn both_widths_visit_exactly_the_leaves_the_ray_enters() {
     }
     assert!(entered > 4_000, "rays should enter many leaves ({entered})");
 }
+
+/// A rounded distance (a placed instance's, [`LaneHits::offer_inexact`]) within rounding of a
+/// lane's closest hit ties the lane, whichever of the two came first; a hit clearly closer wins
+/// outright and clears the tie.
+#[cfg(target_arch = "x86_64")]
+#[test]
+fn rounded_distances_tie_only_within_rounding() {
+    use packet::LaneHits;
+    let rays = [Ray::new(Vec3A::ZERO, Vec3A::X, f32::INFINITY); 3];
+    let below = |t: f32| f32::from_bits(t.to_bits() - 2);
+    let mut hits = LaneHits::new(&rays);
+    // Lane 0: an exact hit, then a rounded one two ulps nearer: tied (though nearer).
+    hits.offer(0, 10.0, 1u32);
+    hits.offer_inexact(0, below(10.0), 2);
+    // Lane 1: a rounded hit, then an exact one two ulps nearer: tied.
+    hits.offer_inexact(1, 10.0, 3);
+    hits.offer(1, below(10.0), 4);
+    // Lane 2: the same, the exact hit a whole unit nearer: not tied, the nearer kept.
+    hits.offer_inexact(2, 10.0, 5);
+    hits.offer(2, 9.0, 6);
+    assert_eq!(hits.tied, 0b011);
+    assert_eq!((hits.best[1], hits.best[2], hits.tmax[2]), (Some(4), Some(6), 9.0));
+    // A clearly nearer hit settles lane 0.
+    hits.offer(0, 5.0, 7);
+    assert_eq!((hits.tied, hits.best[0]), (0b010, Some(7)));
+}
