@@ -293,12 +293,16 @@ impl<L: KernelLanes> Kernel<L> for TopClosestLanes<'_> {
     fn run(self, isa: L::Isa) -> u32 {
         let TopClosestLanes { scene, top, rays, live, hits, stack } = self;
         let mut overflow = 0u32;
+        // The lanes moved into a placed instance's frame, filled once per packet: each instance
+        // rewrites the lanes that enter it, and the others are never read.
+        let mut local: [Ray; 16] = std::array::from_fn(|k| rays[k.min(rays.len() - 1)]);
         let leaf = |first: u32, count: u32, lanes: u32, hits: &mut LaneHits<ClosestHit>| {
             for i in first..first + count {
                 let inst = &scene.instances[i as usize];
                 let blas = &scene.blases[inst.blas as usize];
                 if !inst.identity {
-                    overflow |= placed_closest::<L>(isa, (i, inst, blas), rays, lanes, hits, stack);
+                    let moved = &mut local[..rays.len()];
+                    overflow |= placed_closest::<L>(isa, (i, inst, blas), (rays, moved), lanes, hits, stack);
                     continue;
                 }
                 match &blas.tree {
@@ -331,7 +335,8 @@ impl<L: KernelLanes> Kernel<L> for TopClosestLanes<'_> {
 /// The closest hits in placed instance `i` (`inst`, of `blas`) of the lanes `lanes` of
 /// `rays`, offered to `hits` at their world distances ([`LaneHits::offer_inexact`]): each lane
 /// moved into the instance's frame as [`SceneGeometry::intersect`] moves its ray there
-/// (`Instance::local_ray` of its probe), and the moved rays traced as one packet in the
+/// (`Instance::local_ray` of its probe, written to `local`, whose other lanes hold any ray and
+/// are not read), and the moved rays traced as one packet in the
 /// instance's tree where it has triangle packets and two or more lanes enter, else one by
 /// one. Returns the lanes to trace alone (their subtree overflowed the packet's stack, or two
 /// hits in the instance tied).
@@ -340,12 +345,11 @@ impl<L: KernelLanes> Kernel<L> for TopClosestLanes<'_> {
 fn placed_closest<L: KernelLanes>(
     isa: L::Isa,
     (i, inst, blas): (u32, &Instance, &Blas),
-    rays: &[Ray],
+    (rays, local): (&[Ray], &mut [Ray]),
     lanes: u32,
     hits: &mut LaneHits<ClosestHit>,
     stack: &mut Vec<(u32, f32)>,
 ) -> u32 {
-    let mut local: [Ray; 16] = std::array::from_fn(|k| rays[k.min(rays.len() - 1)]);
     let (mut shift, mut live) = ([0.0f32; 16], 0u32);
     let mut each = lanes;
     while each != 0 {
@@ -355,7 +359,6 @@ fn placed_closest<L: KernelLanes>(
             (local[k], shift[k], live) = (ray, dt, live | 1 << k);
         }
     }
-    let local = &mut local[..rays.len()];
     let mut found = LaneHits::new(local);
     let mut alone = 0;
     match &blas.tree {
