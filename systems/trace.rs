@@ -529,7 +529,7 @@ fn trace_tile<C: CameraRays>(
                 }
                 Some((_, None)) if job.aovs => {
                     samples.clear();
-                    samples.resize(count as usize, SampleResult { radiance: scene.background, ..Default::default() })
+                    samples.resize(count as usize, SampleResult::missed(scene.background))
                 }
                 Some((_, None)) => {
                     radiance.clear();

@@ -103,47 +103,28 @@ pub trait SampleOut {
     fn add_light(&mut self, term: Term, reflectance: Vec3, arriving: &[Vec3A]);
 }
 
-impl SampleOut for [SampleResult] {
+impl<O: OwnSample> SampleOut for [O] {
     fn len(&self) -> usize {
         self.len()
     }
 
     #[inline]
     fn start(&mut self, primary: &PrimaryHit, material: &Matte) {
-        self.fill(SampleResult::at_hit(primary, material));
+        self.fill(O::at_hit(primary, material));
     }
 
     #[inline]
     fn add_light(&mut self, term: Term, reflectance: Vec3, arriving: &[Vec3A]) {
         for (o, &a) in self.iter_mut().zip(arriving) {
-            o.add_light(term, reflectance, a.into());
+            o.add_light(term, reflectance, a);
         }
     }
 }
 
-impl SampleOut for [Vec3A] {
-    fn len(&self) -> usize {
-        self.len()
-    }
-
-    #[inline]
-    fn start(&mut self, _: &PrimaryHit, _: &Matte) {
-        self.fill(Vec3A::ZERO);
-    }
-
-    /// `SampleResult::add_light`'s radiance, in one SIMD operation per step (same bits).
-    #[inline]
-    fn add_light(&mut self, _: Term, reflectance: Vec3, arriving: &[Vec3A]) {
-        let reflectance = Vec3A::from(reflectance);
-        for (o, &a) in self.iter_mut().zip(arriving) {
-            *o += reflectance * a;
-        }
-    }
-}
-
-/// What [`Tracer::shade_runs`](super::Tracer::shade_runs) keeps of each sample at a camera hit
-/// of its own: everything ([`SampleResult`], for AOVs) or the radiance alone (`Vec3A`, for the
-/// beauty image), each with the same radiance bit for bit.
+/// What a sample keeps, in a run at one hit ([`SampleOut`]) or at a camera hit of its own
+/// ([`Tracer::shade_runs`](super::Tracer::shade_runs)): everything ([`SampleResult`], for
+/// AOVs) or the radiance alone (`Vec3A`, for the beauty image), each with the same radiance
+/// bit for bit.
 pub trait OwnSample: Copy {
     /// A sample whose camera ray escaped, seeing `background`.
     fn missed(background: Vec3) -> Self;

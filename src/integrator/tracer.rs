@@ -220,7 +220,7 @@ impl Tracer {
     ) {
         let n = count as usize;
         out.clear();
-        out.resize(hits.len() * n, SampleResult { radiance: scene.background, ..Default::default() });
+        out.resize(hits.len() * n, SampleResult::missed(scene.background));
         if n == 0 || hits.is_empty() {
             return;
         }
