@@ -274,9 +274,9 @@ pub struct Accumulation {
     /// Samples accumulated per pixel: kept only for adaptive sampling, where pixels differ
     /// (empty otherwise: every pixel has `spp`). [`Accumulation::count`] reads either.
     pub counts: Vec<u32>,
-    /// Sum of squared sample luminance per pixel: kept only for adaptive sampling (empty
-    /// otherwise), as nothing else reads it.
-    pub sq_sums: Vec<f64>,
+    /// Per pixel, the sum of its samples' luminances' squared deviations from their mean: kept
+    /// only for adaptive sampling (empty otherwise), as nothing else reads it.
+    pub deviations: Vec<f64>,
     /// Per-pixel AOV sums (empty unless `RenderSettings::aovs`), of the radiance sums' kind.
     pub aovs: Sums<AovValues>,
     /// Where each pixel's camera ray ends, kept from the first frame after a reset for the
@@ -436,24 +436,55 @@ pub fn retired(count: u32, error: impl FnOnce() -> f64, target: f32) -> bool {
     count >= RenderSettings::ADAPTIVE_MIN_SPP && error() <= target as f64
 }
 
-/// Standard error of a pixel's mean luminance from the sum, count and sum of squared
-/// luminance of its samples (∞ below 2 samples).
+/// Standard error of a pixel's mean luminance from the count of its samples and the sum of
+/// their luminances' squared deviations from their mean (∞ below 2 samples).
 #[inline]
-pub fn standard_error(sum: DVec3, count: u32, sq_sum: f64) -> f64 {
+pub fn standard_error(count: u32, deviations: f64) -> f64 {
     let n = count as f64;
     if n < 2.0 {
         return f64::INFINITY;
     }
-    let mean = luminance(sum.as_vec3()) as f64 / n;
-    let var = ((sq_sum / n - mean * mean) * n / (n - 1.0)).max(0.0);
-    (var / n).sqrt()
+    (deviations.max(0.0) / (n * (n - 1.0))).sqrt()
+}
+
+/// The sum of `luminances`' squared deviations from their mean, both passes in f64: no
+/// cancellation, so samples that are all alike give 0 whatever their level.
+pub fn squared_deviations(luminances: &[f32]) -> f64 {
+    if luminances.is_empty() {
+        return 0.0;
+    }
+    let mean = luminances.iter().map(|&l| l as f64).sum::<f64>() / luminances.len() as f64;
+    luminances.iter().map(|&l| (l as f64 - mean).powi(2)).sum()
+}
+
+/// A pixel's squared deviations (`deviations`, of its `count` samples summing to `sum`) with
+/// a frame's added: its `frame_count` samples summing to `frame_sum` and their squared
+/// deviations from their own mean (Chan, Golub and LeVeque's pairwise update).
+#[inline]
+pub fn merge_deviations(deviations: &mut f64, (count, sum): (u32, DVec3), frame: (u32, DVec3, f64)) {
+    let (frame_count, frame_sum, frame_deviations) = frame;
+    if frame_count == 0 {
+        return;
+    }
+    *deviations += frame_deviations;
+    if count > 0 {
+        let (na, nb) = (count as f64, frame_count as f64);
+        let delta = luminance_f64(frame_sum) / nb - luminance_f64(sum) / na;
+        *deviations += delta * delta * (na * nb / (na + nb));
+    }
+}
+
+/// [`luminance`] in f64.
+#[inline]
+fn luminance_f64(c: DVec3) -> f64 {
+    c.dot(DVec3::new(0.2126, 0.7152, 0.0722))
 }
 
 impl Accumulation {
     /// Standard error of pixel `i`'s mean luminance from its samples so far (∞ below 2
     /// samples, and without squared sums: a render that is not adaptive keeps none).
     pub fn standard_error(&self, i: usize) -> f64 {
-        self.sq_sums.get(i).map_or(f64::INFINITY, |&sq_sum| standard_error(self.sums.get(i), self.count(i), sq_sum))
+        self.deviations.get(i).map_or(f64::INFINITY, |&d| standard_error(self.count(i), d))
     }
 
     /// Samples taken in all, and the samples uniform sampling would need for the same RMS of
@@ -499,7 +530,7 @@ impl Accumulation {
     pub fn buffer_bytes(&self) -> usize {
         self.sums.bytes()
             + size_of_val(&self.counts[..])
-            + size_of_val(&self.sq_sums[..])
+            + size_of_val(&self.deviations[..])
             + self.aovs.bytes()
             + size_of_val(&self.camera_ends[..])
             + size_of_val(&self.camera_light[..])
@@ -515,7 +546,7 @@ impl Accumulation {
         self.aovs.reset(0, layout.one_frame);
         let adaptive = if layout.adaptive { n } else { 0 };
         zeros(&mut self.counts, adaptive);
-        zeros(&mut self.sq_sums, adaptive);
+        zeros(&mut self.deviations, adaptive);
         self.camera_ends = Vec::new();
         self.camera_light = Vec::new();
         self.spp = 0;

@@ -18,7 +18,7 @@ use crate::{
     camera::{ActiveCamera, CameraRays, Cameras},
     geometry::{Ray, RayEnd, SceneGeometry, TraversalCounts, accel::AlphaCounts, counters},
     integrator::{LightGroup, LightRegistry, OwnSample, PrimaryHit, SampleResult, Scene, Tracer},
-    resources::{AOV_FLOATS, Accumulation, FrameSamples, RenderSettings, SceneProblems, luminance},
+    resources::{AOV_FLOATS, Accumulation, FrameSamples, RenderSettings, SceneProblems, luminance, squared_deviations},
     sampling::{SampleSets, dims},
     stats::{FrameStats, RayCounts, TraceSplit, cycle_count, cycles_since, query_timed_pixel, timed_pixel},
 };
@@ -367,7 +367,7 @@ fn trace_tile<C: CameraRays>(
     let pixels = ((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize;
     let mut sums = Vec::with_capacity(pixels);
     let mut counts = Vec::with_capacity(pixels);
-    let mut sq_sums = Vec::with_capacity(pixels);
+    let mut deviations = Vec::with_capacity(pixels);
     let mut aovs = Vec::with_capacity(if job.aovs { pixels } else { 0 });
     // Without jitter or lens every sample of a pixel has the same camera ray: it is traced once
     // per pixel, a row of the tile's pixels at a time (neighbouring rays travel together).
@@ -382,6 +382,13 @@ fn trace_tile<C: CameraRays>(
     let (mut row_sums, mut row_runs, mut row_samples, mut own_run) = (Vec::new(), Vec::new(), Vec::new(), 0);
     let mut row_radiance = Vec::new();
     let fixed_groups = scene.fixed_group_count();
+    // Whether adaptive sampling takes a run's spread from its sum ([`ShadedSum::values`]):
+    // until a run's sum does not tell its samples apart, which the runs at the tile's other
+    // pixels, lit by the same lights, likely do not either; from then on they are made one by
+    // one.
+    let mut sums_tell_samples = true;
+    // One pixel's sample luminances, where adaptive sampling makes them one by one.
+    let mut luminances = Vec::new();
     for y in tile.y0..tile.y1 {
         // Rows traced before their pixels: shared camera hits, or pooled runs of own rays.
         if one_ray_per_pixel || pooled_own {
@@ -434,7 +441,8 @@ fn trace_tile<C: CameraRays>(
             tracer.timing_queries = job.time_split && query_timed_pixel(pixel);
             let start = tracer.timing.then(cycle_count);
             let mut sum = Vec3::ZERO;
-            let mut sq_sum = 0.0;
+            // The spread of the pixel's sample luminances (adaptive sampling).
+            let mut deviation = 0.0;
             let mut aov = [0.0; AOV_FLOATS];
             // A pixel's samples are numbered 0, 1, … (from `first_sample` for a part of a
             // render) whatever the others do (adaptive sampling retires pixels independently).
@@ -448,7 +456,7 @@ fn trace_tile<C: CameraRays>(
             if count == 0 {
                 sums.push(sum);
                 counts.push(0);
-                sq_sums.push(0.0);
+                deviations.push(0.0);
                 if job.aovs {
                     aovs.push(aov);
                 }
@@ -469,22 +477,33 @@ fn trace_tile<C: CameraRays>(
                     let mut fixed_radiance = [Vec3A::ZERO];
                     tracer.shade_fixed(scene, hit, true, fixed_light(k), &mut fixed_radiance[..]);
                     let fixed_radiance = fixed_radiance[0];
-                    // Without adaptive sampling (which needs each sample's luminance) the
-                    // samples' sum alone, made without per-sample values where the lights allow
-                    // ([`Tracer::shade_sum`]). A finite sum means every sample was finite (∞ and
-                    // NaN survive a sum); otherwise the samples are made (and their rays traced
-                    // and counted) again, one by one, and the non-finite ones dropped.
-                    let quick = (!job.adaptive)
+                    // The samples' sum alone, made without per-sample values where the lights
+                    // allow ([`Tracer::shade_sum`]), and for adaptive sampling their luminances'
+                    // spread, where the sum says what each sample is (two values). A finite sum
+                    // means every sample was finite (∞ and NaN survive a sum); otherwise the
+                    // samples are made (and their rays traced and counted) again, one by one,
+                    // and the non-finite ones dropped.
+                    let quick = (!job.adaptive || sums_tell_samples)
                         .then(|| {
-                            let sampled = if pooled {
-                                row_sums[k]
-                            } else {
-                                tracer.shade_sum(scene, hit, (pixel, first, count), true).radiance
-                            };
-                            sampled + fixed_radiance * count as f32
+                            if pooled {
+                                return Some(row_sums[k] + fixed_radiance * count as f32);
+                            }
+                            let run = tracer.shade_sum(scene, hit, (pixel, first, count), true);
+                            if job.adaptive {
+                                let Some(values) = run.values else {
+                                    // Nor, likely, at the tile's other pixels.
+                                    sums_tell_samples = false;
+                                    return None;
+                                };
+                                deviation =
+                                    values.squared_deviations(count, |v| luminance((v + fixed_radiance).into()));
+                            }
+                            Some(run.radiance + fixed_radiance * count as f32)
                         })
+                        .flatten()
                         .filter(|&t| all_finite(t));
                     let total = quick.unwrap_or_else(|| {
+                        deviation = 0.0;
                         radiance.resize(count as usize, Vec3A::ZERO);
                         tracer.shade(scene, hit, pixel, first, true, &mut radiance[..]);
                         let mut total = Vec3A::ZERO;
@@ -496,7 +515,7 @@ fn trace_tile<C: CameraRays>(
                             }
                             total += r;
                             if job.adaptive {
-                                sq_sum += luminance(r.into()).powi(2);
+                                luminances.push(luminance(r.into()));
                             }
                         }
                         total
@@ -511,16 +530,30 @@ fn trace_tile<C: CameraRays>(
                     if pooled_aovs {
                         samples.extend_from_slice(&row_samples[k * count as usize..][..count as usize]);
                     } else {
-                        // Without adaptive sampling, the run's sums alone, as for the beauty
-                        // image: the AOVs that the hit decides are the same for every sample.
-                        // Where a sum is not finite the samples are made one by one, as there.
-                        let summed = (!job.adaptive)
-                            .then(|| fixed.with_run(&tracer.shade_sum(scene, hit, (pixel, first, count), false), count))
+                        // The run's sums alone, as for the beauty image: the AOVs that the hit
+                        // decides are the same for every sample. Where a sum is not finite (or
+                        // adaptive sampling's spread is not known from it) the samples are made
+                        // one by one, as there.
+                        let summed = (!job.adaptive || sums_tell_samples)
+                            .then(|| {
+                                let run = tracer.shade_sum(scene, hit, (pixel, first, count), false);
+                                if job.adaptive {
+                                    let Some(values) = run.values else {
+                                        sums_tell_samples = false;
+                                        return None;
+                                    };
+                                    let fixed = Vec3A::from(fixed.radiance);
+                                    deviation = values.squared_deviations(count, |v| luminance((v + fixed).into()));
+                                }
+                                Some(fixed.with_run(&run, count))
+                            })
+                            .flatten()
                             .filter(|(radiance, values)| all_finite(*radiance) && values.iter().all(|v| v.is_finite()));
                         if let Some((radiance, values)) = summed {
                             sum = radiance.into();
                             aov = values;
                         } else {
+                            deviation = 0.0;
                             // `shade` sets every field of every sample: no need to clear them first.
                             samples.resize(count as usize, SampleResult::default());
                             tracer.shade(scene, hit, pixel, first, false, &mut samples[..]);
@@ -559,7 +592,7 @@ fn trace_tile<C: CameraRays>(
             let mut add = |radiance: Vec3| {
                 sum += radiance;
                 if job.adaptive {
-                    sq_sum += luminance(radiance).powi(2);
+                    luminances.push(luminance(radiance));
                 }
             };
             if job.aovs {
@@ -585,7 +618,11 @@ fn trace_tile<C: CameraRays>(
             }
             sums.push(sum);
             counts.push(count);
-            sq_sums.push(sq_sum);
+            if !luminances.is_empty() {
+                deviation = squared_deviations(&luminances);
+                luminances.clear();
+            }
+            deviations.push(deviation);
             if job.aovs {
                 aovs.push(aov);
             }
@@ -595,7 +632,7 @@ fn trace_tile<C: CameraRays>(
         }
     }
     let (traversal, alpha) = (counters::take(), AlphaCounts::take());
-    acc.add(&sums, &counts, &sq_sums, &aovs);
+    acc.add(&sums, &counts, &deviations, &aovs);
     let active = counts.iter().filter(|&&c| c > 0).count();
     TileResult {
         rays: std::mem::take(&mut tracer.rays),

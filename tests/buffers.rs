@@ -53,14 +53,14 @@ fn a_render_without_a_target_error_keeps_no_counts_or_squared_sums() {
     let mut r = renderer(4, None, false);
     r.render(8).unwrap();
     let acc = r.world().resource::<Accumulation>();
-    assert!(acc.counts.is_empty() && acc.sq_sums.is_empty());
+    assert!(acc.counts.is_empty() && acc.deviations.is_empty());
     assert!(matches!(acc.sums, Sums::Frames(ref v) if v.len() == PIXELS));
     assert!((0..PIXELS).all(|i| acc.count(i) == 8));
 
     let mut r = renderer(16, Some(0.05), false);
     r.render(32).unwrap();
     let acc = r.world().resource::<Accumulation>();
-    assert_eq!((acc.counts.len(), acc.sq_sums.len()), (PIXELS, PIXELS));
+    assert_eq!((acc.counts.len(), acc.deviations.len()), (PIXELS, PIXELS));
     assert!(acc.counts.contains(&16) && acc.counts.contains(&32), "some pixels retire early");
 }
 

@@ -7,7 +7,7 @@ use std::any::TypeId;
 use bevy_ecs::prelude::*;
 use glam::Vec3A;
 
-use super::{RunPoint, Scene, Tracer};
+use super::{RunPoint, Scene, Tracer, sample::TwoValues};
 use crate::{
     components::Transform,
     frame::{FrameStage, LightUpdates, describe_change, short_type_name},
@@ -58,15 +58,52 @@ pub trait LightGroup: Send + Sync {
 }
 
 /// A run's light summed over its samples, for callers that need only the sum (the beauty
-/// image without adaptive sampling): lights that can add a whole run at once (cosine runs in
-/// lanes, which count their blocked rays) add it to `light`; the others still
-/// add theirs sample by sample to the run's `arriving`, and set `per_sample`.
-#[derive(Clone, Copy, Debug, Default)]
+/// image) or the sum and each sample's value where it takes two (adaptive sampling): lights
+/// that can add a whole run at once (cosine runs in lanes, which count their blocked rays) add
+/// it here ([`RunSum::add_counted`]); the others still add theirs sample by sample to the run's
+/// `arriving`, and say so ([`RunSum::add_per_sample`]).
+#[derive(Clone, Copy, Debug)]
 pub struct RunSum {
-    /// Light arriving, summed over the run's samples.
-    pub light: Vec3A,
+    light: Vec3A,
+    per_sample: bool,
+    values: Option<TwoValues>,
+}
+
+impl Default for RunSum {
+    fn default() -> Self {
+        RunSum { light: Vec3A::ZERO, per_sample: false, values: Some(TwoValues::default()) }
+    }
+}
+
+impl RunSum {
+    /// Adds a run of `samples` samples whose light is `values`.
+    #[inline]
+    pub fn add_counted(&mut self, values: TwoValues, samples: u32) {
+        self.light += values.sum(samples);
+        self.values = self.values.and_then(|v| v.plus(&values, samples));
+    }
+
+    /// Records that some of the run's light went to `arriving` sample by sample.
+    #[inline]
+    pub fn add_per_sample(&mut self) {
+        self.per_sample = true;
+        self.values = None;
+    }
+
+    /// The light added here, summed over the run's samples.
+    pub fn light(&self) -> Vec3A {
+        self.light
+    }
+
     /// Whether some of the run's light went to `arriving` instead.
-    pub per_sample: bool,
+    pub fn per_sample(&self) -> bool {
+        self.per_sample
+    }
+
+    /// Each sample's light, where all of it was added here and it takes at most two values.
+    pub fn values(&self) -> Option<TwoValues> {
+        self.values
+    }
 }
 
 struct Group<P>(Vec<P>);

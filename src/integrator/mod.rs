@@ -13,5 +13,5 @@ pub mod sample;
 pub mod tracer;
 
 pub use light_groups::{LightGroup, LightRegistry, RunSum, register_light};
-pub use sample::{OwnSample, PrimaryHit, SampleOut, SampleResult, ShadedSum};
+pub use sample::{OwnSample, PrimaryHit, SampleOut, SampleResult, ShadedSum, TwoValues};
 pub use tracer::{RunPoint, Scene, Tracer};

@@ -86,6 +86,72 @@ pub struct ShadedSum {
     pub ao: f32,
     /// Reflected radiance of the diffuse-term lights.
     pub direct: Vec3A,
+    /// Each sample's radiance, where the run's takes at most two values (one light's counted
+    /// run, every other light the same for every sample): what adaptive sampling needs of the
+    /// samples without making them.
+    pub values: Option<TwoValues>,
+}
+
+/// A value over a run of samples that takes one of two: `clear` for all but `dark` of them,
+/// `floor` for those (a cosine run that counts its blocked rays).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TwoValues {
+    /// The value of the samples that are not dark.
+    pub clear: Vec3A,
+    /// The value of the dark samples.
+    pub floor: Vec3A,
+    /// How many samples are dark.
+    pub dark: u32,
+}
+
+impl TwoValues {
+    /// `value` for every sample.
+    pub fn constant(value: Vec3A) -> Self {
+        TwoValues { clear: value, floor: value, dark: 0 }
+    }
+
+    /// The one value of a run of `samples` where every sample has it.
+    fn only(&self, samples: u32) -> Option<Vec3A> {
+        if self.dark == 0 || self.clear == self.floor {
+            Some(self.clear)
+        } else if self.dark == samples {
+            Some(self.floor)
+        } else {
+            None
+        }
+    }
+
+    /// Each sample's value plus its value in `other` (the same run of `samples`), where that
+    /// sum takes at most two values too: one of the two is the same for every sample. `None`
+    /// where both vary, for which samples are dark in one and in the other is not known.
+    pub fn plus(&self, other: &TwoValues, samples: u32) -> Option<TwoValues> {
+        if let Some(v) = other.only(samples) {
+            Some(TwoValues { clear: self.clear + v, floor: self.floor + v, dark: self.dark })
+        } else {
+            let v = self.only(samples)?;
+            Some(TwoValues { clear: v + other.clear, floor: v + other.floor, dark: other.dark })
+        }
+    }
+
+    /// Both values multiplied by `by`.
+    pub fn scaled(&self, by: Vec3A) -> TwoValues {
+        TwoValues { clear: self.clear * by, floor: self.floor * by, ..*self }
+    }
+
+    /// The values' sum over a run of `samples`.
+    pub fn sum(&self, samples: u32) -> Vec3A {
+        // Whole numbers of samples (at most 2²⁴): exact as floats.
+        self.clear * (samples - self.dark) as f32 + self.floor * self.dark as f32
+    }
+
+    /// The sum over a run of `samples` of `f(value)`'s squared deviations from its mean.
+    pub fn squared_deviations(&self, samples: u32, f: impl Fn(Vec3A) -> f32) -> f64 {
+        if self.dark == 0 || self.dark == samples {
+            return 0.0;
+        }
+        let (clear, dark) = ((samples - self.dark) as f64, self.dark as f64);
+        clear * dark / samples as f64 * (f(self.clear) as f64 - f(self.floor) as f64).powi(2)
+    }
 }
 
 /// What [`Tracer::shade`](super::Tracer::shade) keeps of each of a run of samples at one hit: everything

@@ -6,7 +6,7 @@ use glam::{Vec2, Vec3, Vec3A};
 use super::{
     direction_rays::{CosinePoint, DirectionRays},
     light_groups::{LightGroup, RunSum},
-    sample::{OwnSample, PrimaryHit, SampleOut, SampleResult, ShadedSum},
+    sample::{OwnSample, PrimaryHit, SampleOut, SampleResult, ShadedSum, TwoValues},
 };
 use crate::{
     components::Matte,
@@ -524,14 +524,16 @@ impl Tracer {
         skip_black: bool,
     ) -> ShadedSum {
         let (at, spawn) = scene.lit_point(&primary.hit, scene.sets.frame_symmetry(pixel));
-        let mut total = ShadedSum::default();
+        let mut total = ShadedSum { values: Some(TwoValues::default()), ..Default::default() };
         let sample = (pixel, first, count as usize);
         self.shade_groups(scene, (&at, &spawn), sample, skip_black, true, |term, reflectance, arriving, sum| {
-            let mut light = sum.light;
-            if sum.per_sample {
+            let mut light = sum.light();
+            if sum.per_sample() {
                 light += arriving.iter().sum::<Vec3A>();
             }
-            let reflected = Vec3A::from(reflectance) * light;
+            let reflectance = Vec3A::from(reflectance);
+            total.values = total.values.zip(sum.values()).and_then(|(t, v)| t.plus(&v.scaled(reflectance), count));
+            let reflected = reflectance * light;
             total.radiance += reflected;
             match term {
                 Term::Ambient => total.ao += light.element_sum() / 3.0,
@@ -574,7 +576,7 @@ impl Tracer {
             if let Some(start) = start {
                 self.split.add_term(term, cycles_since(start), self.timing_queries);
             }
-            self.arriving_zero = sums && !sum.per_sample;
+            self.arriving_zero = sums && !sum.per_sample();
             add(term, reflectance, &arriving, sum);
         }
         self.arriving = arriving;
@@ -621,7 +623,7 @@ impl Tracer {
             }
             // Every way below adds sample by sample.
             if let Some(sum) = sum.as_deref_mut() {
-                sum.per_sample = true;
+                sum.add_per_sample();
             }
             if P::DIMS > 0 {
                 values.resize(n * P::DIMS as usize, Vec2::ZERO);

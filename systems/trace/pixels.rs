@@ -7,7 +7,7 @@ use glam::{DVec3, Vec3};
 
 use crate::{
     geometry::RayEnd,
-    resources::{AOV_FLOATS, Accumulation, AovValues, Sums, retired, standard_error},
+    resources::{AOV_FLOATS, Accumulation, AovValues, Sums, merge_deviations, retired, standard_error},
 };
 
 /// A rectangle of pixels traced as one task.
@@ -29,7 +29,7 @@ pub(super) struct TilePixels<'a> {
     one_frame_sums: Vec<&'a mut [Vec3]>,
     sums: Vec<&'a mut [DVec3]>,
     counts: Vec<&'a mut [u32]>,
-    sq_sums: Vec<&'a mut [f64]>,
+    deviations: Vec<&'a mut [f64]>,
     one_frame_aovs: Vec<&'a mut [AovValues]>,
     aovs: Vec<&'a mut [[f64; AOV_FLOATS]]>,
     frame_sums: Vec<&'a mut [Vec3]>,
@@ -95,25 +95,37 @@ impl TilePixels<'_> {
         self.counts.get(r).map_or(self.spp, |row| row[c])
     }
 
+    /// The radiance sum of the pixel at row `r`, column `c` of the tile.
+    #[inline]
+    fn sum(&self, r: usize, c: usize) -> DVec3 {
+        self.sums.get(r).map_or_else(|| self.one_frame_sums[r][c].as_dvec3(), |row| row[c])
+    }
+
     /// Whether adaptive sampling has retired pixel `i` for target error `e` (as
     /// [`Accumulation::pixel_done`]).
     #[inline]
     pub(super) fn pixel_done(&self, i: usize, target: Option<f32>) -> bool {
         let (r, c) = self.at(i);
-        target.is_some_and(|e| {
-            let sum = self.sums.get(r).map_or_else(|| self.one_frame_sums[r][c].as_dvec3(), |row| row[c]);
-            retired(self.count(i), || standard_error(sum, self.count(i), self.sq_sums[r][c]), e)
-        })
+        target.is_some_and(|e| retired(self.count(i), || standard_error(self.count(i), self.deviations[r][c]), e))
     }
 
-    /// Adds the tile's frame samples, row-major over the tile, to its pixels.
-    pub(super) fn add(&mut self, sums: &[Vec3], counts: &[u32], sq_sums: &[f32], aovs: &[AovValues]) {
+    /// Adds the tile's frame samples, row-major over the tile, to its pixels: their sums,
+    /// counts, luminances' squared deviations from their mean (adaptive sampling) and AOVs.
+    pub(super) fn add(&mut self, sums: &[Vec3], counts: &[u32], deviations: &[f64], aovs: &[AovValues]) {
         let w = (self.tile.x1 - self.tile.x0) as usize;
+        if !self.deviations.is_empty() {
+            // Before the sums and counts take the frame's: merged with the pixel's earlier mean.
+            for (i, ((&sum, &count), &frame_deviations)) in sums.iter().zip(counts).zip(deviations).enumerate() {
+                let (r, c) = (i / w, i % w);
+                let pixel = (self.tile.y0 as usize + r) * self.width as usize + self.tile.x0 as usize + c;
+                let before = (self.count(pixel), self.sum(r, c));
+                merge_deviations(&mut self.deviations[r][c], before, (count, sum.as_dvec3(), frame_deviations));
+            }
+        }
         // 0 + x rounds alike in f32 and f64: one frame's f32 sum is the f64 sum's value.
         fold(&mut self.one_frame_sums, sums, w, |s, a| *s += *a);
         fold(&mut self.sums, sums, w, |s, a| *s += a.as_dvec3());
         fold(&mut self.counts, counts, w, |s, a| *s += a);
-        fold(&mut self.sq_sums, sq_sums, w, |s, a| *s += *a as f64);
         fold(&mut self.one_frame_aovs, aovs, w, |s, a| s.iter_mut().zip(a).for_each(|(s, a)| *s += *a));
         fold(&mut self.aovs, aovs, w, |s, a| s.iter_mut().zip(a).for_each(|(s, a)| *s += *a as f64));
         fold(&mut self.frame_sums, sums, w, |s, a| *s = *a);
@@ -145,7 +157,7 @@ pub(super) struct Band<'a> {
     one_frame_sums: &'a mut [Vec3],
     sums: &'a mut [DVec3],
     counts: &'a mut [u32],
-    sq_sums: &'a mut [f64],
+    deviations: &'a mut [f64],
     one_frame_aovs: &'a mut [AovValues],
     aovs: &'a mut [[f64; AOV_FLOATS]],
     frame_sums: &'a mut [Vec3],
@@ -161,7 +173,7 @@ impl<'a> Band<'a> {
         let mut one_frame_sums = tile_rows(self.one_frame_sums, width, size);
         let mut sums = tile_rows(self.sums, width, size);
         let mut counts = tile_rows(self.counts, width, size);
-        let mut sq_sums = tile_rows(self.sq_sums, width, size);
+        let mut deviations = tile_rows(self.deviations, width, size);
         let mut one_frame_aovs = tile_rows(self.one_frame_aovs, width, size);
         let mut aovs = tile_rows(self.aovs, width, size);
         let mut frame_sums = tile_rows(self.frame_sums, width, size);
@@ -176,7 +188,7 @@ impl<'a> Band<'a> {
                 one_frame_sums: one_frame_sums.next().unwrap_or_default(),
                 sums: sums.next().unwrap_or_default(),
                 counts: counts.next().unwrap_or_default(),
-                sq_sums: sq_sums.next().unwrap_or_default(),
+                deviations: deviations.next().unwrap_or_default(),
                 one_frame_aovs: one_frame_aovs.next().unwrap_or_default(),
                 aovs: aovs.next().unwrap_or_default(),
                 frame_sums: frame_sums.next().unwrap_or_default(),
@@ -198,7 +210,7 @@ pub(super) fn bands<'a>(acc: &'a mut Accumulation, frame_sums: &'a mut [Vec3], w
     let mut one_frame_sums = split(one_frame_sums, len, count);
     let mut sums = split(sums, len, count);
     let mut counts = split(&mut acc.counts, len, count);
-    let mut sq_sums = split(&mut acc.sq_sums, len, count);
+    let mut deviations = split(&mut acc.deviations, len, count);
     let (one_frame_aovs, aovs): (&mut [AovValues], &mut [[f64; AOV_FLOATS]]) = match &mut acc.aovs {
         Sums::OneFrame(v) => (v, &mut []),
         Sums::Frames(v) => (&mut [], v),
@@ -218,7 +230,7 @@ pub(super) fn bands<'a>(acc: &'a mut Accumulation, frame_sums: &'a mut [Vec3], w
                 one_frame_sums: one_frame_sums.next()?,
                 sums: sums.next()?,
                 counts: counts.next()?,
-                sq_sums: sq_sums.next()?,
+                deviations: deviations.next()?,
                 one_frame_aovs: one_frame_aovs.next()?,
                 aovs: aovs.next()?,
                 frame_sums: frame.next()?,

@@ -15,6 +15,7 @@ use crate::{
 };
 #[cfg(target_arch = "x86_64")]
 use crate::{
+    integrator::TwoValues,
     sampling::{cmj::QuadrantPattern, cosine_table::TableOrder, warp::cosine_hemisphere_lanes},
     simd::{CompressLanes, Kernel},
 };
@@ -182,7 +183,7 @@ impl DirectionRays {
             }
             RunOut::Sum(samples, sum) => {
                 let dark = self.dark.iter().map(|d| d.count_ones()).sum();
-                add_counted(sum, (clear, floor), samples, dark);
+                sum.add_counted(TwoValues { clear, floor, dark }, samples as u32);
             }
         }
         counts
@@ -248,17 +249,8 @@ impl DirectionRays {
             }
         }
         if let RunOut::Sum(samples, sum) = out {
-            add_counted(sum, (clear, floor), samples, dark);
+            sum.add_counted(TwoValues { clear, floor, dark }, samples as u32);
         }
         (traced as u64, cycles)
     }
-}
-
-/// Adds to `sum` the light of `samples` samples, `dark` of them blocked: `floor` for each of
-/// those, `clear` for the others.
-#[cfg(target_arch = "x86_64")]
-#[inline(always)]
-fn add_counted(sum: &mut Vec3A, (clear, floor): (Vec3A, Vec3A), samples: usize, dark: u32) {
-    // Whole numbers of samples (at most 2²⁴): exact as floats.
-    *sum += clear * (samples as u32 - dark) as f32 + floor * dark as f32;
 }

@@ -120,7 +120,7 @@ fn quadrant_lanes(needs: u32, negative: [u32; 2]) -> QuadrantLanes {
 #[cfg(target_arch = "x86_64")]
 enum RunOut<'a> {
     Each(&'a mut [Vec3A]),
-    Sum(usize, &'a mut Vec3A),
+    Sum(usize, &'a mut RunSum),
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -128,7 +128,7 @@ impl<'a> RunOut<'a> {
     /// Per-sample output, or the sum where one is asked for.
     fn new(arriving: &'a mut [Vec3A], sum: Option<&'a mut RunSum>) -> Self {
         match sum {
-            Some(sum) => RunOut::Sum(arriving.len(), &mut sum.light),
+            Some(sum) => RunOut::Sum(arriving.len(), sum),
             None => RunOut::Each(arriving),
         }
     }
