@@ -8,21 +8,6 @@
 
 use crate::random::mix64;
 
-/// 2-D Sobol' generator matrices (32-bit columns): dimension 0 is the van der Corput sequence,
-/// dimension 1 follows v_i = v_{i−1} ⊕ (v_{i−1} >> 1) (the (0,2)-sequence's second component).
-const SOBOL: [[u32; 32]; 2] = {
-    let mut m = [[0u32; 32]; 2];
-    let mut i = 0;
-    let mut v = 1u32 << 31;
-    while i < 32 {
-        m[0][i] = 1 << (31 - i);
-        m[1][i] = v;
-        v ^= v >> 1;
-        i += 1;
-    }
-    m
-};
-
 /// All 24 permutations of four base-4 digits.
 const PERMUTATIONS: [[u8; 4]; 24] = {
     let mut p = [[0u8; 4]; 24];
@@ -88,71 +73,25 @@ fn fast_owen_of_reversed(mut v: u32, seed: u32) -> u32 {
     v.reverse_bits()
 }
 
-/// Bits of a sample index that [`LOW_SOBOL`] tables.
-const LOW_BITS: u32 = 10;
-
-/// Both dimensions' Sobol' bits of every index below 2^[`LOW_BITS`], bit-reversed (as
-/// [`fast_owen`] first reverses them): a pixel's sample indices differ only in their low bits,
-/// and the matrices are linear over GF(2), so a sample's bits are the XOR of its pixel's high
-/// bits' and its low bits' (the bit reversal is linear too).
-static LOW_SOBOL: [[u32; 1 << LOW_BITS]; 2] = {
-    let mut t = [[0u32; 1 << LOW_BITS]; 2];
-    let mut i = 0;
-    while i < 1 << LOW_BITS {
-        let mut dim = 0;
-        while dim < 2 {
-            let mut v = 0;
-            let mut bit = 0;
-            while bit < LOW_BITS as usize {
-                if i >> bit & 1 == 1 {
-                    v ^= SOBOL[dim][bit];
-                }
-                bit += 1;
-            }
-            t[dim][i] = v.reverse_bits();
-            dim += 1;
-        }
-        i += 1;
-    }
-    t
-};
-
-/// Dimension 1's matrix applied to each byte of the index: `SOBOL1_BYTES[k][b]` is the XOR of
-/// the columns 8k..8k+8 selected by the bits of `b`.
-const SOBOL1_BYTES: [[u32; 256]; 4] = {
-    let mut t = [[0u32; 256]; 4];
-    let mut k = 0;
-    while k < 4 {
-        let mut b = 0;
-        while b < 256 {
-            let mut v = 0;
-            let mut bit = 0;
-            while bit < 8 {
-                if b >> bit & 1 == 1 {
-                    v ^= SOBOL[1][8 * k + bit];
-                }
-                bit += 1;
-            }
-            t[k][b] = v;
-            b += 1;
-        }
-        k += 1;
-    }
-    t
-};
-
 /// Sobol' dimension `dim` (0 or 1) of index `a`, as 32 fixed-point bits.
 #[inline]
 pub fn sobol_bits(a: u32, dim: usize) -> u32 {
-    if dim == 0 {
-        // Dimension 0's matrix is the bit reversal (van der Corput).
-        return a.reverse_bits();
-    }
-    let b = a.to_le_bytes();
-    SOBOL1_BYTES[0][b[0] as usize]
-        ^ SOBOL1_BYTES[1][b[1] as usize]
-        ^ SOBOL1_BYTES[2][b[2] as usize]
-        ^ SOBOL1_BYTES[3][b[3] as usize]
+    // Dimension 0's matrix is the bit reversal (van der Corput).
+    if dim == 0 { a.reverse_bits() } else { pascal(a).reverse_bits() }
+}
+
+/// Dimension 1's matrix, bit-reversed: column b of the matrix, reversed, holds row b of
+/// Pascal's triangle mod 2 (bit r is C(b, r) mod 2, which by Lucas' theorem is 1 where the
+/// bits of r are a subset of b's), so bit r of the product is the XOR of the index's bits b
+/// that are supersets of r: five shift-and-XOR steps, one per bit of a bit position, in
+/// plain arithmetic that vectorises without tables.
+#[inline(always)]
+fn pascal(mut a: u32) -> u32 {
+    a ^= (a >> 1) & 0x5555_5555;
+    a ^= (a >> 2) & 0x3333_3333;
+    a ^= (a >> 4) & 0x0f0f_0f0f;
+    a ^= (a >> 8) & 0x00ff_00ff;
+    a ^ (a >> 16)
 }
 
 /// The Z-order Sobol' sampler's fixed parameters.
@@ -277,29 +216,18 @@ crate::simd::multiversion! {
     fn fill_samples(log2_spp: u32, pixel_and_digits: [u64; 2], first: u32, dim_key: u64, seeds: (u32, u32), out: &mut [glam::Vec2]) {
         let [pixel, high] = pixel_and_digits;
         let to_unit = |bits: u32| (bits as f32 * (1.0 / 4_294_967_296.0)).min(super::ONE_MINUS_EPSILON);
-        // The pixel's high bits' Sobol' bits, reversed, for runs whose indices fit the table.
-        let tabled = log2_spp <= LOW_BITS;
-        let high_bits = [0, 1].map(|dim| sobol_bits(high as u32, dim).reverse_bits());
-        // A block of samples at a time: their permuted indices, then their Sobol' bits, the
+        // A block of samples at a time: their permuted indices, then their Sobol' bits (both
+        // matrices in arithmetic, reversed as the scrambling first reverses them), the
         // scrambling and the conversion in a loop of its own, which the compiler vectorises.
         const BLOCK: usize = 64;
         let mut lows = [0u32; BLOCK];
         for (b, out) in out.chunks_mut(BLOCK).enumerate() {
             let lows = &mut lows[..out.len()];
             permuted_lows(log2_spp, pixel, first.wrapping_add((b * BLOCK) as u32), dim_key, lows);
-            let point = |[x, y]: [u32; 2]| {
-                glam::Vec2::new(to_unit(fast_owen_of_reversed(x, seeds.0)), to_unit(fast_owen_of_reversed(y, seeds.1)))
-            };
-            if tabled {
-                // `low` is below 2^log2_spp, within the table: the mask only spares a bounds check.
-                const MASK: u32 = (1 << LOW_BITS) - 1;
-                for (o, &low) in out.iter_mut().zip(lows.iter()) {
-                    *o = point([0, 1].map(|dim| high_bits[dim] ^ LOW_SOBOL[dim][(low & MASK) as usize]));
-                }
-            } else {
-                for (o, &low) in out.iter_mut().zip(lows.iter()) {
-                    *o = point([0, 1].map(|dim| sobol_bits(high as u32 | low, dim).reverse_bits()));
-                }
+            for (o, &low) in out.iter_mut().zip(lows.iter()) {
+                let index = high as u32 | low;
+                let (x, y) = (fast_owen_of_reversed(index, seeds.0), fast_owen_of_reversed(pascal(index), seeds.1));
+                *o = glam::Vec2::new(to_unit(x), to_unit(y));
             }
         }
     }
@@ -309,6 +237,21 @@ crate::simd::multiversion! {
 mod tests {
     use super::*;
 
+    /// 2-D Sobol' generator matrices (32-bit columns): dimension 0 is the van der Corput sequence,
+    /// dimension 1 follows v_i = v_{i−1} ⊕ (v_{i−1} >> 1) (the (0,2)-sequence's second component).
+    const SOBOL: [[u32; 32]; 2] = {
+        let mut m = [[0u32; 32]; 2];
+        let mut i = 0;
+        let mut v = 1u32 << 31;
+        while i < 32 {
+            m[0][i] = 1 << (31 - i);
+            m[1][i] = v;
+            v ^= v >> 1;
+            i += 1;
+        }
+        m
+    };
+
     #[test]
     fn first_sobol_points_are_the_classic_02_sequence() {
         let pts: Vec<(u32, u32)> = (0..4).map(|i| (sobol_bits(i, 0) >> 30, sobol_bits(i, 1) >> 30)).collect();
@@ -317,7 +260,7 @@ mod tests {
     }
 
     #[test]
-    fn table_driven_sobol_equals_the_matrix_product() {
+    fn sobol_bits_equal_the_matrix_product() {
         let mut x = 0x1234_5678u32;
         for _ in 0..1000 {
             x = x.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
