@@ -17,7 +17,7 @@ use pixels::{Band, KeptRow, TilePixels, bands};
 use crate::{
     camera::{ActiveCamera, CameraRays, Cameras},
     geometry::{Ray, RayEnd, SceneGeometry, TraversalCounts, accel::AlphaCounts, counters},
-    integrator::{LightGroup, LightRegistry, OwnSample, PrimaryHit, SampleResult, Scene, Tracer},
+    integrator::{LightGroup, LightRegistry, OwnSample, PrimaryHit, SampleResult, Scene, ShadedSum, Tracer},
     resources::{AOV_FLOATS, Accumulation, FrameSamples, RenderSettings, SceneProblems, luminance, squared_deviations},
     sampling::{SampleSets, dims},
     stats::{FrameStats, RayCounts, TraceSplit, cycle_count, cycles_since, query_timed_pixel, timed_pixel},
@@ -345,6 +345,22 @@ struct TileScratch {
     own: OwnRays,
 }
 
+/// What adaptive sampling needs of a run of `count` samples summed at a shared hit (`run`), each
+/// sample `fixed` brighter: the squared deviations of their luminances from their mean, from
+/// the run's two values ([`ShadedSum::values`]). `None` where the sum does not tell its samples
+/// apart, which also clears `sums_tell_samples`: the runs at the tile's other pixels, lit by
+/// the same lights, likely do not either. 0 without adaptive sampling, which does not ask.
+fn spread_of_sum(run: &ShadedSum, count: u32, fixed: Vec3A, job: &Job, sums_tell_samples: &mut bool) -> Option<f64> {
+    if !job.adaptive {
+        return Some(0.0);
+    }
+    let Some(values) = run.values else {
+        *sums_tell_samples = false;
+        return None;
+    };
+    Some(values.squared_deviations(count, |v| luminance((v + fixed).into())))
+}
+
 /// Traces one tile and adds its samples to its pixels (`acc`).
 fn trace_tile<C: CameraRays>(
     scene: &Scene,
@@ -382,10 +398,8 @@ fn trace_tile<C: CameraRays>(
     let (mut row_sums, mut row_runs, mut row_samples, mut own_run) = (Vec::new(), Vec::new(), Vec::new(), 0);
     let mut row_radiance = Vec::new();
     let fixed_groups = scene.fixed_group_count();
-    // Whether adaptive sampling takes a run's spread from its sum ([`ShadedSum::values`]):
-    // until a run's sum does not tell its samples apart, which the runs at the tile's other
-    // pixels, lit by the same lights, likely do not either; from then on they are made one by
-    // one.
+    // Whether adaptive sampling takes a run's spread from its sum ([`spread_of_sum`]); once a
+    // sum does not tell its samples apart, the tile's runs are made one by one.
     let mut sums_tell_samples = true;
     // One pixel's sample luminances, where adaptive sampling makes them one by one.
     let mut luminances = Vec::new();
@@ -489,15 +503,7 @@ fn trace_tile<C: CameraRays>(
                                 return Some(row_sums[k] + fixed_radiance * count as f32);
                             }
                             let run = tracer.shade_sum(scene, hit, (pixel, first, count), true);
-                            if job.adaptive {
-                                let Some(values) = run.values else {
-                                    // Nor, likely, at the tile's other pixels.
-                                    sums_tell_samples = false;
-                                    return None;
-                                };
-                                deviation =
-                                    values.squared_deviations(count, |v| luminance((v + fixed_radiance).into()));
-                            }
+                            deviation = spread_of_sum(&run, count, fixed_radiance, job, &mut sums_tell_samples)?;
                             Some(run.radiance + fixed_radiance * count as f32)
                         })
                         .flatten()
@@ -537,14 +543,8 @@ fn trace_tile<C: CameraRays>(
                         let summed = (!job.adaptive || sums_tell_samples)
                             .then(|| {
                                 let run = tracer.shade_sum(scene, hit, (pixel, first, count), false);
-                                if job.adaptive {
-                                    let Some(values) = run.values else {
-                                        sums_tell_samples = false;
-                                        return None;
-                                    };
-                                    let fixed = Vec3A::from(fixed.radiance);
-                                    deviation = values.squared_deviations(count, |v| luminance((v + fixed).into()));
-                                }
+                                let radiance = Vec3A::from(fixed.radiance);
+                                deviation = spread_of_sum(&run, count, radiance, job, &mut sums_tell_samples)?;
                                 Some(fixed.with_run(&run, count))
                             })
                             .flatten()
