@@ -510,11 +510,10 @@ impl Tracer {
     }
 
     /// What [`Tracer::shade`] gives the `count` samples from the lights that draw samples,
-    /// summed over them (lights whose reflectance is black skipped where `skip_black`): where a
-    /// light can add a whole run at once ([`RunSum`]: the ambient occluder's cosine runs in
-    /// lanes, which count their blocked rays), no per-sample values are made, added or
-    /// summed. The same rays as [`Tracer::shade`]; the sums may differ from adding its samples
-    /// in the last bits.
+    /// summed (black reflectance skipped where `skip_black`), and each sample's radiance where
+    /// it takes two values: a light that adds a whole run at once ([`RunSum`]: the occluder's
+    /// cosine runs in lanes, which count their blocked rays) makes no per-sample values. The
+    /// same rays as [`Tracer::shade`]; the sums may differ from its samples' in the last bits.
     #[inline]
     pub fn shade_sum(
         &mut self,
@@ -527,11 +526,10 @@ impl Tracer {
         let mut total = ShadedSum { values: Some(TwoValues::default()), ..Default::default() };
         let sample = (pixel, first, count as usize);
         self.shade_groups(scene, (&at, &spawn), sample, skip_black, true, |term, reflectance, arriving, sum| {
-            let mut light = sum.light();
+            let (reflectance, mut light) = (Vec3A::from(reflectance), sum.light());
             if sum.per_sample() {
                 light += arriving.iter().sum::<Vec3A>();
             }
-            let reflectance = Vec3A::from(reflectance);
             total.values = total.values.zip(sum.values()).and_then(|(t, v)| t.plus(&v.scaled(reflectance), count));
             let reflected = reflectance * light;
             total.radiance += reflected;
