@@ -447,14 +447,36 @@ pub fn standard_error(count: u32, deviations: f64) -> f64 {
     (deviations.max(0.0) / (n * (n - 1.0))).sqrt()
 }
 
-/// The sum of `luminances`' squared deviations from their mean, both passes in f64: no
-/// cancellation, so samples that are all alike give 0 whatever their level.
-pub fn squared_deviations(luminances: &[f32]) -> f64 {
-    if luminances.is_empty() {
-        return 0.0;
+/// The spread of sample luminances added one by one: their sum and sum of squares taken about
+/// the first of them (shifted sums), so that the squared deviations from their mean do not
+/// cancel at any level (samples all alike give 0) and cost a subtraction and a fused
+/// multiply-add a sample.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct LuminanceSpread {
+    shift: Option<f32>,
+    count: u32,
+    sum: f32,
+    squares: f32,
+}
+
+impl LuminanceSpread {
+    /// Adds a sample of luminance `l`.
+    #[inline]
+    pub fn add(&mut self, l: f32) {
+        let d = l - *self.shift.get_or_insert(l);
+        self.count += 1;
+        self.sum += d;
+        self.squares = d.mul_add(d, self.squares);
     }
-    let mean = luminances.iter().map(|&l| l as f64).sum::<f64>() / luminances.len() as f64;
-    luminances.iter().map(|&l| (l as f64 - mean).powi(2)).sum()
+
+    /// The sum of the samples' squared deviations from their mean (0 without samples).
+    pub fn deviations(&self) -> f64 {
+        if self.count == 0 {
+            return 0.0;
+        }
+        let sum = self.sum as f64;
+        (self.squares as f64 - sum * sum / self.count as f64).max(0.0)
+    }
 }
 
 /// A pixel's squared deviations (`deviations`, of its `count` samples summing to `sum`) with
@@ -468,9 +490,10 @@ pub fn merge_deviations(deviations: &mut f64, (count, sum): (u32, DVec3), frame:
     }
     *deviations += frame_deviations;
     if count > 0 {
+        // δ² na nb / (na + nb) for δ the difference of the means, with one division.
         let (na, nb) = (count as f64, frame_count as f64);
-        let delta = luminance_f64(frame_sum) / nb - luminance_f64(sum) / na;
-        *deviations += delta * delta * (na * nb / (na + nb));
+        let scaled_delta = luminance_f64(frame_sum) * na - luminance_f64(sum) * nb;
+        *deviations += scaled_delta * scaled_delta / (na * nb * (na + nb));
     }
 }
 

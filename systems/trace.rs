@@ -18,7 +18,7 @@ use crate::{
     camera::{ActiveCamera, CameraRays, Cameras},
     geometry::{Ray, RayEnd, SceneGeometry, TraversalCounts, accel::AlphaCounts, counters},
     integrator::{LightGroup, LightRegistry, OwnSample, PrimaryHit, SampleResult, Scene, ShadedSum, Tracer},
-    resources::{AOV_FLOATS, Accumulation, FrameSamples, RenderSettings, SceneProblems, luminance, squared_deviations},
+    resources::{AOV_FLOATS, Accumulation, FrameSamples, LuminanceSpread, RenderSettings, SceneProblems, luminance},
     sampling::{SampleSets, dims},
     stats::{FrameStats, RayCounts, TraceSplit, cycle_count, cycles_since, query_timed_pixel, timed_pixel},
 };
@@ -401,8 +401,6 @@ fn trace_tile<C: CameraRays>(
     // Whether adaptive sampling takes a run's spread from its sum ([`spread_of_sum`]); once a
     // sum does not tell its samples apart, the tile's runs are made one by one.
     let mut sums_tell_samples = true;
-    // One pixel's sample luminances, where adaptive sampling makes them one by one.
-    let mut luminances = Vec::new();
     for y in tile.y0..tile.y1 {
         // Rows traced before their pixels: shared camera hits, or pooled runs of own rays.
         if one_ray_per_pixel || pooled_own {
@@ -455,8 +453,10 @@ fn trace_tile<C: CameraRays>(
             tracer.timing_queries = job.time_split && query_timed_pixel(pixel);
             let start = tracer.timing.then(cycle_count);
             let mut sum = Vec3::ZERO;
-            // The spread of the pixel's sample luminances (adaptive sampling).
+            // The spread of the pixel's sample luminances (adaptive sampling): from a run's sum,
+            // or added sample by sample.
             let mut deviation = 0.0;
+            let mut spread = LuminanceSpread::default();
             let mut aov = [0.0; AOV_FLOATS];
             // A pixel's samples are numbered 0, 1, … (from `first_sample` for a part of a
             // render) whatever the others do (adaptive sampling retires pixels independently).
@@ -521,7 +521,7 @@ fn trace_tile<C: CameraRays>(
                             }
                             total += r;
                             if job.adaptive {
-                                luminances.push(luminance(r.into()));
+                                spread.add(luminance(r.into()));
                             }
                         }
                         total
@@ -592,7 +592,7 @@ fn trace_tile<C: CameraRays>(
             let mut add = |radiance: Vec3| {
                 sum += radiance;
                 if job.adaptive {
-                    luminances.push(luminance(radiance));
+                    spread.add(luminance(radiance));
                 }
             };
             if job.aovs {
@@ -618,10 +618,7 @@ fn trace_tile<C: CameraRays>(
             }
             sums.push(sum);
             counts.push(count);
-            if !luminances.is_empty() {
-                deviation = squared_deviations(&luminances);
-                luminances.clear();
-            }
+            deviation += spread.deviations();
             deviations.push(deviation);
             if job.aovs {
                 aovs.push(aov);

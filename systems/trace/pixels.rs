@@ -92,6 +92,12 @@ impl TilePixels<'_> {
     #[inline]
     pub(super) fn count(&self, i: usize) -> u32 {
         let (r, c) = self.at(i);
+        self.count_at(r, c)
+    }
+
+    /// Samples the pixel at row `r`, column `c` of the tile has accumulated.
+    #[inline]
+    fn count_at(&self, r: usize, c: usize) -> u32 {
         self.counts.get(r).map_or(self.spp, |row| row[c])
     }
 
@@ -115,11 +121,12 @@ impl TilePixels<'_> {
         let w = (self.tile.x1 - self.tile.x0) as usize;
         if !self.deviations.is_empty() {
             // Before the sums and counts take the frame's: merged with the pixel's earlier mean.
-            for (i, ((&sum, &count), &frame_deviations)) in sums.iter().zip(counts).zip(deviations).enumerate() {
-                let (r, c) = (i / w, i % w);
-                let pixel = (self.tile.y0 as usize + r) * self.width as usize + self.tile.x0 as usize + c;
-                let before = (self.count(pixel), self.sum(r, c));
-                merge_deviations(&mut self.deviations[r][c], before, (count, sum.as_dvec3(), frame_deviations));
+            let rows = sums.chunks(w).zip(counts.chunks(w)).zip(deviations.chunks(w));
+            for (r, ((sums, counts), deviations)) in rows.enumerate() {
+                for (c, ((&sum, &count), &frame)) in sums.iter().zip(counts).zip(deviations).enumerate() {
+                    let before = (self.count_at(r, c), self.sum(r, c));
+                    merge_deviations(&mut self.deviations[r][c], before, (count, sum.as_dvec3(), frame));
+                }
             }
         }
         // 0 + x rounds alike in f32 and f64: one frame's f32 sum is the f64 sum's value.
