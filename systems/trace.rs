@@ -618,7 +618,9 @@ fn trace_tile<C: CameraRays>(
             }
             sums.push(sum);
             counts.push(count);
-            deviation += spread.deviations();
+            if job.adaptive {
+                deviation += spread.deviations();
+            }
             deviations.push(deviation);
             if job.aovs {
                 aovs.push(aov);
