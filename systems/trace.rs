@@ -460,11 +460,11 @@ fn trace_tile<C: CameraRays>(
             let mut aov = [0.0; AOV_FLOATS];
             // A pixel's samples are numbered 0, 1, … (from `first_sample` for a part of a
             // render) whatever the others do (adaptive sampling retires pixels independently).
-            let first = job.first_sample.wrapping_add(acc.count(pixel as usize));
+            let first = job.first_sample.wrapping_add(acc.count((x, y)));
             let done = if row_gathered {
                 row_left.next_if(|&&(column, _, _)| column == x).is_none()
             } else {
-                acc.pixel_done(pixel as usize, target)
+                acc.pixel_done((x, y), target)
             };
             let count = if done { 0 } else { job.count };
             if count == 0 {

@@ -73,25 +73,24 @@ impl TilePixels<'_> {
         let mut n = 0;
         for x in self.tile.x0..self.tile.x1 {
             let pixel = y * self.width + x;
-            if !self.pixel_done(pixel as usize, target) {
-                out.push((x, pixel, first_sample.wrapping_add(self.count(pixel as usize))));
+            if !self.pixel_done((x, y), target) {
+                out.push((x, pixel, first_sample.wrapping_add(self.count((x, y)))));
                 n += u64::from(timed(pixel));
             }
         }
         n
     }
 
-    /// Row and column inside the tile of image pixel `i`.
+    /// Row and column inside the tile of image pixel (x, y).
     #[inline]
-    fn at(&self, i: usize) -> (usize, usize) {
-        let (x, y) = (i as u32 % self.width, i as u32 / self.width);
+    fn at(&self, (x, y): (u32, u32)) -> (usize, usize) {
         ((y - self.tile.y0) as usize, (x - self.tile.x0) as usize)
     }
 
-    /// Samples pixel `i` has accumulated.
+    /// Samples image pixel (x, y) has accumulated.
     #[inline]
-    pub(super) fn count(&self, i: usize) -> u32 {
-        let (r, c) = self.at(i);
+    pub(super) fn count(&self, xy: (u32, u32)) -> u32 {
+        let (r, c) = self.at(xy);
         self.count_at(r, c)
     }
 
@@ -107,12 +106,15 @@ impl TilePixels<'_> {
         self.sums.get(r).map_or_else(|| self.one_frame_sums[r][c].as_dvec3(), |row| row[c])
     }
 
-    /// Whether adaptive sampling has retired pixel `i` for target error `e` (as
+    /// Whether adaptive sampling has retired image pixel (x, y) for target error `e` (as
     /// [`Accumulation::pixel_done`]).
     #[inline]
-    pub(super) fn pixel_done(&self, i: usize, target: Option<f32>) -> bool {
-        let (r, c) = self.at(i);
-        target.is_some_and(|e| retired(self.count(i), || standard_error(self.count(i), self.deviations[r][c]), e))
+    pub(super) fn pixel_done(&self, xy: (u32, u32), target: Option<f32>) -> bool {
+        target.is_some_and(|e| {
+            let (r, c) = self.at(xy);
+            let count = self.count_at(r, c);
+            retired(count, || standard_error(count, self.deviations[r][c]), e)
+        })
     }
 
     /// Adds the tile's frame samples, row-major over the tile, to its pixels: their sums,
