@@ -74,7 +74,7 @@ fn a_two_valued_run_has_the_spread_of_its_samples() {
         assert!((run.sum(16) - sum).abs().max_element() <= 1e-5, "{dark} dark");
     }
     // A run that varies plus one that does not still takes two values; two that vary do not.
-    let constant = TwoValues::constant(Vec3A::ONE);
+    let constant = TwoValues { clear: Vec3A::ONE, floor: Vec3A::ONE, dark: 0 };
     let varying = TwoValues { clear, floor, dark: 5 };
     let both = varying.plus(&constant, 16).expect("one of them is constant");
     assert_eq!((both.clear, both.floor, both.dark), (clear + 1.0, floor + 1.0, 5));

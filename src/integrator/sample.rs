@@ -105,11 +105,6 @@ pub struct TwoValues {
 }
 
 impl TwoValues {
-    /// `value` for every sample.
-    pub fn constant(value: Vec3A) -> Self {
-        TwoValues { clear: value, floor: value, dark: 0 }
-    }
-
     /// The one value of a run of `samples` where every sample has it.
     fn only(&self, samples: u32) -> Option<Vec3A> {
         if self.dark == 0 || self.clear == self.floor {

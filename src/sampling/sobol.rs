@@ -73,13 +73,6 @@ fn fast_owen_of_reversed(mut v: u32, seed: u32) -> u32 {
     v.reverse_bits()
 }
 
-/// Sobol' dimension `dim` (0 or 1) of index `a`, as 32 fixed-point bits.
-#[inline]
-pub fn sobol_bits(a: u32, dim: usize) -> u32 {
-    // Dimension 0's matrix is the bit reversal (van der Corput).
-    if dim == 0 { a.reverse_bits() } else { pascal(a).reverse_bits() }
-}
-
 /// Dimension 1's matrix, bit-reversed: column b of the matrix, reversed, holds row b of
 /// Pascal's triangle mod 2 (bit r is C(b, r) mod 2, which by Lucas' theorem is 1 where the
 /// bits of r are a subset of b's), so bit r of the product is the XOR of the index's bits b
@@ -236,6 +229,12 @@ crate::simd::multiversion! {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Sobol' dimension `dim` (0 or 1) of index `a`, as 32 fixed-point bits: dimension 0's
+    /// matrix is the bit reversal (van der Corput), dimension 1's [`pascal`] reversed.
+    fn sobol_bits(a: u32, dim: usize) -> u32 {
+        if dim == 0 { a.reverse_bits() } else { pascal(a).reverse_bits() }
+    }
 
     /// 2-D Sobol' generator matrices (32-bit columns): dimension 0 is the van der Corput sequence,
     /// dimension 1 follows v_i = v_{i−1} ⊕ (v_{i−1} >> 1) (the (0,2)-sequence's second component).
