@@ -500,16 +500,15 @@ fn trace_tile<C: CameraRays>(
                     let quick = (!job.adaptive || sums_tell_samples)
                         .then(|| {
                             if pooled {
-                                return Some(row_sums[k] + fixed_radiance * count as f32);
+                                return Some((row_sums[k] + fixed_radiance * count as f32, 0.0));
                             }
                             let run = tracer.shade_sum(scene, hit, (pixel, first, count), true);
-                            deviation = spread_of_sum(&run, count, fixed_radiance, job, &mut sums_tell_samples)?;
-                            Some(run.radiance + fixed_radiance * count as f32)
+                            let spread = spread_of_sum(&run, count, fixed_radiance, job, &mut sums_tell_samples)?;
+                            Some((run.radiance + fixed_radiance * count as f32, spread))
                         })
                         .flatten()
-                        .filter(|&t| all_finite(t));
-                    let total = quick.unwrap_or_else(|| {
-                        deviation = 0.0;
+                        .filter(|&(t, _)| all_finite(t));
+                    let (total, spread_of_run) = quick.unwrap_or_else(|| {
                         radiance.resize(count as usize, Vec3A::ZERO);
                         tracer.shade(scene, hit, pixel, first, true, &mut radiance[..]);
                         let mut total = Vec3A::ZERO;
@@ -524,9 +523,10 @@ fn trace_tile<C: CameraRays>(
                                 spread.add(luminance(r.into()));
                             }
                         }
-                        total
+                        (total, 0.0)
                     });
                     sum = total.into();
+                    deviation = spread_of_run;
                     radiance.clear();
                 }
                 Some((k, Some(hit))) => {
@@ -544,16 +544,18 @@ fn trace_tile<C: CameraRays>(
                             .then(|| {
                                 let run = tracer.shade_sum(scene, hit, (pixel, first, count), false);
                                 let radiance = Vec3A::from(fixed.radiance);
-                                deviation = spread_of_sum(&run, count, radiance, job, &mut sums_tell_samples)?;
-                                Some(fixed.with_run(&run, count))
+                                let spread = spread_of_sum(&run, count, radiance, job, &mut sums_tell_samples)?;
+                                Some((fixed.with_run(&run, count), spread))
                             })
                             .flatten()
-                            .filter(|(radiance, values)| all_finite(*radiance) && values.iter().all(|v| v.is_finite()));
-                        if let Some((radiance, values)) = summed {
+                            .filter(|((radiance, values), _)| {
+                                all_finite(*radiance) && values.iter().all(|v| v.is_finite())
+                            });
+                        if let Some(((radiance, values), spread_of_run)) = summed {
                             sum = radiance.into();
                             aov = values;
+                            deviation = spread_of_run;
                         } else {
-                            deviation = 0.0;
                             // `shade` sets every field of every sample: no need to clear them first.
                             samples.resize(count as usize, SampleResult::default());
                             tracer.shade(scene, hit, pixel, first, false, &mut samples[..]);
