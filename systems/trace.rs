@@ -18,7 +18,9 @@ use crate::{
     camera::{ActiveCamera, CameraRays, Cameras},
     geometry::{Ray, RayEnd, SceneGeometry, TraversalCounts, accel::AlphaCounts, counters},
     integrator::{LightGroup, LightRegistry, OwnSample, PrimaryHit, SampleResult, Scene, ShadedSum, Tracer},
-    resources::{AOV_FLOATS, Accumulation, FrameSamples, LuminanceSpread, RenderSettings, SceneProblems, luminance},
+    resources::{
+        AOV_FLOATS, Accumulation, AovValues, FrameSamples, LuminanceSpread, RenderSettings, SceneProblems, luminance,
+    },
     sampling::{SampleSets, dims},
     stats::{FrameStats, RayCounts, TraceSplit, cycle_count, cycles_since, query_timed_pixel, timed_pixel},
 };
@@ -343,6 +345,70 @@ impl Job {
 struct TileScratch {
     tracer: Tracer,
     own: OwnRays,
+    buffers: TileBuffers,
+}
+
+/// The per-pixel and per-row vectors [`trace_tile`] fills, emptied at the start of each tile.
+#[derive(Default)]
+struct TileBuffers {
+    /// One pixel's samples of this frame: all of each with AOVs, else each one's radiance.
+    samples: Vec<SampleResult>,
+    radiance: Vec<Vec3A>,
+    /// Each pixel's sums, sample count, luminance spread and AOV sums, in tile order.
+    sums: Vec<Vec3>,
+    counts: Vec<u32>,
+    deviations: Vec<f64>,
+    aovs: Vec<AovValues>,
+    /// A row's camera rays, pixels, hits, fixed light and kept ray ends.
+    camera_rays: Vec<Ray>,
+    row_pixels: Vec<(u32, u32)>,
+    row_hits: Vec<Option<PrimaryHit>>,
+    row_fixed: Vec<Vec3A>,
+    row_ends: Vec<RayEnd>,
+    /// A row's pooled runs: their pixels, their sums, and their samples with and without AOVs.
+    row_runs: Vec<(u32, u32, u32)>,
+    row_sums: Vec<Vec3A>,
+    row_samples: Vec<SampleResult>,
+    row_radiance: Vec<Vec3A>,
+}
+
+impl TileBuffers {
+    /// Every vector emptied, its memory kept.
+    fn cleared(&mut self) -> &mut Self {
+        let TileBuffers {
+            samples,
+            radiance,
+            sums,
+            counts,
+            deviations,
+            aovs,
+            camera_rays,
+            row_pixels,
+            row_hits,
+            row_fixed,
+            row_ends,
+            row_runs,
+            row_sums,
+            row_samples,
+            row_radiance,
+        } = self;
+        samples.clear();
+        radiance.clear();
+        sums.clear();
+        counts.clear();
+        deviations.clear();
+        aovs.clear();
+        camera_rays.clear();
+        row_pixels.clear();
+        row_hits.clear();
+        row_fixed.clear();
+        row_ends.clear();
+        row_runs.clear();
+        row_sums.clear();
+        row_samples.clear();
+        row_radiance.clear();
+        self
+    }
 }
 
 /// What adaptive sampling needs of a run of `count` samples summed at a shared hit (`run`), each
@@ -368,35 +434,41 @@ fn trace_tile<C: CameraRays>(
     acc: &mut TilePixels,
     job: &Job,
     target: Option<f32>,
-    TileScratch { tracer, own }: &mut TileScratch,
+    TileScratch { tracer, own, buffers }: &mut TileScratch,
 ) -> TileResult {
     let tile = acc.tile;
     // Counts from this thread's earlier work are not this tile's.
     counters::take();
     AlphaCounts::take();
     (tracer.rays, tracer.split) = Default::default();
-    // One pixel's samples of this frame: all of each with AOVs, else each one's radiance.
-    let mut samples = Vec::with_capacity(if job.aovs { job.count as usize } else { 0 });
-    let mut radiance = Vec::with_capacity(if job.aovs { 0 } else { job.count as usize });
-    let mut camera_rays = Vec::new();
+    let TileBuffers {
+        samples,
+        radiance,
+        sums,
+        counts,
+        deviations,
+        aovs,
+        camera_rays,
+        row_pixels,
+        row_hits,
+        row_fixed,
+        row_ends,
+        row_runs,
+        row_sums,
+        row_samples,
+        row_radiance,
+    } = buffers.cleared();
     let mut nonfinite = 0;
-    let pixels = ((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize;
-    let mut sums = Vec::with_capacity(pixels);
-    let mut counts = Vec::with_capacity(pixels);
-    let mut deviations = Vec::with_capacity(pixels);
-    let mut aovs = Vec::with_capacity(if job.aovs { pixels } else { 0 });
     // Without jitter or lens every sample of a pixel has the same camera ray: it is traced once
     // per pixel, a row of the tile's pixels at a time (neighbouring rays travel together).
     let one_ray_per_pixel = job.shares_camera_rays(C::USES_LENS);
-    let (mut row_hits, mut row_pixels, mut row_fixed, mut row_ends) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     // Small runs of shared hits, summed without per-sample values, are lit a row at a time;
     // so are small runs of samples with camera rays of their own.
     let pooled = one_ray_per_pixel && !job.aovs && !job.adaptive && job.count <= POOLED_SHARED_RUN_MAX;
     // With AOVs, such runs are lit a row at a time sample by sample.
     let pooled_aovs = one_ray_per_pixel && job.aovs && job.count <= POOLED_SHARED_RUN_MAX;
     let pooled_own = !one_ray_per_pixel && job.count <= POOLED_OWN_RUN_MAX;
-    let (mut row_sums, mut row_runs, mut row_samples, mut own_run) = (Vec::new(), Vec::new(), Vec::new(), 0);
-    let mut row_radiance = Vec::new();
+    let mut own_run = 0;
     let fixed_groups = scene.fixed_group_count();
     // Whether adaptive sampling takes a run's spread from its sum ([`spread_of_sum`]); once a
     // sum does not tell its samples apart, the tile's runs are made one by one.
@@ -405,20 +477,20 @@ fn trace_tile<C: CameraRays>(
         // Rows traced before their pixels: shared camera hits, or pooled runs of own rays.
         if one_ray_per_pixel || pooled_own {
             let start = job.time_split.then(cycle_count);
-            let timed = acc.row_to_trace(y, (job.first_sample, target), |pixel| job.timed(pixel), &mut row_runs);
+            let timed = acc.row_to_trace(y, (job.first_sample, target), |pixel| job.timed(pixel), row_runs);
             if one_ray_per_pixel {
                 camera_rays.clear();
                 camera_rays.extend(row_runs.iter().map(|&(x, _, _)| camera.ray(x, y, Vec2::splat(0.5), Vec2::ZERO)));
                 row_pixels.clear();
                 row_pixels.extend(row_runs.iter().map(|&(_, pixel, first)| (pixel, first)));
-                let row = RowCamera { rays: &camera_rays, pixels: &row_pixels, skip_black: !job.aovs, timed };
+                let row = RowCamera { rays: camera_rays, pixels: row_pixels, skip_black: !job.aovs, timed };
                 let kept = acc.kept_row(y, fixed_groups);
-                row.hits_and_light(tracer, scene, kept, &mut row_ends, &mut row_hits, &mut row_fixed);
+                row.hits_and_light(tracer, scene, kept, row_ends, row_hits, row_fixed);
                 if pooled {
-                    tracer.shade_row_sums(scene, &row_pixels, &row_hits, job.count, timed, &mut row_sums);
+                    tracer.shade_row_sums(scene, row_pixels, row_hits, job.count, timed, row_sums);
                 }
                 if pooled_aovs {
-                    tracer.shade_row_samples(scene, &row_pixels, &row_hits, job.count, timed, &mut row_samples);
+                    tracer.shade_row_samples(scene, row_pixels, row_hits, job.count, timed, row_samples);
                 }
             } else {
                 // Each sample has a camera ray of its own, and a pixel's few of them would leave
@@ -426,9 +498,9 @@ fn trace_tile<C: CameraRays>(
                 if !row_runs.is_empty() {
                     tracer.for_row(timed, row_runs.len(), |tracer| {
                         if job.aovs {
-                            own.trace(tracer, scene, camera, job, y, &row_runs, job.count, &mut row_samples);
+                            own.trace(tracer, scene, camera, job, y, row_runs, job.count, row_samples);
                         } else {
-                            own.trace(tracer, scene, camera, job, y, &row_runs, job.count, &mut row_radiance);
+                            own.trace(tracer, scene, camera, job, y, row_runs, job.count, row_radiance);
                         }
                     });
                 }
@@ -512,7 +584,7 @@ fn trace_tile<C: CameraRays>(
                         radiance.resize(count as usize, Vec3A::ZERO);
                         tracer.shade(scene, hit, pixel, first, true, &mut radiance[..]);
                         let mut total = Vec3A::ZERO;
-                        for &r in &radiance {
+                        for &r in radiance.iter() {
                             let r = r + fixed_radiance;
                             if !all_finite(r) {
                                 nonfinite += 1;
@@ -585,9 +657,9 @@ fn trace_tile<C: CameraRays>(
                 None => {
                     let run = [(x, pixel, first)];
                     if job.aovs {
-                        own.trace(tracer, scene, camera, job, y, &run, count, &mut samples);
+                        own.trace(tracer, scene, camera, job, y, &run, count, samples);
                     } else {
-                        own.trace(tracer, scene, camera, job, y, &run, count, &mut radiance);
+                        own.trace(tracer, scene, camera, job, y, &run, count, radiance);
                     }
                 }
             }
@@ -598,7 +670,7 @@ fn trace_tile<C: CameraRays>(
                 }
             };
             if job.aovs {
-                for s in &samples {
+                for s in samples.iter() {
                     let radiance = s.radiance + fixed.radiance;
                     let values = SampleResult { direct: s.direct + fixed.direct, ..*s }.aov_values();
                     if !all_finite(radiance.into()) || !values.iter().fold(true, |finite, x| finite & x.is_finite()) {
@@ -610,7 +682,7 @@ fn trace_tile<C: CameraRays>(
                 }
             } else {
                 // `fixed` is the AOV arm's alone: the beauty image's shared hits sum above.
-                for &r in &radiance {
+                for &r in radiance.iter() {
                     if !all_finite(r) {
                         nonfinite += 1;
                         continue;
@@ -633,7 +705,7 @@ fn trace_tile<C: CameraRays>(
         }
     }
     let (traversal, alpha) = (counters::take(), AlphaCounts::take());
-    acc.add(&sums, &counts, &deviations, &aovs);
+    acc.add(sums, counts, deviations, aovs);
     let active = counts.iter().filter(|&&c| c > 0).count();
     TileResult {
         rays: std::mem::take(&mut tracer.rays),
