@@ -99,12 +99,21 @@ pub(crate) trait PacketLanes: Lanes {
     /// (`at` holds at least `WIDTH` indices; lanes may share one); the fourth lane of each
     /// vector is 0.
     fn write_rays(lanes: &RayLanes<Self>, out: &mut [Ray], at: &[u32]);
-    /// The lanes whose ray (origin `o`, direction `d`) meets the plane through `a` with normal
-    /// `n` at a `t` in (0, `tmax`): `t = (n·(a − o)) / (n·d)` in f64, rounded to f32, no hit
-    /// where `n·d = 0`, each lane with exactly the operations of [`Triangle::finish`].
+    /// Where each lane's ray (origin `o`, direction `d`) meets the plane through `a` with
+    /// normal `n`: `t = (n·(a − o)) / (n·d)` in f64, rounded to f32, each lane with exactly the
+    /// operations of [`TrianglePlane::distance`], and the lanes where `n·d ≠ 0` (elsewhere the
+    /// ray meets no plane, whatever `t` holds).
     ///
-    /// [`Triangle::finish`]: super::shapes::Triangle::finish
-    fn plane_hits(n: DVec3, a: DVec3, o: &[Self; 3], d: &[Self; 3], tmax: Self) -> u32;
+    /// [`TrianglePlane::distance`]: super::shapes::TrianglePlane::distance
+    fn plane_distances(n: DVec3, a: DVec3, o: &[Self; 3], d: &[Self; 3]) -> (Self, u32);
+
+    /// The lanes whose ray meets that plane at a `t` in (0, `tmax`) ([`PacketLanes::plane_distances`]).
+    #[inline(always)]
+    fn plane_hits(n: DVec3, a: DVec3, o: &[Self; 3], d: &[Self; 3], tmax: Self) -> u32 {
+        let (t, meets) = Self::plane_distances(n, a, o, d);
+        let zero = Self::splat(tmax.isa(), 0.0);
+        meets & Self::bits(Self::and(t.gt(zero), t.lt(tmax)))
+    }
 }
 
 impl PacketLanes for Avx {
@@ -161,7 +170,8 @@ impl PacketLanes for Avx {
     }
     /// In two halves of four f64 lanes.
     #[inline(always)]
-    fn plane_hits(n: DVec3, a: DVec3, o: &[Self; 3], d: &[Self; 3], tmax: Self) -> u32 {
+    fn plane_distances(n: DVec3, a: DVec3, o: &[Self; 3], d: &[Self; 3]) -> (Self, u32) {
+        let isa = o[0].isa();
         // SAFETY: the lanes prove x86-64-v3.
         unsafe {
             let half = |v: &Avx, h: usize| {
@@ -183,9 +193,7 @@ impl PacketLanes for Avx {
                 meets |= (_mm256_movemask_pd(nonzero) as u32) << (4 * h);
             }
             let t = _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(t[0]), t[1]);
-            let ahead = _mm256_cmp_ps::<_CMP_GT_OQ>(t, _mm256_setzero_ps());
-            let short = _mm256_cmp_ps::<_CMP_LT_OQ>(t, tmax.raw());
-            meets & _mm256_movemask_ps(_mm256_and_ps(ahead, short)) as u32
+            (Avx::from_raw(isa, t), meets)
         }
     }
 }
@@ -256,7 +264,8 @@ impl PacketLanes for Avx512 {
     }
     /// In two halves of eight f64 lanes.
     #[inline(always)]
-    fn plane_hits(n: DVec3, a: DVec3, o: &[Self; 3], d: &[Self; 3], tmax: Self) -> u32 {
+    fn plane_distances(n: DVec3, a: DVec3, o: &[Self; 3], d: &[Self; 3]) -> (Self, u32) {
+        let isa = o[0].isa();
         // SAFETY: the lanes prove AVX-512F.
         unsafe {
             let half = |v: &Avx512, h: usize| {
@@ -285,9 +294,7 @@ impl PacketLanes for Avx512 {
                 _mm512_castps_pd(_mm512_castps256_ps512(t[0])),
                 _mm256_castps_pd(t[1]),
             ));
-            let ahead = _mm512_cmp_ps_mask::<_CMP_GT_OQ>(t, _mm512_setzero_ps());
-            let short = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(t, tmax.raw());
-            meets & (ahead & short) as u32
+            (Avx512::from_raw(isa, t), meets)
         }
     }
 }
@@ -328,17 +335,17 @@ impl PacketLanes for Portable {
         }
     }
     #[inline(always)]
-    fn plane_hits(n: DVec3, a: DVec3, o: &[Self; 3], d: &[Self; 3], tmax: Self) -> u32 {
+    fn plane_distances(n: DVec3, a: DVec3, o: &[Self; 3], d: &[Self; 3]) -> (Self, u32) {
         let dot = |x: f64, y: f64, z: f64| n.x * x + n.y * y + n.z * z;
-        let mut meets = 0;
-        for k in 0..8 {
+        let (mut t, mut meets) = ([0.0; 8], 0);
+        for (k, t) in t.iter_mut().enumerate() {
             let lane = |v: &[Self; 3], i: usize| f64::from(v[i].0[k]);
             let denom = dot(lane(d, 0), lane(d, 1), lane(d, 2));
             let num = dot(a.x - lane(o, 0), a.y - lane(o, 1), a.z - lane(o, 2));
-            let t = (num / denom) as f32;
-            meets |= u32::from(denom != 0.0 && t > 0.0 && t < tmax.0[k]) << k;
+            *t = (num / denom) as f32;
+            meets |= u32::from(denom != 0.0) << k;
         }
-        meets
+        (Portable(t), meets)
     }
 }
 
@@ -373,6 +380,56 @@ mod tests {
     #[test]
     fn portable_packets_give_the_vector_lanes_bits() {
         both_widths(same_packets_as::<Avx>, same_packets_as::<Avx512>);
+    }
+
+    /// Every lane's plane distance is the scalar one (`TrianglePlane::distance`) bit for bit (a
+    /// NaN is a NaN), and the lanes said to meet the plane are those where it has one, in every lane type:
+    /// rays with zero, infinite and NaN components and planes parallel to them included.
+    #[test]
+    fn plane_distances_are_the_scalar_distances() {
+        distances_as_scalar::<Portable>(Plain);
+        both_widths(distances_as_scalar::<Avx>, distances_as_scalar::<Avx512>);
+    }
+
+    /// [`plane_distances_are_the_scalar_distances`] for `L`.
+    fn distances_as_scalar<L: PacketLanes>(isa: L::Isa) {
+        use crate::geometry::shapes::TrianglePlane;
+        let (mut rng, mut shape) = (SplitMix64::new(29), SplitMix64::new(31));
+        let special = [0.0, -0.0, 1.0, f32::INFINITY, f32::NEG_INFINITY, f32::NAN];
+        let mut x = || {
+            let r = rng.next_f32();
+            if r < 0.15 { special[(r * 40.0) as usize % 6] } else { (r - 0.5) * 8.0 }
+        };
+        let (mut met, mut parallel) = (0, 0);
+        for p in 0..1_000 {
+            let rays: Vec<Ray> = (0..L::WIDTH)
+                .map(|_| Ray::new(Vec3A::new(x(), x(), x()), Vec3A::new(x(), x(), x()), x().abs()))
+                .collect();
+            // A triangle's plane (its normal rounded in f64), now and then one that every ray
+            // with no z component runs along.
+            let mut vertex =
+                || Vec3A::new(shape.next_f32() * 4.0 - 2.0, shape.next_f32() * 4.0 - 2.0, shape.next_f32());
+            let tri = crate::geometry::shapes::Triangle::new(vertex(), vertex(), vertex()).expect("a random triangle");
+            let TrianglePlane { a, n } = tri.plane();
+            let n = if p % 7 == 0 { glam::DVec3::Z } else { n };
+            let lanes = L::rays(isa, &rays);
+            let (t, meets) = L::plane_distances(n, a, &lanes.origin, &lanes.dir);
+            let mut got = [0.0; 16];
+            t.store(&mut got);
+            for (k, ray) in rays.iter().enumerate() {
+                let want = TrianglePlane { a, n }.distance(ray);
+                assert_eq!(meets & (1 << k) != 0, want.is_some(), "packet {p}, lane {k}: meets the plane");
+                if let Some(want) = want {
+                    // A NaN is no hit whatever its sign bit.
+                    let same = got[k].to_bits() == want.to_bits() || (got[k].is_nan() && want.is_nan());
+                    assert!(same, "packet {p}, lane {k}: distance {} against {want}", got[k]);
+                    met += 1;
+                } else {
+                    parallel += 1;
+                }
+            }
+        }
+        assert!(met > 1_000 && parallel > 10, "{met} distances, {parallel} parallel lanes");
     }
 
     /// [`portable_packets_give_the_vector_lanes_bits`] for `L` (eight or sixteen lanes).

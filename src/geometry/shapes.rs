@@ -12,8 +12,25 @@ use crate::math::gamma;
 /// A triangle's plane in f64 ([`Triangle::plane`]).
 #[derive(Clone, Copy, Debug)]
 pub struct TrianglePlane {
-    a: glam::DVec3,
-    n: glam::DVec3,
+    pub(crate) a: glam::DVec3,
+    pub(crate) n: glam::DVec3,
+}
+
+impl TrianglePlane {
+    /// Where `ray` meets the plane: its distance along the ray in f64, rounded to f32, so a ray
+    /// spawned just off the surface (by the hit's error bound) can never re-hit it (pbrt-v4
+    /// instead rejects t below an error bound that grows with the triangle's extent, which
+    /// loses true nearby hits on large triangles: biased contact AO). `None` where the ray is
+    /// parallel to it.
+    #[inline(always)]
+    pub fn distance(&self, ray: &Ray) -> Option<f32> {
+        let TrianglePlane { a, n } = *self;
+        let denom = n.dot(ray.dir.as_dvec3());
+        if denom == 0.0 {
+            return None;
+        }
+        Some((n.dot(a - ray.origin.as_dvec3()) / denom) as f32)
+    }
 }
 
 /// A triangle by its three vertices.
@@ -65,7 +82,7 @@ impl Triangle {
     /// passed the sign test: the determinant, `t` from the triangle's plane, the barycentrics.
     #[inline(always)]
     pub fn finish(&self, ray: &Ray, e0: f32, e1: f32, e2: f32) -> Option<(f32, f32, f32)> {
-        self.finish_on(&self.plane(), ray, e0, e1, e2)
+        Self::finish_at(|| self.plane().distance(ray), ray.tmax, e0, e1, e2)
     }
 
     /// The triangle's plane in f64, as [`Triangle::finish`] uses it: a vertex and the normal
@@ -77,25 +94,17 @@ impl Triangle {
         TrianglePlane { a, n: (b - a).cross(c - a) }
     }
 
-    /// [`Triangle::finish`] with the triangle's [`Triangle::plane`] worked out once for many
-    /// rays.
+    /// [`Triangle::finish`] of a ray reaching `tmax`, given where it meets the triangle's plane
+    /// (`t()`, asked for once the determinant is known not to be zero: [`TrianglePlane::distance`],
+    /// or that worked out for many rays at once by `PacketLanes::plane_distances`).
     #[inline(always)]
-    pub fn finish_on(&self, plane: &TrianglePlane, ray: &Ray, e0: f32, e1: f32, e2: f32) -> Option<(f32, f32, f32)> {
+    pub fn finish_at(t: impl FnOnce() -> Option<f32>, tmax: f32, e0: f32, e1: f32, e2: f32) -> Option<(f32, f32, f32)> {
         let det = e0 + e1 + e2;
         if det == 0.0 {
             return None;
         }
-        // Distance along the ray from the triangle's plane, in f64, so a ray spawned just off
-        // the surface (by the hit's error bound) can never re-hit it. (pbrt-v4 instead rejects
-        // t below an error bound that grows with the triangle's extent, which loses true
-        // nearby hits on large triangles: biased contact AO.)
-        let TrianglePlane { a, n } = *plane;
-        let denom = n.dot(ray.dir.as_dvec3());
-        if denom == 0.0 {
-            return None;
-        }
-        let t = (n.dot(a - ray.origin.as_dvec3()) / denom) as f32;
-        if !(t > 0.0 && t < ray.tmax) {
+        let t = t()?;
+        if !(t > 0.0 && t < tmax) {
             return None;
         }
         let inv_det = 1.0 / det;

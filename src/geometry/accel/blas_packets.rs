@@ -16,7 +16,7 @@ use super::{
 };
 use crate::geometry::ray::Ray;
 #[cfg(target_arch = "x86_64")]
-use crate::geometry::ray::Shear;
+use crate::geometry::{ray::Shear, shapes::Triangle};
 #[cfg(target_arch = "x86_64")]
 use crate::geometry::{
     tri4::RayTriPacket,
@@ -85,6 +85,7 @@ impl<L: KernelLanes> Kernel<L> for BlasClosestLanes<'_> {
         let packet = RayPacket::new(&in_lanes);
         let edges = RayTriPacket::new(&in_lanes);
         let mut e = [[0.0f32; 16]; 3];
+        let mut distances = [0.0f32; 16];
         let leaf = |first: u32, count: u32, lanes: u32, hits: &mut LaneHits<ClosestHit>| {
             for packet in &blas.packets[first as usize..(first + count) as usize] {
                 for (lane, &slot) in packet.slot.iter().enumerate() {
@@ -97,18 +98,30 @@ impl<L: KernelLanes> Kernel<L> for BlasClosestLanes<'_> {
                         continue;
                     }
                     let tri = packet.triangle(lane);
-                    let plane = tri.plane();
+                    // Where the lanes that passed meet the triangle's plane, worked out for all
+                    // lanes at once, each with the scalar test's operations
+                    // (`TrianglePlane::distance`).
+                    let meets = if classes.pass & lanes != 0 {
+                        let plane = tri.plane();
+                        let (t, meets) = L::plane_distances(plane.n, plane.a, &in_lanes.origin, &in_lanes.dir);
+                        t.store(&mut distances);
+                        meets
+                    } else {
+                        0
+                    };
                     while crossing != 0 {
                         let k = crossing.trailing_zeros() as usize;
                         crossing &= crossing - 1;
                         // The scalar test's end, as the single-ray leaf finishes it: from the
-                        // lane's own edge functions where they passed (the values the scalar
-                        // test computes), the whole scalar test where one is zero or NaN.
+                        // lane's own edge functions and plane distance where they passed (the
+                        // values the scalar test computes), the whole scalar test where an edge
+                        // function is zero or NaN.
                         let ray = hits.probe(rays, k);
                         let found = if classes.exact & (1 << k) != 0 {
                             tri.intersect(&ray, &Shear::new(ray.dir))
                         } else {
-                            tri.finish_on(&plane, &ray, e[0][k], e[1][k], e[2][k])
+                            let t = || (meets & (1 << k) != 0).then_some(distances[k]);
+                            Triangle::finish_at(t, ray.tmax, e[0][k], e[1][k], e[2][k])
                         };
                         if let Some((t, b1, b2)) = found {
                             hits.offer(k, t, (instance, slot, b1, b2));
