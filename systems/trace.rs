@@ -375,38 +375,21 @@ struct TileBuffers {
 impl TileBuffers {
     /// Every vector emptied, its memory kept.
     fn cleared(&mut self) -> &mut Self {
-        let TileBuffers {
-            samples,
-            radiance,
-            sums,
-            counts,
-            deviations,
-            aovs,
-            camera_rays,
-            row_pixels,
-            row_hits,
-            row_fixed,
-            row_ends,
-            row_runs,
-            row_sums,
-            row_samples,
-            row_radiance,
-        } = self;
-        samples.clear();
-        radiance.clear();
-        sums.clear();
-        counts.clear();
-        deviations.clear();
-        aovs.clear();
-        camera_rays.clear();
-        row_pixels.clear();
-        row_hits.clear();
-        row_fixed.clear();
-        row_ends.clear();
-        row_runs.clear();
-        row_sums.clear();
-        row_samples.clear();
-        row_radiance.clear();
+        self.samples.clear();
+        self.radiance.clear();
+        self.sums.clear();
+        self.counts.clear();
+        self.deviations.clear();
+        self.aovs.clear();
+        self.camera_rays.clear();
+        self.row_pixels.clear();
+        self.row_hits.clear();
+        self.row_fixed.clear();
+        self.row_ends.clear();
+        self.row_runs.clear();
+        self.row_sums.clear();
+        self.row_samples.clear();
+        self.row_radiance.clear();
         self
     }
 }
