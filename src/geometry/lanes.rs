@@ -383,8 +383,9 @@ mod tests {
     }
 
     /// Every lane's plane distance is the scalar one (`TrianglePlane::distance`) bit for bit (a
-    /// NaN is a NaN), and the lanes said to meet the plane are those where it has one, in every lane type:
-    /// rays with zero, infinite and NaN components and planes parallel to them included.
+    /// NaN is a NaN), and the lanes said to meet the plane are those where it has one, in every
+    /// lane type: rays with zero, infinite and NaN components and planes parallel to them
+    /// included.
     #[test]
     fn plane_distances_are_the_scalar_distances() {
         distances_as_scalar::<Portable>(Plain);

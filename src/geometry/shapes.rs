@@ -12,8 +12,8 @@ use crate::math::gamma;
 /// A triangle's plane in f64 ([`Triangle::plane`]).
 #[derive(Clone, Copy, Debug)]
 pub struct TrianglePlane {
-    pub(crate) a: glam::DVec3,
-    pub(crate) n: glam::DVec3,
+    pub(super) a: glam::DVec3,
+    pub(super) n: glam::DVec3,
 }
 
 impl TrianglePlane {

@@ -14,7 +14,10 @@ use super::{
 };
 #[cfg(target_arch = "x86_64")]
 use crate::{
-    geometry::lanes::{PacketLanes, RayLanes},
+    geometry::{
+        lanes::{PacketLanes, RayLanes},
+        shapes::TrianglePlane,
+    },
     simd::Lanes,
 };
 
@@ -158,8 +161,15 @@ impl<L: PacketLanes> RayTriPacket<L> {
     /// sum of three non-zero values of one sign, is never zero).
     #[inline(always)]
     pub(crate) fn plane_hits(&self, tri: &Triangle) -> u32 {
-        let [a, b, c] = tri.p.map(|p| p.as_dvec3());
-        L::plane_hits((b - a).cross(c - a), a, &self.origin, &self.dir, self.tmax)
+        let plane = tri.plane();
+        L::plane_hits(plane.n, plane.a, &self.origin, &self.dir, self.tmax)
+    }
+
+    /// Where each lane's ray meets `plane`, and the lanes where it meets it at all
+    /// ([`PacketLanes::plane_distances`]).
+    #[inline(always)]
+    pub(crate) fn plane_distances(&self, plane: &TrianglePlane) -> (L, u32) {
+        L::plane_distances(plane.n, plane.a, &self.origin, &self.dir)
     }
 }
 

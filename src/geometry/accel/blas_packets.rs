@@ -102,8 +102,7 @@ impl<L: KernelLanes> Kernel<L> for BlasClosestLanes<'_> {
                     // lanes at once, each with the scalar test's operations
                     // (`TrianglePlane::distance`).
                     let meets = if classes.pass & lanes != 0 {
-                        let plane = tri.plane();
-                        let (t, meets) = L::plane_distances(plane.n, plane.a, &in_lanes.origin, &in_lanes.dir);
+                        let (t, meets) = edges.plane_distances(&tri.plane());
                         t.store(&mut distances);
                         meets
                     } else {
