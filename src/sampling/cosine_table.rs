@@ -79,15 +79,16 @@ impl CosineTable {
     }
 
     /// The table of `count` patterns from `first` of `n` ≤ [`CosineTable::MAX_SAMPLES`] points
-    /// in sample order, for the sixteen-lane runs that sort directions into quadrants
-    /// themselves: `None` where [`crate::simd::isa`] does not allow AVX-512, which those runs
-    /// need. Filled in parallel, each pattern on its own, as [`CosineTable::build`] fills.
-    pub(crate) fn build_in_sample_order(cmj: &Cmj, n: u32, first: u32, count: u32) -> Option<Self> {
-        if !crate::simd::avx512() || n > Self::MAX_SAMPLES {
+    /// in sample order, for the runs in packets `lanes` wide that sort directions into
+    /// quadrants themselves: `None` for sixteen lanes where [`crate::simd::isa`] does not allow
+    /// AVX-512, and for other widths than eight and sixteen. Filled in parallel, each pattern on
+    /// its own, as [`CosineTable::build`] fills.
+    pub(crate) fn build_in_sample_order(cmj: &Cmj, n: u32, first: u32, count: u32, lanes: usize) -> Option<Self> {
+        if !lanes_allowed(lanes) || n > Self::MAX_SAMPLES {
             return None;
         }
-        Some(Self::filled(TableOrder::Samples, 16, 3 * n as usize, first, count, |p, out| {
-            crate::simd::run_in(16, FillSamples { cmj, p, out });
+        Some(Self::filled(TableOrder::Samples, lanes, 3 * n as usize, first, count, |p, out| {
+            crate::simd::run_in(lanes, FillSamples { cmj, p, out });
         }))
     }
 
@@ -390,14 +391,16 @@ mod tests {
 
     /// A table in sample order holds, bit for bit, the direction the scalar cosine map gives
     /// each sample ([`Cmj::sample`]) at its sample's place, for sizes with quadrants or not,
-    /// with a partial last group of sixteen or not, and pattern numbers that wrap; and is kept
-    /// for patterns of at most [`CosineTable::MAX_SAMPLES`] points where AVX-512 is allowed.
+    /// with a partial last group of lanes or not, and pattern numbers that wrap, filled in
+    /// eight lanes or sixteen; and is kept for patterns of at most [`CosineTable::MAX_SAMPLES`]
+    /// points, for sixteen lanes where AVX-512 is allowed.
     #[test]
     fn a_table_in_sample_order_holds_each_sample_s_direction_in_its_place() {
-        for n in [1u32, 7, 24, 48, 64, 100, 256, 257] {
+        for (n, lanes) in [1u32, 7, 24, 48, 64, 100, 256, 257].into_iter().flat_map(|n| [(n, 8), (n, 16)]) {
             let cmj = Cmj::new(n);
-            let Some(table) = CosineTable::build_in_sample_order(&cmj, n, u32::MAX - 1, 4) else {
-                assert!(!crate::simd::avx512() || n > CosineTable::MAX_SAMPLES, "n {n}: no table");
+            let Some(table) = CosineTable::build_in_sample_order(&cmj, n, u32::MAX - 1, 4, lanes) else {
+                let sixteen_refused = lanes == 16 && !crate::simd::avx512();
+                assert!(sixteen_refused || n > CosineTable::MAX_SAMPLES, "n {n}, {lanes} lanes: no table");
                 continue;
             };
             assert!(n <= CosineTable::MAX_SAMPLES, "n {n}: a table");

@@ -126,7 +126,7 @@ impl SampleSets {
         let (cmj, key) = (Cmj::new(n), seed_key(seed));
         let first_pattern = (key >> 32) as u32;
         // Only the occluder's runs read the table: its packets of whole passes in the width the
-        // CPU's packets have, or its sixteen-lane runs in sample order.
+        // CPU's packets have, or its runs in sample order, sorted into packets of that width.
         #[cfg(target_arch = "x86_64")]
         let cosine = (kind == SamplerKind::CorrelatedMultiJittered)
             .then(|| {
@@ -136,8 +136,10 @@ impl SampleSets {
                         .or_else(|| CosineTable::build_sorted(&cmj, n, first_pattern, Self::PREFERRED_SETS, lanes))
                 });
                 whole.flatten().or_else(|| {
-                    (lanes == 16 && runs != SampleRuns::OnePerPoint)
-                        .then(|| CosineTable::build_in_sample_order(&cmj, n, first_pattern, Self::PREFERRED_SETS))
+                    (runs != SampleRuns::OnePerPoint)
+                        .then(|| {
+                            CosineTable::build_in_sample_order(&cmj, n, first_pattern, Self::PREFERRED_SETS, lanes)
+                        })
                         .flatten()
                 })
             })
@@ -641,11 +643,7 @@ mod tests {
             assert!(regular.matches(SamplerKind::Regular, n, 9, (37, 23), SampleRuns::WholePasses));
             let quadrants = n.is_power_of_two();
             let packets = if quadrants { "quadrant" } else { "azimuth" };
-            if !crate::simd::avx512() {
-                assert_eq!(sets.cosine_table_order(), None, "n {n}: sixteen-lane runs only");
-                assert_eq!(whole.cosine_table_order(), Some(packets), "n {n}: eight-lane packets");
-                continue;
-            }
+            // In eight lanes or sixteen, whichever the CPU's packets have.
             assert_eq!(sets.cosine_table_order(), Some("sample"), "n {n}");
             assert_eq!(whole.cosine_table_order(), Some(packets), "n {n}");
             for (pixel, first, len) in [(0u32, 0u32, 40usize), (5, 7, 1), (100, 15, 33), (850, 3, 16)] {

@@ -4,7 +4,9 @@ use std::arch::x86_64::*;
 
 use glam::{Vec2, Vec3A};
 
-use super::{FusedLanes, HasAvx2, Kernel, Lanes, SampleLanes, lanes::isa_methods, u32_lanes::U32x8};
+use super::{
+    BitLanes, CompressLanes, FusedLanes, HasAvx2, Kernel, Lanes, SampleLanes, lanes::isa_methods, u32_lanes::U32x8,
+};
 
 /// Eight lanes in an AVX register. The field is private: a value is made only from a
 /// [`HasAvx2`] token or from other values, so it proves the CPU has x86-64-v3.
@@ -69,6 +71,104 @@ impl SampleLanes for Avx {
                 // 2·len floats of `out`.
                 _mm256_maskstore_ps(floats.wrapping_add(8 * h), keep, pair);
             }
+        }
+    }
+}
+
+/// For each 8-bit lane mask, the indices of its set lanes in order, a byte each from the
+/// lowest (bytes past them 0): the permutation that compresses those lanes to the front.
+const COMPRESS: [u64; 256] = {
+    let mut table = [0u64; 256];
+    let mut m = 0;
+    while m < 256 {
+        let (mut packed, mut n, mut lane) = (0u64, 0, 0);
+        while lane < 8 {
+            if m >> lane & 1 != 0 {
+                packed |= (lane as u64) << (8 * n);
+                n += 1;
+            }
+            lane += 1;
+        }
+        table[m] = packed;
+        m += 1;
+    }
+    table
+};
+
+/// The lanes below `n` (at most eight) set, as a mask for AVX2's masked loads and stores.
+#[inline(always)]
+fn first_lanes(_: HasAvx2, n: usize) -> __m256i {
+    // SAFETY: the token proves the CPU has x86-64-v3.
+    unsafe { _mm256_cmpgt_epi32(_mm256_set1_epi32(n.min(8) as i32), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7)) }
+}
+
+/// The permutation that moves the lanes of `m` (its low eight bits) to the front, in order.
+#[inline(always)]
+fn compress_permutation(_: HasAvx2, m: u32) -> __m256i {
+    // SAFETY: the token proves the CPU has x86-64-v3.
+    unsafe { _mm256_cvtepu8_epi32(_mm_cvtsi64_si128(COMPRESS[(m & 0xff) as usize] as i64)) }
+}
+
+/// AVX2 has no compressing store: the lanes are permuted to the front by a table of the 256
+/// masks' permutations, then the first ones stored under a mask.
+impl CompressLanes for Avx {
+    isa_methods! {
+        fn load_partial(isa: HasAvx2, x: &[f32]) -> Self {
+            // The masked load reads only the first `x.len()` floats (at most eight): masked-out
+            // lanes are not read and cannot fault.
+            Avx(_mm256_maskload_ps(x.as_ptr(), first_lanes(isa, x.len())))
+        }
+        fn compress_store(self, m: u32, out: &mut [f32]) {
+            let n = (m & 0xff).count_ones() as usize;
+            let out = &mut out[..n];
+            let isa = self.isa();
+            let packed = _mm256_permutevar8x32_ps(self.0, compress_permutation(isa, m));
+            // The masked store writes the first `n` floats of `out`, checked above.
+            _mm256_maskstore_ps(out.as_mut_ptr(), first_lanes(isa, n), packed)
+        }
+        fn compress_indices(isa: HasAvx2, base: u32, m: u32, out: &mut [u32]) {
+            let n = (m & 0xff).count_ones() as usize;
+            let out = &mut out[..n];
+            let index = _mm256_add_epi32(_mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7), _mm256_set1_epi32(base as i32));
+            let packed = _mm256_permutevar8x32_epi32(index, compress_permutation(isa, m));
+            // The masked store writes the first `n` integers of `out`, checked above.
+            _mm256_maskstore_epi32(out.as_mut_ptr().cast(), first_lanes(isa, n), packed)
+        }
+        fn store_partial(self, out: &mut [f32]) {
+            // The masked store writes only the first `out.len()` floats (at most eight).
+            _mm256_maskstore_ps(out.as_mut_ptr(), first_lanes(self.isa(), out.len()), self.0)
+        }
+    }
+}
+
+/// The float bit operations of `geometry::hit`'s SSE `step_away`, eight lanes wide.
+impl BitLanes for Avx {
+    isa_methods! {
+        fn copysign(self, sign: Self) -> Self {
+            let magnitude = _mm256_andnot_ps(_mm256_set1_ps(-0.0), self.0);
+            Avx(_mm256_or_ps(magnitude, _mm256_and_ps(sign.0, _mm256_set1_ps(-0.0))))
+        }
+        fn step_away(self, o: Self) -> Self {
+            let (v, o, zero) = (self.0, o.0, _mm256_setzero_ps());
+            let mask = |m: __m256| _mm256_castps_si256(m);
+            let blend = |m: __m256i, a: __m256i, b: __m256i| _mm256_blendv_epi8(b, a, m);
+            let bits = _mm256_castps_si256(v);
+            let (up, down) = (mask(_mm256_cmp_ps::<_CMP_GT_OQ>(o, zero)), mask(_mm256_cmp_ps::<_CMP_LT_OQ>(o, zero)));
+            let positive = mask(_mm256_cmp_ps::<_CMP_GT_OQ>(v, zero));
+            // Away from zero (+1 on the bits) when moving up from a positive value or down from
+            // a negative one (a NaN counts as negative), towards it (−1) otherwise.
+            let away = _mm256_xor_si256(_mm256_xor_si256(up, positive), _mm256_set1_epi32(-1));
+            let moved = _mm256_add_epi32(bits, blend(away, _mm256_set1_epi32(1), _mm256_set1_epi32(-1)));
+            // From either zero: the least positive float up, the least negative one down.
+            let from_zero = blend(up, _mm256_set1_epi32(1), _mm256_set1_epi32(0x8000_0001_u32 as i32));
+            let moved = blend(mask(_mm256_cmp_ps::<_CMP_EQ_OQ>(v, zero)), from_zero, moved);
+            // Infinities stay where they are the far end.
+            let at_end = _mm256_or_si256(
+                _mm256_and_si256(up, mask(_mm256_cmp_ps::<_CMP_EQ_OQ>(v, _mm256_set1_ps(f32::INFINITY)))),
+                _mm256_and_si256(down, mask(_mm256_cmp_ps::<_CMP_EQ_OQ>(v, _mm256_set1_ps(f32::NEG_INFINITY)))),
+            );
+            let moves = _mm256_andnot_si256(at_end, _mm256_or_si256(up, down));
+            Avx(_mm256_castsi256_ps(blend(moves, moved, bits)))
         }
     }
 }

@@ -149,7 +149,7 @@ enum RunDirections<'a> {
     Points,
     /// Local directions copied from the table into the direction columns.
     Columns,
-    /// Local directions in place in the table (a run that fills one packet within one pass):
+    /// Local directions in place in the table (a run of at most sixteen samples within one pass):
     /// x, y and z, one slice each.
     Table([&'a [f32]; 3]),
 }
@@ -165,12 +165,17 @@ struct QuadrantPasses<'a, P> {
     passes: P,
 }
 
-/// The token for the sixteen-lane runs (a run at one point sorted into quadrants from columns,
-/// or runs over many points), where `geometry`'s packets are sixteen wide and it has no
-/// alpha-tested meshes (which those packet queries do not see).
+/// The width of the runs set up in lanes and sorted into quadrants by lane compression (a run
+/// at one point from columns, [`cosine::CompressedRun`], or runs over many points,
+/// [`points::PointsRun`]), and of the point-light runs over many points: that of `geometry`'s
+/// packets, where they are eight or sixteen lanes wide ([`crate::simd::run_in`] runs either)
+/// and it has no alpha-tested meshes (which those packet queries do not see).
 #[cfg(target_arch = "x86_64")]
-fn sixteen_lane_runs(geometry: &SceneGeometry) -> Option<crate::simd::HasAvx512> {
-    (geometry.packet_lanes() == 16 && !geometry.has_alpha()).then(crate::simd::HasAvx512::allowed).flatten()
+fn lane_runs(geometry: &SceneGeometry) -> Option<usize> {
+    match geometry.packet_lanes() {
+        lanes @ (8 | 16) if !geometry.has_alpha() => Some(lanes),
+        _ => None,
+    }
 }
 
 /// Scratch buffers for [`DirectionRays::add`], kept between runs.
@@ -192,7 +197,7 @@ pub(crate) struct DirectionRays {
     /// Each of those rays' sample.
     #[cfg(target_arch = "x86_64")]
     ray_samples: Vec<u32>,
-    /// A cosine run's blocked samples, bit k of entry g for sample 16g + k.
+    /// A cosine run's blocked samples, bit k of entry g for sample g·w + k in runs of lanes w wide.
     #[cfg(target_arch = "x86_64")]
     dark: Vec<u32>,
     /// The shading points of a cosine run over many points, as columns.
@@ -253,8 +258,8 @@ impl DirectionRays {
     /// same rays, answers and sums, in one pass from sample points to packets, where the
     /// scene's packets are eight or sixteen wide and the sets are computed in lanes: straight
     /// from the patterns in quadrant order where the run is whole passes that split into
-    /// quadrants ([`SampleSets::quadrant_passes`]), else, with sixteen-lane packets, sorted
-    /// into quadrants from columns ([`SampleSets::fill_columns`], any sampler). `None`, having
+    /// quadrants ([`SampleSets::quadrant_passes`]), else sorted into quadrants from columns
+    /// ([`SampleSets::fill_columns`], any sampler). `None`, having
     /// done nothing, elsewhere, and in scenes with alpha-tested meshes, which those packet queries
     /// do not see (the general path's queries do). With `sum`, the run's light is added there,
     /// its blocked rays counted, instead of to `arriving`.
@@ -285,11 +290,11 @@ impl DirectionRays {
             return crate::simd::run_in(lanes, kernel);
         }
         #[cfg(target_arch = "x86_64")]
-        if let Some(isa) = sixteen_lane_runs(geometry) {
+        if let Some(lanes) = lane_runs(geometry) {
             let n = arriving.len().next_multiple_of(16);
             let len = arriving.len();
             // Local directions from the table where it is in sample order (read in place where
-            // the run fills one packet within one pass), else sample points.
+            // the run is at most sixteen samples within one pass), else sample points.
             let in_table = if len <= 16 { sets.table_directions(pixel, first, dim, len) } else { None };
             let directions = match in_table {
                 Some(columns) => RunDirections::Table(columns),
@@ -315,7 +320,7 @@ impl DirectionRays {
             }
             let out = RunOut::new(arriving, sum);
             let kernel = cosine::CompressedRun { rays: self, geometry, stack, spawn, frame, terms, directions, out };
-            return Some(<crate::simd::Avx512 as crate::simd::Lanes>::compiled(isa, kernel));
+            return crate::simd::run_in(lanes, kernel);
         }
         let _ = (geometry, stack, spawn, frame, sets, pixel, first, dim, terms, arriving, sum);
         None
@@ -326,9 +331,9 @@ impl DirectionRays {
     /// (mapped as [`cosine_power_hemisphere`](crate::sampling::warp::cosine_power_hemisphere)
     /// with e = 1 maps it) into `arriving[i]`, where `lit(p)` (elsewhere no ray, nothing added).
     /// The same rays, answers and light as [`DirectionRays::add`] gives each point's sample,
-    /// set up in lanes and traced as packets by quadrant, where the scene's packets are sixteen
-    /// wide. `None`, having done nothing, elsewhere, and in scenes with alpha-tested meshes (as
-    /// for [`DirectionRays::add_cosine`]).
+    /// set up in lanes and traced as packets by quadrant, where the scene's packets are eight or
+    /// sixteen wide. `None`, having done nothing, elsewhere, and in scenes with alpha-tested
+    /// meshes (as for [`DirectionRays::add_cosine`]).
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn add_cosine_points<P: CosinePoint>(
         &mut self,
@@ -342,10 +347,10 @@ impl DirectionRays {
     ) -> Option<(u64, u64)> {
         debug_assert_eq!(points.len(), arriving.len(), "one sample per point");
         #[cfg(target_arch = "x86_64")]
-        if let Some(isa) = sixteen_lane_runs(geometry) {
-            self.points.gather(points, u, lit);
+        if let Some(lanes) = lane_runs(geometry) {
+            self.points.gather(points, u, lit, lanes);
             let kernel = points::PointsRun { rays: self, geometry, stack, terms, arriving };
-            return Some(<crate::simd::Avx512 as crate::simd::Lanes>::compiled(isa, kernel));
+            return crate::simd::run_in(lanes, kernel);
         }
         let _ = (geometry, stack, points, u, lit, terms, arriving);
         None
@@ -356,8 +361,8 @@ impl DirectionRays {
     /// [`PointSource::sample`] and, where its light is not zero and the source casts shadows, a
     /// shadow ray to it from the point's side of its surface, `far` of the way there (what the
     /// tracer's general path traces for it). The same light and rays bit for bit, set up in
-    /// lanes and traced as packets of neighbouring points, where the scene's packets are
-    /// sixteen wide; the points are gathered into columns once for all the sources. `None`,
+    /// lanes and traced as packets of neighbouring points, where the scene's packets are eight
+    /// or sixteen wide; the points are gathered into columns once for all the sources. `None`,
     /// having done nothing, elsewhere, and in scenes with alpha-tested meshes (as for
     /// [`DirectionRays::add_cosine`]).
     ///
@@ -373,10 +378,10 @@ impl DirectionRays {
     ) -> Option<(u64, u64)> {
         debug_assert_eq!(points.len(), arriving.len(), "one sample per point");
         #[cfg(target_arch = "x86_64")]
-        if let Some(isa) = sixteen_lane_runs(geometry) {
-            self.points.gather(points, |_| Vec2::ZERO, lit);
+        if let Some(lanes) = lane_runs(geometry) {
+            self.points.gather(points, |_| Vec2::ZERO, lit, lanes);
             let kernel = points::PointSourcesRun { rays: self, geometry, stack, sources, far, arriving };
-            return Some(<crate::simd::Avx512 as crate::simd::Lanes>::compiled(isa, kernel));
+            return crate::simd::run_in(lanes, kernel);
         }
         let _ = (geometry, stack, points, lit, sources, far, arriving);
         None

@@ -25,11 +25,14 @@ const POINT: usize = 5;
 const OFFSET: usize = 8;
 const COLUMNS: usize = 11;
 
-/// A run of shading points as columns, one entry per point, padded to whole groups of sixteen.
+/// A run of shading points as columns, one entry per point, padded to whole groups of the
+/// lanes that take them.
 #[derive(Debug, Default)]
 pub(super) struct PointColumns {
     columns: [Vec<f32>; COLUMNS],
-    /// Bit k of entry g: point 16g + k is lit.
+    /// The points in a group: the width of the lanes that take them.
+    width: usize,
+    /// Bit k of entry g: point g·width + k is lit.
     lit: Vec<u32>,
     /// The bits of each point's frame symmetry ([`Onb::symmetry`](crate::math::Onb::symmetry)),
     /// one mask per group as in `lit`: a quarter turn (bit 0 of the symmetry), a half turn (bit
@@ -43,24 +46,32 @@ pub(super) struct PointColumns {
 
 impl PointColumns {
     /// Writes `points`, their sample points `u` and whether each is `lit`, into the columns,
-    /// a column at a time (each a plain pass over the points).
-    pub(super) fn gather<P: CosinePoint>(&mut self, points: &[P], u: impl Fn(&P) -> Vec2, lit: impl Fn(&P) -> bool) {
+    /// a column at a time (each a plain pass over the points), for lanes `width` wide.
+    pub(super) fn gather<P: CosinePoint>(
+        &mut self,
+        points: &[P],
+        u: impl Fn(&P) -> Vec2,
+        lit: impl Fn(&P) -> bool,
+        width: usize,
+    ) {
+        self.width = width;
         let [ux, uy, nx, ny, nz, px, py, pz, ox, oy, oz] = &mut self.columns;
-        fill(ux, points, |p| u(p).x);
-        fill(uy, points, |p| u(p).y);
-        fill(nx, points, |p| p.spawn().normal().x);
-        fill(ny, points, |p| p.spawn().normal().y);
-        fill(nz, points, |p| p.spawn().normal().z);
-        fill(px, points, |p| p.spawn().p.x);
-        fill(py, points, |p| p.spawn().p.y);
-        fill(pz, points, |p| p.spawn().p.z);
-        fill(ox, points, |p| p.spawn().offset().x);
-        fill(oy, points, |p| p.spawn().offset().y);
-        fill(oz, points, |p| p.spawn().offset().z);
-        // One pass for the four masks: bit k of entry g is point 16g + k's.
+        let padded = points.len().next_multiple_of(width);
+        fill(ux, points, padded, |p| u(p).x);
+        fill(uy, points, padded, |p| u(p).y);
+        fill(nx, points, padded, |p| p.spawn().normal().x);
+        fill(ny, points, padded, |p| p.spawn().normal().y);
+        fill(nz, points, padded, |p| p.spawn().normal().z);
+        fill(px, points, padded, |p| p.spawn().p.x);
+        fill(py, points, padded, |p| p.spawn().p.y);
+        fill(pz, points, padded, |p| p.spawn().p.z);
+        fill(ox, points, padded, |p| p.spawn().offset().x);
+        fill(oy, points, padded, |p| p.spawn().offset().y);
+        fill(oz, points, padded, |p| p.spawn().offset().z);
+        // One pass for the four masks: bit k of entry g is point g·width + k's.
         self.lit.clear();
         self.symmetry.iter_mut().for_each(Vec::clear);
-        for group in points.chunks(16) {
+        for group in points.chunks(width) {
             let (mut lit_bits, mut symmetry_bits) = (0, [0; 3]);
             for (k, p) in group.iter().enumerate() {
                 lit_bits |= u32::from(lit(p)) << k;
@@ -77,12 +88,12 @@ impl PointColumns {
     }
 }
 
-/// Sets `column` to `value` of each of `points`, padded with 0.5 to a whole group of sixteen.
+/// Sets `column` to `value` of each of `points`, padded with 0.5 to `padded` entries.
 #[inline(always)]
-fn fill<P>(column: &mut Vec<f32>, points: &[P], value: impl Fn(&P) -> f32) {
+fn fill<P>(column: &mut Vec<f32>, points: &[P], padded: usize, value: impl Fn(&P) -> f32) {
     column.clear();
     column.extend(points.iter().map(value));
-    column.resize(points.len().next_multiple_of(16), 0.5);
+    column.resize(padded, 0.5);
 }
 
 /// [`DirectionRays::add_cosine_points_lanes`] as a kernel over the lane type.
@@ -121,7 +132,7 @@ impl DirectionRays {
         arriving: &mut [Vec3A],
     ) -> (u64, u64) {
         let w = L::WIDTH;
-        debug_assert_eq!(w, 16, "the columns hold points in groups of sixteen");
+        debug_assert_eq!(w, self.points.width, "the columns hold points in groups of the lanes' width");
         let n = arriving.len();
         let groups = n.div_ceil(w);
         // Every sample has weight 1: one clear value and one floor for all.
@@ -257,7 +268,7 @@ fn point_source_lanes<L: PassLanes + BitLanes>(
     arriving: &mut [Vec3A],
 ) -> (u64, u64) {
     let w = L::WIDTH;
-    debug_assert_eq!(w, 16, "the columns hold points in groups of sixteen");
+    debug_assert_eq!(w, points.width, "the columns hold points in groups of the lanes' width");
     let (zero, one) = (L::splat(isa, 0.0), L::splat(isa, 1.0));
     let q = source.position.to_array().map(|x| L::splat(isa, x));
     let intensity = source.intensity.to_array().map(|x| L::splat(isa, x));
@@ -328,39 +339,40 @@ mod tests {
     use crate::{
         math::Onb,
         random::SplitMix64,
-        simd::{Avx512, HasAvx512, Lanes},
+        simd::{Avx, Avx512},
     };
 
     /// Each lane's frame is the scalar frame of its normal under its symmetry, bit for bit, on
     /// normals along and against every axis (±0 in z included) and random ones, under all eight
-    /// symmetries (where the CPU has AVX-512).
+    /// symmetries, in eight lanes and sixteen (where the CPU has them).
     #[test]
     fn frames_in_lanes_are_the_scalar_frames() {
-        crate::simd::both_widths(|_| {}, frames);
+        crate::simd::both_widths(frames::<Avx>, frames::<Avx512>);
     }
 
-    /// [`frames_in_lanes_are_the_scalar_frames`].
-    fn frames(isa: HasAvx512) {
+    /// [`frames_in_lanes_are_the_scalar_frames`] in lanes `L`.
+    fn frames<L: BitLanes>(isa: L::Isa) {
+        let w = L::WIDTH;
         let mut normals = vec![Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z];
         normals.extend([Vec3::new(0.6, 0.8, 0.0), Vec3::new(0.6, 0.8, -0.0), Vec3::new(0.0, 0.6, -0.8)]);
         let mut rng = SplitMix64::new(11);
         let mut unit = || rng.next_f32() * 2.0 - 1.0;
         normals.extend((0..200).map(|_| Vec3::new(unit(), unit(), unit()).normalize()));
         let bits = |v: Vec3| v.to_array().map(f32::to_bits);
-        for (start, chunk) in normals.chunks(16).enumerate() {
+        for (start, chunk) in normals.chunks(w).enumerate() {
             let lane = |k: usize| chunk[k % chunk.len()];
-            let column = |a: usize| Avx512::load(isa, &std::array::from_fn::<f32, 16, _>(|k| lane(k)[a]));
+            let column = |a: usize| L::load(isa, &(0..w).map(|k| lane(k)[a]).collect::<Vec<f32>>());
             let symmetry = |k: usize| ((start + 3 * k) % 8) as u32;
-            let masks = [0, 1, 2].map(|b| Avx512::mask(isa, (0..16).fold(0, |m, k| m | (symmetry(k) >> b & 1) << k)));
+            let masks = [0, 1, 2].map(|b| L::mask(isa, (0..w).fold(0, |m, k| m | (symmetry(k) >> b & 1) << k)));
             let (u, v) = frame_lanes(isa, [column(0), column(1), column(2)], masks);
-            for k in 0..16 {
+            for k in 0..w {
                 let want = Onb::from_normal(lane(k)).symmetry(symmetry(k));
-                let got = |x: [Avx512; 3]| Vec3::from_array(x.map(|c| c.lane(k)));
+                let got = |x: [L; 3]| Vec3::from_array(x.map(|c| c.lane(k)));
                 let n = lane(k);
                 assert_eq!(
                     (bits(got(u)), bits(got(v))),
                     (bits(want.u), bits(want.v)),
-                    "n = {n}, symmetry {}",
+                    "n = {n}, symmetry {}, {w} lanes",
                     symmetry(k)
                 );
             }

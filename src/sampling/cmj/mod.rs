@@ -130,15 +130,14 @@ impl Cmj {
 
     /// Samples `first..first + xs.len()` (all < n) of pattern `p` as two columns, x into `xs`
     /// and y into `ys` (same length): [`Cmj::fill`]'s values. Returns false, writing nothing,
-    /// unless this CPU has AVX-512 (see [`crate::simd::isa`]) and the pattern is taken in lanes
-    /// ([`Cmj::in_lanes`]), where sixteen samples at a time go straight from lanes to the columns.
+    /// unless the CPU's packets are eight or sixteen lanes wide ([`crate::simd::packet_lanes`])
+    /// and the pattern is taken in lanes ([`Cmj::in_lanes`]), where a vector of samples at a
+    /// time goes straight from lanes to the columns.
     pub(crate) fn fill_columns(&self, first: u32, p: u32, xs: &mut [f32], ys: &mut [f32]) -> bool {
         #[cfg(target_arch = "x86_64")]
-        if self.in_lanes(p)
-            && let Some(isa) = crate::simd::HasAvx512::allowed()
-        {
-            <crate::simd::Avx512 as crate::simd::Lanes>::compiled(isa, FillColumns { cmj: self, first, p, xs, ys });
-            return true;
+        if self.in_lanes(p) {
+            return crate::simd::run_in(crate::simd::packet_lanes(), FillColumns { cmj: self, first, p, xs, ys })
+                .is_some();
         }
         let _ = (first, p, xs, ys);
         false
