@@ -573,14 +573,15 @@ fn the_occluder_s_bulk_path_matches_the_per_sample_path() {
     // (sampler, set size, samples per pixel). 37 samples: full groups of four, eight and
     // sixteen lanes, and a partial one of each. Correlated multi-jittered sets take the
     // occluder's one-pass paths for cosine runs where the CPU has AVX2 or AVX-512: with sets
-    // of 16 and 37 samples a run spans three passes, the first and last partial (with
-    // AVX-512, directions copied from the table in sample order and sorted into quadrants);
+    // of 16 and 37 samples a run spans three passes, the first and last partial (directions
+    // copied from the table in sample order and sorted into quadrants);
     // with sets of 24 and 48 samples two whole passes of a set without quadrants (the same);
     // with sets of 16 and 32 samples two whole passes and with sets of 64 one (rays made in
     // the patterns' quadrant order, a packet of sixteen spanning the quadrants of a set of 16
     // and holding one quadrant of a set of 64, a packet of eight spanning two quadrants of a
     // set of 16 and holding half of one of a set of 64); 16 samples of a set of 64 (a
-    // progressive frame's run) fill one packet, traced in sample order. Frames of four samples
+    // progressive frame's run) fill one sixteen-lane packet, traced in sample order, or two
+    // eight-lane packets sorted into quadrants. Frames of four samples
     // or fewer light the shared hits of a row of pixels together (`Tracer::shade_row_sums`,
     // with AOVs `Tracer::shade_row_samples`): a row's runs pooled, the occluder's rays from
     // neighbouring pixels in shared packets.
