@@ -33,7 +33,11 @@ fn local_group<L: PassLanes + CompressLanes>(
 ) -> [L; 3] {
     let [xs, ys, dx, dy, dz] = columns;
     match directions {
-        RunDirections::Table(table) => table.map(|axis| L::load_partial(isa, &axis[at..])),
+        // Written out, not `table.map`: a closure is compiled without the kernel's instruction
+        // set, and where `map` stays out of line its intrinsics become calls.
+        RunDirections::Table([x, y, z]) => {
+            [L::load_partial(isa, &x[at..]), L::load_partial(isa, &y[at..]), L::load_partial(isa, &z[at..])]
+        }
         RunDirections::Columns => [L::load(isa, &dx[at..]), L::load(isa, &dy[at..]), L::load(isa, &dz[at..])],
         RunDirections::Points => cosine_hemisphere_lanes(L::load(isa, &xs[at..]), L::load(isa, &ys[at..])),
     }

@@ -197,10 +197,12 @@ impl DirectionRays {
             for p in (0..traced).step_by(w) {
                 let live = (1u32 << (traced - p).min(w)) - 1;
                 let (hit, took) = {
+                    // Written out, not by `map` (see `cosine::local_group`).
+                    let ([dx, dy, dz], [ox, oy, oz]) = (&self.ray_dirs, &points.ray_origins);
                     let load = |c: &[f32]| L::load_partial(isa, &c[p..traced]);
-                    let d = self.ray_dirs.each_ref().map(|c| load(c));
+                    let d = [load(dx), load(dy), load(dz)];
                     let lanes = RayLanes {
-                        origin: points.ray_origins.each_ref().map(|c| load(c)),
+                        origin: [load(ox), load(oy), load(oz)],
                         dir: d,
                         inv_dir: [one.div(d[0]), one.div(d[1]), one.div(d[2])],
                         tmax: L::splat(isa, terms.max_distance),
