@@ -36,6 +36,20 @@ pub fn next_float_down(v: f32) -> f32 {
     f32::from_bits(bits)
 }
 
+/// `v` moved one float the way `o` points: [`next_float_up`] where `o` is positive,
+/// [`next_float_down`] where it is negative, unchanged otherwise (zero or NaN). The definition
+/// that the geometry's `step_away` and the lanes' `BitLanes::step_away` give bit for bit.
+#[inline]
+pub fn step_float(v: f32, o: f32) -> f32 {
+    if o > 0.0 {
+        next_float_up(v)
+    } else if o < 0.0 {
+        next_float_down(v)
+    } else {
+        v
+    }
+}
+
 /// An orthonormal frame (u, v, w) with w along a given unit normal.
 #[derive(Clone, Copy, Debug)]
 pub struct Onb {

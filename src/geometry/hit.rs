@@ -3,7 +3,7 @@
 use glam::Vec3A;
 
 #[cfg(any(test, not(target_arch = "x86_64")))]
-use crate::math::{next_float_down, next_float_up};
+use crate::math::step_float;
 
 /// A ray–surface intersection.
 #[derive(Clone, Copy, Debug)]
@@ -108,10 +108,8 @@ pub fn offset_ray_origin(p: Vec3A, err: Vec3A, n: Vec3A, w: Vec3A, least: f32) -
     step_away(p + offset, offset)
 }
 
-/// Each component of `v` moved one float the way `o`'s component points:
-/// [`next_float_up`](crate::math::next_float_up) where it is positive,
-/// [`next_float_down`](crate::math::next_float_down) where it is negative, unchanged
-/// otherwise, bit for bit (NaN included). In SSE2 lanes by masks rather than branches: each
+/// Each component of `v` moved one float the way `o`'s component points
+/// ([`step_float`](crate::math::step_float)), bit for bit (NaN included). In SSE2 lanes by masks rather than branches: each
 /// normal component's sign is as good as random from one hit to the next.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
@@ -143,32 +141,18 @@ fn step_away(v: Vec3A, o: Vec3A) -> Vec3A {
     }
 }
 
-/// One component of [`step_away`], by the definitions' branches: the code for targets without
-/// SSE2, and the tests' reference.
-#[cfg(any(test, not(target_arch = "x86_64")))]
-#[inline]
-fn step_away_one(v: f32, o: f32) -> f32 {
-    if o > 0.0 {
-        next_float_up(v)
-    } else if o < 0.0 {
-        next_float_down(v)
-    } else {
-        v
-    }
-}
-
 /// [`step_away`] component by component where there is no SSE2.
 #[cfg(not(target_arch = "x86_64"))]
 #[inline]
 fn step_away(v: Vec3A, o: Vec3A) -> Vec3A {
-    Vec3A::new(step_away_one(v.x, o.x), step_away_one(v.y, o.y), step_away_one(v.z, o.z))
+    Vec3A::new(step_float(v.x, o.x), step_float(v.y, o.y), step_float(v.z, o.z))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// `step_away` is the branchy definition it replaces (`step_away_one`), bit for bit, in every
+    /// `step_away` is the branchy definition it replaces (`step_float`), bit for bit, in every
     /// lane, on zeros, infinities, NaN, subnormals, the largest floats and random bits.
     #[test]
     fn step_away_is_next_float_up_or_down() {
@@ -185,12 +169,7 @@ mod tests {
                 let got = step_away(Vec3A::from_array(vs), Vec3A::from_array(os)).to_array();
                 for a in 0..3 {
                     let (v, o) = (vs[a], os[a]);
-                    assert_eq!(
-                        got[a].to_bits(),
-                        step_away_one(v, o).to_bits(),
-                        "v = {v:e} ({:#x}), o = {o}",
-                        v.to_bits()
-                    );
+                    assert_eq!(got[a].to_bits(), step_float(v, o).to_bits(), "v = {v:e} ({:#x}), o = {o}", v.to_bits());
                 }
             }
         }

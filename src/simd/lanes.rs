@@ -194,3 +194,97 @@ macro_rules! isa_methods {
     };
 }
 pub(crate) use isa_methods;
+
+#[cfg(all(test, target_arch = "x86_64"))]
+mod tests {
+    use super::{BitLanes, CompressLanes};
+    use crate::{
+        random::SplitMix64,
+        simd::{Avx, Avx512, Plain, Portable},
+    };
+
+    /// Compression keeps the lanes of the mask in lane order and writes nothing past them; a
+    /// partial load fills the lanes past the slice with 0; a partial store writes the first
+    /// lanes and nothing past `out`: in the portable lanes, and in AVX2's and AVX-512's where
+    /// the CPU has them.
+    #[test]
+    fn compression_and_partial_moves_keep_to_their_lanes() {
+        packs::<Portable>(Plain);
+        crate::simd::both_widths(packs::<Avx>, packs::<Avx512>);
+    }
+
+    /// [`compression_and_partial_moves_keep_to_their_lanes`] in lanes `L`: every mask of eight
+    /// lanes, or none, all and 498 random ones of sixteen.
+    fn packs<L: CompressLanes>(isa: L::Isa) {
+        let w = L::WIDTH;
+        let all = (1u32 << w) - 1;
+        let x: Vec<f32> = (0..w).map(|k| k as f32 * 1.5 - 4.0).collect();
+        let mut rng = SplitMix64::new(7);
+        let masks: Vec<u32> = if w == 8 {
+            (0..=all).collect()
+        } else {
+            [0, all].into_iter().chain((2..500).map(|_| (rng.next_u64() as u32) & all)).collect()
+        };
+        for m in masks {
+            let kept: Vec<usize> = (0..w).filter(|k| m >> k & 1 != 0).collect();
+            let (mut floats, mut indices) = (vec![-7.0f32; w + 1], vec![u32::MAX; w + 1]);
+            L::load(isa, &x).compress_store(m, &mut floats);
+            L::compress_indices(isa, 100, m, &mut indices);
+            for (j, &k) in kept.iter().enumerate() {
+                assert_eq!((floats[j], indices[j]), (x[k], 100 + k as u32), "{w} lanes, mask {m:#x}, place {j}");
+            }
+            assert!(floats[kept.len()..].iter().all(|&f| f == -7.0), "{w} lanes, mask {m:#x}: wrote past its lanes");
+            assert!(
+                indices[kept.len()..].iter().all(|&i| i == u32::MAX),
+                "{w} lanes, mask {m:#x}: wrote past its lanes"
+            );
+        }
+        for len in 0..=w {
+            let lanes = L::load_partial(isa, &x[..len]);
+            let want: Vec<f32> = (0..w).map(|k| if k < len { x[k] } else { 0.0 }).collect();
+            assert_eq!((0..w).map(|k| lanes.lane(k)).collect::<Vec<f32>>(), want, "{w} lanes, load of {len}");
+        }
+        for len in 0..=w + 1 {
+            let mut out = vec![-1.0f32; w + 2];
+            L::load(isa, &x).store_partial(&mut out[..len]);
+            let want: Vec<f32> = (0..w + 2).map(|k| if k < len.min(w) { x[k] } else { -1.0 }).collect();
+            assert_eq!(out, want, "{w} lanes, store of {len}");
+        }
+    }
+
+    /// `step_away` moves each lane as [`step_float`](crate::math::step_float) does
+    /// (`next_float_up` for a positive offset, `next_float_down` for a negative one, else
+    /// nothing), bit for bit on zeros, infinities, NaN, subnormals, the largest floats and
+    /// random bits: in the portable lanes, and in AVX2's and AVX-512's where the CPU has them.
+    #[test]
+    fn step_away_is_next_float_up_or_down_in_every_lane() {
+        steps::<Portable>(Plain);
+        crate::simd::both_widths(steps::<Avx>, steps::<Avx512>);
+    }
+
+    /// [`step_away_is_next_float_up_or_down_in_every_lane`] in lanes `L`.
+    fn steps<L: BitLanes>(isa: L::Isa) {
+        let w = L::WIDTH;
+        let mut values = vec![0.0, -0.0, 1.0, -1.0, f32::INFINITY, f32::NEG_INFINITY, f32::NAN, -f32::NAN];
+        values.extend([f32::MIN_POSITIVE, -f32::MIN_POSITIVE, 1e-45, -1e-45, f32::MAX, f32::MIN, 1e3, -2.5e-7]);
+        let mut rng = SplitMix64::new(5);
+        values.extend((0..1000).map(|_| f32::from_bits(rng.next_u64() as u32)));
+        let offsets = [1e-7, -1e-7, 0.0, -0.0, f32::NAN, f32::INFINITY, f32::NEG_INFINITY];
+        for start in 0..values.len() {
+            let v: Vec<f32> = (0..w).map(|k| values[(start + k * 7) % values.len()]).collect();
+            let o: Vec<f32> = (0..w).map(|k| offsets[(start + k) % offsets.len()]).collect();
+            let got = L::load(isa, &v).step_away(L::load(isa, &o));
+            for k in 0..w {
+                let want = crate::math::step_float(v[k], o[k]);
+                assert_eq!(
+                    got.lane(k).to_bits(),
+                    want.to_bits(),
+                    "{w} lanes: v = {:e} ({:#x}), o = {}",
+                    v[k],
+                    v[k].to_bits(),
+                    o[k]
+                );
+            }
+        }
+    }
+}

@@ -224,19 +224,10 @@ impl BitLanes for Portable {
     fn copysign(self, sign: Self) -> Self {
         self.zip(sign, f32::copysign)
     }
-    /// By the definition's branches, as the geometry's `step_away` is defined.
+    /// By the definition's branches ([`crate::math::step_float`]).
     #[inline(always)]
     fn step_away(self, o: Self) -> Self {
-        use crate::math::{next_float_down, next_float_up};
-        self.zip(o, |v, o| {
-            if o > 0.0 {
-                next_float_up(v)
-            } else if o < 0.0 {
-                next_float_down(v)
-            } else {
-                v
-            }
-        })
+        self.zip(o, crate::math::step_float)
     }
 }
 
@@ -434,46 +425,6 @@ mod tests {
             let lanes = |v: &[Vec3A; 8]| v.map(|v| glam::Vec4::from(std::arch::x86_64::__m128::from(v)).to_array());
             assert_eq!(format!("{:?}", lanes(&sums)), format!("{:?}", lanes(&want)));
             same(pa.copysign(pb), xa.copysign(xb), "copysign");
-            // Bit for bit, NaN included, as the geometry's `step_away`.
-            let (p, x) = (pa.step_away(pb), xa.step_away(xb));
-            assert_eq!(
-                p.0.map(f32::to_bits),
-                std::array::from_fn(|k| x.lane(k).to_bits()),
-                "step_away of {a:?}, {b:?}"
-            );
-        }
-        compress_and_partial_moves(isa);
-    }
-
-    /// Compressing stores write the masked lanes in lane order, and nothing past them; partial
-    /// loads and stores move the first lanes, and nothing past the slice: the portable lanes
-    /// by their definition, and the AVX lanes as they do.
-    fn compress_and_partial_moves(isa: HasAvx2) {
-        let x: [f32; 8] = std::array::from_fn(|k| k as f32 + 0.5);
-        let (p, v) = (Portable(x), Avx::load(isa, &x));
-        for m in 0..256u32 {
-            let kept: Vec<usize> = (0..8).filter(|&k| m >> k & 1 != 0).collect();
-            let want: [f32; 9] = std::array::from_fn(|i| kept.get(i).map_or(-1.0, |&k| x[k]));
-            let (mut got, mut avx) = ([-1.0f32; 9], [-1.0f32; 9]);
-            p.compress_store(m, &mut got);
-            v.compress_store(m, &mut avx);
-            assert_eq!((got, avx), (want, want), "compress_store of mask {m:#x}");
-            let want: [u32; 9] = std::array::from_fn(|i| kept.get(i).map_or(7, |&k| 100 + k as u32));
-            let (mut got, mut avx) = ([7u32; 9], [7u32; 9]);
-            Portable::compress_indices(Plain, 100, m, &mut got);
-            Avx::compress_indices(isa, 100, m, &mut avx);
-            assert_eq!((got, avx), (want, want), "compress_indices of mask {m:#x}");
-        }
-        for len in 0..=9 {
-            let source: Vec<f32> = (0..len).map(|k| k as f32 - 3.0).collect();
-            let want: [f32; 8] = std::array::from_fn(|k| source.get(k).copied().unwrap_or(0.0));
-            assert_eq!(Portable::load_partial(Plain, &source).0, want, "load_partial of {len}");
-            assert_eq!(std::array::from_fn(|k| Avx::load_partial(isa, &source).lane(k)), want, "load_partial of {len}");
-            let want: [f32; 10] = std::array::from_fn(|k| if k < len.min(8) { x[k] } else { -1.0 });
-            let (mut got, mut avx) = ([-1.0f32; 10], [-1.0f32; 10]);
-            p.store_partial(&mut got[..len]);
-            v.store_partial(&mut avx[..len]);
-            assert_eq!((got, avx), (want, want), "store_partial of {len}");
         }
     }
 }

@@ -209,7 +209,7 @@ mod tests {
     use super::*;
     use crate::{
         random::SplitMix64,
-        simd::{Avx, Avx512, CompressLanes, Lanes, Plain, Portable, SampleLanes},
+        simd::{Avx, Avx512, Plain, Portable, SampleLanes},
     };
 
     /// The u32 lanes' tables, lookups, tests and runs, the conversions to f32 lanes (rounded as
@@ -219,10 +219,7 @@ mod tests {
     #[test]
     fn u32_lanes_give_the_scalar_values() {
         same_as_scalar::<Portable>(Plain);
-        crate::simd::both_widths(same_as_scalar::<Avx>, |isa| {
-            same_as_scalar::<Avx512>(isa);
-            partial_stores_keep_to_their_lanes(isa);
-        });
+        crate::simd::both_widths(same_as_scalar::<Avx>, same_as_scalar::<Avx512>);
     }
 
     /// [`u32_lanes_give_the_scalar_values`] for `L`.
@@ -272,17 +269,6 @@ mod tests {
                 let want = if k < len { [x[k], y[k]] } else { [f32::NAN; 2] };
                 assert_eq!(v.to_array().map(f32::to_bits), want.map(f32::to_bits), "{w} lanes, {len} points: {k}");
             }
-        }
-    }
-
-    /// A partial store writes the first lanes and nothing past `out`.
-    fn partial_stores_keep_to_their_lanes(isa: HasAvx512) {
-        let x: [f32; 16] = std::array::from_fn(|k| k as f32 + 0.5);
-        for len in 0..=17 {
-            let mut out = [-1.0f32; 18];
-            Avx512::load(isa, &x).store_partial(&mut out[..len]);
-            let want: [f32; 18] = std::array::from_fn(|k| if k < len.min(16) { x[k] } else { -1.0 });
-            assert_eq!(out, want, "{len} floats");
         }
     }
 }
