@@ -13,6 +13,10 @@
 # hemi and Mitsuba: what their AO kernels spend on such rays (sampling, set-up, sums, and the
 # queries' walk down to the nodes around each ray's origin) against what the real rays add.
 #
+# With HEMI_NO_AVX512=1 hemi runs its AVX2 kernels and native Embree an AVX2 build of its bench
+# (scripts/native-embree.sh), so that column compares eight lanes with eight; Embree 4 and
+# Mitsuba 3 still run on the CPU's own instruction set.
+#
 # SCENE is a name from ../shared/peers/scenes (cornell, sphere_plane, many_spheres, dragon,
 # sponza). The peers run from a writable copy in $HEMI_PEERS_DIR (default /tmp/hemi-peers) with
 # their own venv, set up on first use as ../shared/peers/README.md describes (Mitsuba's llvm
@@ -31,7 +35,7 @@ while [ $# -gt 0 ]; do
         --threads) threads="$2"; shift 2 ;;
         --rounds) rounds="$2"; shift 2 ;;
         --split) split=1; shift ;;
-        -h|--help) sed -n '2,19p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,23p' "$0"; exit 0 ;;
         *) scenes+=("$1"); shift ;;
     esac
 done
@@ -128,7 +132,7 @@ echo "hemi kernel = AO rays / the trace time spent in the ambient occluder (its 
 echo "the part Mitsuba's number times), from cycle counts of every sixteenth pixel; hemi queries = AO rays / the"
 echo "part of that in the AO rays' BVH queries alone (traversal and triangle tests; no sampling, set-up or sums;"
 echo "timed in a quarter of those pixels);"
-echo "native = native Embree 3's ao_mrays_s (AO rays over its AO phase, generation included), best of --stream, --packet 8 and 16;"
+echo "native = native Embree 3's ao_mrays_s (AO rays over its AO phase, generation included), best of --stream, --packet 8 and 16${native_isa:+, its $native_isa build};"
 echo "robust = the same with --robust (RTC_SCENE_FLAG_ROBUST: watertight triangle tests and conservative traversal, as hemi's);"
 echo "embree = ao_incl_gen_mrays_s (numpy ray generation + occlusion); mitsuba = ao_mrays_s (whole AO kernel, warm run)."
 if [ "$split" = 1 ]; then

@@ -5,18 +5,35 @@
 #   native_scene NAME   -> prints the path of peer scene NAME's .aoscene (exported once)
 #   native_best NAME SPP THREADS [ARGS...] -> runs the bench in --stream, --packet 8 and
 #                          --packet 16 and prints the JSON line of the mode with the best ao_mrays_s
+# With HEMI_NO_AVX512=1, as hemi then runs its AVX2 kernels, the bench is an AVX2 one: its copy
+# (in $native/avx2) opens its Embree device with "isa=avx2" and is compiled without AVX-512, so
+# both sides of a ratio run eight-lane code on the same CPU.
 native="${HEMI_NATIVE_DIR:-/tmp/hemi-native}"
-native_bench="$native/build/embree_ao_bench_e3"
+native_build="$native"
+native_isa=""
+if [ "${HEMI_NO_AVX512:-}" = 1 ]; then
+    native_build="$native/avx2"
+    native_isa="avx2"
+fi
+native_bench="$native_build/build/embree_ao_bench_e3"
 native_apt() {
     [ "$(id -u)" = 0 ] || { echo "$(basename "$0" .sh): needs $* (apt-get install -y $*)" >&2; exit 1; }
     apt-get install -y -q "$@" >/dev/null 2>&1 || { apt-get update -q >/dev/null && apt-get install -y -q "$@" >/dev/null; }
 }
 [ -d "$peers_src/native" ] || { echo "$(basename "$0" .sh): $peers_src/native not found (../shared must sit beside the repo)" >&2; exit 1; }
 if [ ! -x "$native_bench" ]; then
-    echo "$(basename "$0" .sh): building the native Embree bench in $native" >&2
+    echo "$(basename "$0" .sh): building the native Embree bench in $native_build" >&2
     command -v g++ >/dev/null && [ -e /usr/include/embree3/rtcore.h ] || native_apt g++ libembree-dev
-    rm -rf "$native" && cp -r "$peers_src/native" "$native" && chmod -R u+w "$native"
-    make -s -C "$native" >&2
+    rm -rf "$native_build/build" && mkdir -p "$native_build"
+    cp "$peers_src/native/"* "$native_build/" && chmod -R u+w "$native_build"
+    if [ -n "$native_isa" ]; then
+        sed -i 's/std::string cfg = "threads="/std::string cfg = "isa='"$native_isa"',threads="/' "$native_build/embree_ao_bench.cpp"
+        grep -q 'cfg = "isa='"$native_isa"',' "$native_build/embree_ao_bench.cpp" ||
+            { echo "$(basename "$0" .sh): could not set the bench's Embree ISA" >&2; exit 1; }
+        make -s -C "$native_build" CXXFLAGS="-O3 -march=native -mno-avx512f -fno-math-errno -std=c++17 -pthread" >&2
+    else
+        make -s -C "$native_build" >&2
+    fi
 fi
 native_python=python3
 "$native_python" -c 'import numpy' 2>/dev/null || native_python=/usr/bin/python3
@@ -25,7 +42,7 @@ native_scene() {
     local scene="$native/out/$1.aoscene"
     if [ ! -s "$scene" ]; then
         mkdir -p "$native/out"
-        (cd "$native" && PYTHONPATH="$peers_src" "$native_python" export_scene.py "$peers_src/scenes/$1.json" -o "$scene" >/dev/null)
+        (cd "$native_build" && PYTHONPATH="$peers_src" "$native_python" export_scene.py "$peers_src/scenes/$1.json" -o "$scene" >/dev/null)
     fi
     echo "$scene"
 }
