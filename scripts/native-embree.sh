@@ -25,7 +25,7 @@ if [ ! -x "$native_bench" ]; then
     echo "$(basename "$0" .sh): building the native Embree bench in $native_build" >&2
     command -v g++ >/dev/null && [ -e /usr/include/embree3/rtcore.h ] || native_apt g++ libembree-dev
     rm -rf "$native_build/build" && mkdir -p "$native_build"
-    cp "$peers_src/native/"* "$native_build/" && chmod -R u+w "$native_build"
+    cp -r "$peers_src/native/." "$native_build/" && chmod -R u+w "$native_build"
     if [ -n "$native_isa" ]; then
         sed -i 's/std::string cfg = "threads="/std::string cfg = "isa='"$native_isa"',threads="/' "$native_build/embree_ao_bench.cpp"
         grep -q 'cfg = "isa='"$native_isa"',' "$native_build/embree_ao_bench.cpp" ||
