@@ -109,8 +109,9 @@ pub fn offset_ray_origin(p: Vec3A, err: Vec3A, n: Vec3A, w: Vec3A, least: f32) -
 }
 
 /// Each component of `v` moved one float the way `o`'s component points
-/// ([`step_float`](crate::math::step_float)), bit for bit (NaN included). In SSE2 lanes by masks rather than branches: each
-/// normal component's sign is as good as random from one hit to the next.
+/// ([`step_float`](crate::math::step_float)), bit for bit (NaN included). In SSE2 lanes by
+/// masks rather than branches: each normal component's sign is as good as random from one hit
+/// to the next.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 fn step_away(v: Vec3A, o: Vec3A) -> Vec3A {
