@@ -2,7 +2,8 @@
 # ../shared/peers/native's bench on first use in $native (HEMI_NATIVE_DIR, default
 # /tmp/hemi-native) from a copy, as its README says (g++ and Debian's libembree-dev, and numpy
 # for its scene export, installed with apt-get when missing and run as root), and defines
-#   native_scene NAME   -> prints the path of peer scene NAME's .aoscene (exported once)
+#   native_scene NAME [WIDTH HEIGHT] -> prints the path of peer scene NAME's .aoscene, at its
+#                          own size or the one given (exported once)
 #   native_best NAME SPP THREADS [ARGS...] -> runs the bench in --stream, --packet 8 and
 #                          --packet 16 and prints the JSON line of the mode with the best ao_mrays_s
 # With HEMI_NO_AVX512=1, as hemi then runs its AVX2 kernels, the bench is an AVX2 one: its copy
@@ -41,10 +42,11 @@ native_python=python3
 "$native_python" -c 'import numpy' 2>/dev/null || native_python=/usr/bin/python3
 "$native_python" -c 'import numpy' 2>/dev/null || { native_apt python3-numpy; native_python=/usr/bin/python3; }
 native_scene() {
-    local scene="$native/out/$1.aoscene"
+    local scene="$native/out/$1${2:+_$2x$3}.aoscene"
     if [ ! -s "$scene" ]; then
         mkdir -p "$native/out"
-        (cd "$native_build" && PYTHONPATH="$peers_src" "$native_python" export_scene.py "$peers_src/scenes/$1.json" -o "$scene" >/dev/null)
+        (cd "$native_build" && PYTHONPATH="$peers_src" "$native_python" export_scene.py "$peers_src/scenes/$1.json" \
+            ${2:+--width "$2" --height "$3"} -o "$scene" >/dev/null)
     fi
     echo "$scene"
 }
