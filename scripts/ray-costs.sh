@@ -1,12 +1,12 @@
 #!/usr/bin/env bash
-# What one ambient-occlusion ray costs in each of some hemi builds, measured so that a shared,
-# busy machine does not move the figures: cachegrind's instructions, L1 data misses and misses of
-# a simulated 1 MiB 8-way L2 (Zen 4's), exact and repeatable; and with --cpu N, CPU time per ray
-# (task-clock of one thread, median of N alternating rounds), which other processes' load moves
-# far less than wall time. Each figure is the difference between a render at --spp and one at a
-# quarter of it (loading, the build, camera rays and set-up cancel) over the difference in AO
-# rays, on one thread. Under valgrind the CPU shows no AVX-512, so its counts are of the AVX2
-# kernels (eight-ray packets).
+# What one ambient-occlusion ray costs in each of some hemi builds and in native Embree 3,
+# measured so that a shared, busy machine does not move the figures: cachegrind's instructions, L1
+# data misses and misses of a simulated 1 MiB 8-way L2 (Zen 4's), exact and repeatable; and with
+# --cpu N, CPU time per ray (task-clock of one thread, median of N alternating rounds), which
+# other processes' load moves far less than wall time. Each figure is the difference between a
+# render at --spp and one at a quarter of it (loading, the build, camera rays and set-up cancel)
+# over the difference in AO rays, on one thread. Under valgrind the CPU shows no AVX-512, so its
+# counts are of the AVX2 kernels (eight-ray packets).
 #
 #   scripts/ray-costs.sh [--spp N] [--size WxH] [--cpu ROUNDS] [--split N] BUILD [BUILD ...] [SCENE ...]
 #
@@ -15,12 +15,12 @@
 # (../shared/peers/native, built by scripts/native-embree.sh) in its stream mode, its best on the
 # deep meshes, or in the modes after a colon ('native:--robust --stream'), with its AVX2 build
 # under cachegrind (valgrind runs no AVX-512) and where HEMI_NO_AVX512=1 precedes it. Anything
-# else is a peer-scene name. Defaults: 64 spp, 128x128 for cachegrind (CPU time at the scene's
-# own size), the scenes many_spheres and dragon. --split N also lists, under each hemi build's
-# row, the N functions with the most instructions per AO ray, each out-of-line kernel named by
-# the kernel it compiles (SceneLanes: the top level's packets; InstanceLanes: packets within an
-# instance; PacketsBlock: a lone ray's leaf; OnTree: a lone ray entering a BLAS). Needs valgrind,
-# binutils, and perf for --cpu.
+# else is a peer-scene name. Defaults: 64 spp, 128x128 for cachegrind (CPU time at the scene's own
+# size), the scenes many_spheres and dragon. --split N also lists, under each hemi build's row,
+# the N functions with the most instructions per AO ray and their L2 misses, each out-of-line
+# kernel named by the kernel it compiles (SceneLanes: the top level's packets; InstanceLanes:
+# packets within an instance; PacketsBlock: a lone ray's leaf; OnTree: a lone ray entering a
+# BLAS). Needs valgrind, binutils, and perf for --cpu.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 scenes_dir="$root/../shared/peers/scenes"
