@@ -49,17 +49,16 @@ command -v valgrind >/dev/null || { echo "ray-costs: valgrind not found" >&2; ex
 [ -d "$scenes_dir" ] || { echo "ray-costs: $scenes_dir not found (../shared must sit beside the repo)" >&2; exit 1; }
 
 python3 - "$root" "$spp" "$size" "$cpu" "$split" "${args[@]}" <<'PY'
-import collections, json, os, re, statistics, subprocess, sys, tempfile
+import collections, functools, json, os, re, statistics, subprocess, sys, tempfile
 
 root, spp, size, cpu, split, *args = sys.argv[1:]
-split = int(split)
 scenes_dir = f"{root}/../shared/peers/scenes"
-spp, cpu = int(spp), int(cpu)
+spp, cpu, split = int(spp), int(cpu), int(split)
 low = spp // 4
 builds, scenes = [], []
 for a in args:
     *env, binary = a.split(",")
-    env = dict(e.split("=", 1) for e in env if "=" in e)
+    env = dict(e.split("=", 1) for e in env)
     if binary == "native" or binary.startswith("native:"):
         builds.append((a, binary, env, (binary.partition(":")[2] or "--stream").split()))
     elif os.path.isfile(binary) and os.access(binary, os.X_OK):
@@ -73,6 +72,7 @@ if not builds:
 scenes = scenes or ["many_spheres", "dragon"]
 out = tempfile.mkdtemp()
 
+@functools.cache
 def native_bench(scene, avx2, wh):
     """The native bench (its AVX2 build where `avx2`) and peer scene `scene` exported for it (at
     size `wh`, WxH, where given), each made on first use by native-embree.sh."""
@@ -83,7 +83,7 @@ def native_bench(scene, avx2, wh):
     done = subprocess.run(["bash", "-c", script, "native", scene, width, height], env=env, capture_output=True, text=True)
     if done.returncode != 0:
         sys.exit(f"ray-costs: the native bench failed to build or export {scene}: {done.stderr.strip()}")
-    return done.stdout.split()
+    return tuple(done.stdout.split())
 
 def render(build, scene, samples, prefix, extra, wh=None):
     """Runs `prefix` + a one-thread render (at size `wh`, WxH, where given, and with the
@@ -128,6 +128,11 @@ def cachegrind(build, scene, samples):
             by_function[function][1] += counts.get("DLmr", 0) + counts.get("DLmw", 0)
     return dict(zip(events, summary)), by_function, rays
 
+@functools.cache
+def symbols(binary):
+    """`nm -S`'s lines for `binary`, read once."""
+    return subprocess.run(["nm", "-S", binary], capture_output=True, text=True).stdout.splitlines()
+
 def function_label(binary, mangled):
     """A readable name for `mangled` in `binary`: for a kernel compiled per instruction set
     (`compiled_v3`, …, all one name once demangled), the kernel type it compiles, read from
@@ -136,8 +141,7 @@ def function_label(binary, mangled):
     name = re.sub(r"::h[0-9a-f]{16}$", "", name)
     if "compiled" not in name:
         return name
-    symbols = subprocess.run(["nm", "-S", binary], capture_output=True, text=True).stdout
-    found = next((l.split() for l in symbols.splitlines() if l.endswith(" " + mangled)), None)
+    found = next((l.split() for l in symbols(binary) if l.endswith(" " + mangled)), None)
     if not found:
         return name
     start, length = int(found[0], 16), int(found[1], 16)
