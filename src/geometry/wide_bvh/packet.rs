@@ -45,23 +45,28 @@ impl<L: Lanes> RayPacket<L> {
 /// eight children (bit i for lane i).
 #[cfg(target_arch = "x86_64")]
 pub(crate) trait PacketNodeTest {
-    /// Writes to `entered` the lanes that enter each child of `n`. (An out-parameter: a
-    /// returned array was copied to the caller's with one wide load of the eight narrow stores
-    /// just made, which the CPU cannot forward from its store buffer and so waits for.)
-    fn enter(&self, n: &Node<8>, entered: &mut [u32; 8]);
+    /// Writes to `entered` the lanes of `within` that enter each child of `n`, and returns the
+    /// children some of them enter (bit c for child c), so that a traversal visits those
+    /// without a branch on each of the eight. (An out-parameter: a returned array was copied to
+    /// the caller's with one wide load of the eight narrow stores just made, which the CPU
+    /// cannot forward from its store buffer and so waits for.)
+    fn enter(&self, n: &Node<8>, within: u32, entered: &mut [u32; 8]) -> u32;
 }
 
 #[cfg(target_arch = "x86_64")]
 impl<L: Lanes> PacketNodeTest for RayPacket<L> {
     #[inline(always)]
-    fn enter(&self, n: &Node<8>, entered: &mut [u32; 8]) {
+    fn enter(&self, n: &Node<8>, within: u32, entered: &mut [u32; 8]) -> u32 {
         // Every child's test first, with no branch between them: each is a chain of dependent
         // operations ending in a lane mask, and eight independent chains overlap where a branch
         // on each mask would stall on it (an empty slot is an inverted box, which no ray enters).
         // (Loops, not closures: a closure is compiled without the caller's instruction set.)
+        let mut children = 0;
         for (c, e) in entered.iter_mut().enumerate() {
-            *e = n.test_packet(c, self, self.tmax);
+            *e = n.test_packet(c, self, self.tmax) & within;
+            children |= u32::from(*e != 0) << c;
         }
+        children
     }
 }
 
@@ -141,25 +146,29 @@ impl<L: FusedLanes> FusedPacket<L> {
 #[cfg(target_arch = "x86_64")]
 impl<L: FusedLanes> PacketNodeTest for FusedPacket<L> {
     #[inline(always)]
-    fn enter(&self, n: &Node<8>, entered: &mut [u32; 8]) {
+    fn enter(&self, n: &Node<8>, within: u32, entered: &mut [u32; 8]) -> u32 {
         // (Loops, not closures: a closure is compiled without the caller's instruction set.)
         let isa = self.tmax.isa();
         let mut planes = [(L::splat(isa, 0.0), L::splat(isa, 0.0)); 3];
+        let mut children = 0;
         if let Some((near_row, far_row)) = self.octant {
             for (c, e) in entered.iter_mut().enumerate() {
                 for (a, plane) in planes.iter_mut().enumerate() {
                     *plane = (L::splat(isa, n.planes[near_row[a]][c]), L::splat(isa, n.planes[far_row[a]][c]));
                 }
-                *e = self.lanes_entering(planes);
+                *e = self.lanes_entering(planes) & within;
+                children |= u32::from(*e != 0) << c;
             }
         } else {
             for (c, e) in entered.iter_mut().enumerate() {
                 for (a, plane) in planes.iter_mut().enumerate() {
                     *plane = n.lane_planes::<L>(isa, c, a, self.negative[a]);
                 }
-                *e = self.lanes_entering(planes);
+                *e = self.lanes_entering(planes) & within;
+                children |= u32::from(*e != 0) << c;
             }
         }
+        children
     }
 }
 
@@ -262,10 +271,12 @@ impl WideBvh<8> {
             }
             count(Event::PacketNodeTest);
             let n = &self.nodes[node as usize];
-            p.enter(n, &mut tested);
-            for (c, &t) in tested.iter().enumerate() {
+            let mut children = p.enter(n, lanes, &mut tested);
+            while children != 0 {
+                let c = children.trailing_zeros() as usize;
+                children &= children - 1;
                 // Only rays that entered this node, and are not yet blocked, go on to its children.
-                let entered = t & lanes & open;
+                let entered = tested[c] & open;
                 if entered == 0 {
                     continue;
                 }
@@ -374,18 +385,20 @@ impl WideBvh<8> {
             count(Event::PacketNodeTest);
             let n = &self.nodes[node as usize];
             let mut tested = [0u32; 8];
+            let mut children = 0u32;
             for (c, t) in tested.iter_mut().enumerate() {
                 *t = n.test_packet(c, p, tmax_lanes) & lanes;
+                children |= u32::from(*t != 0) << c;
             }
             // Leaves now; inner children pushed farthest first (for the first ray), so that the
             // nearest is popped next.
             let (_, entry) = test.test(n, &order, f32::INFINITY);
             let mut inner = [(0usize, 0f32); 8];
             let mut k = 0;
-            for (c, &entered) in tested.iter().enumerate() {
-                if entered == 0 {
-                    continue;
-                }
+            while children != 0 {
+                let c = children.trailing_zeros() as usize;
+                children &= children - 1;
+                let entered = tested[c];
                 if n.count[c] > 0 {
                     leaf(n.child[c], n.count[c], entered, hits);
                     tmax_lanes = widened(&hits.tmax);
