@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # What one ambient-occlusion ray costs in each of some hemi builds and in native Embree 3,
 # measured so that a shared, busy machine does not move the figures: cachegrind's instructions, L1
-# data misses and misses of a simulated 1 MiB 8-way L2 (Zen 4's), exact and repeatable; and with
+# data misses, misses of a simulated 1 MiB 8-way L2 (Zen 4's) and mispredicted conditional
+# branches of its simple branch predictor, exact and repeatable; and with
 # --cpu N, CPU time per ray (task-clock of one thread, median of N alternating rounds), which
 # other processes' load moves far less than wall time. Each figure is the difference between a
 # render at --spp and one at a quarter of it (loading, the build, camera rays and set-up cancel)
@@ -17,7 +18,7 @@
 # under cachegrind (valgrind runs no AVX-512) and where HEMI_NO_AVX512=1 precedes it. Anything
 # else is a peer-scene name. Defaults: 64 spp, 128x128 for cachegrind (CPU time at the scene's own
 # size), the scenes many_spheres and dragon. --split N also lists, under each hemi build's row,
-# the N functions with the most instructions per AO ray and their L2 misses, each out-of-line
+# the N functions with the most instructions per AO ray, their L2 misses and mispredicts, each
 # kernel named by the kernel it compiles (SceneLanes: the top level's packets; InstanceLanes:
 # packets within an instance; PacketsBlock: a lone ray's leaf; OnTree: a lone ray entering a
 # BLAS). Needs valgrind, binutils, and perf for --cpu.
@@ -35,7 +36,7 @@ while [ $# -gt 0 ]; do
         --size) size="$2"; shift 2 ;;
         --cpu) cpu="$2"; shift 2 ;;
         --split) split="$2"; shift 2 ;;
-        -h|--help) sed -n '2,23p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,24p' "$0"; exit 0 ;;
         *) args+=("$1"); shift ;;
     esac
 done
@@ -107,14 +108,15 @@ def render(build, scene, samples, prefix, extra, wh=None):
     return json.load(open(stats))["total"]["rays"]["ao"]
 
 def cachegrind(build, scene, samples):
-    """Totals of the cachegrind events of one render, its instructions and L2 misses by function
-    (mangled names, which tell apart the copies of one generic function), and its AO rays."""
+    """Totals of the cachegrind events of one render, its instructions, L2 misses and mispredicts
+    by function (mangled names, which tell apart the copies of one generic function), and its AO
+    rays."""
     data = f"{out}/cachegrind.out"
     prefix = ["valgrind", "--tool=cachegrind", "--cache-sim=yes", "--D1=32768,8,64", "--LL=1048576,8,64",
-              "--demangle=no", f"--cachegrind-out-file={data}"]
+              "--branch-sim=yes", "--demangle=no", f"--cachegrind-out-file={data}"]
     rays = render(build, scene, samples, prefix, ["--size", size], size)
     events = summary = function = None
-    by_function = collections.defaultdict(lambda: [0, 0])
+    by_function = collections.defaultdict(lambda: [0, 0, 0])
     for line in open(data):
         if line.startswith("events:"):
             events = line.split()[1:]
@@ -126,6 +128,7 @@ def cachegrind(build, scene, samples):
             counts = dict(zip(events, map(int, line.split()[1:])))
             by_function[function][0] += counts.get("Ir", 0)
             by_function[function][1] += counts.get("DLmr", 0) + counts.get("DLmw", 0)
+            by_function[function][2] += counts.get("Bcm", 0)
     return dict(zip(events, summary)), by_function, rays
 
 @functools.cache
@@ -168,7 +171,8 @@ def more_rays(scene, hi, lo):
 
 print(f"per AO ray, {spp} spp less {low} spp, one thread; cachegrind at {size} (AVX2 kernels),"
       + (f" CPU time at the scene's size, median of {cpu} rounds" if cpu else ""))
-print(f"{'scene':13s} {'build':30s} {'instructions':>12s} {'L1d misses':>10s} {'L2 misses':>9s}" + (f" {'CPU ns':>8s}" if cpu else ""))
+print(f"{'scene':13s} {'build':30s} {'instructions':>12s} {'L1d misses':>10s} {'L2 misses':>9s} {'mispredicts':>11s}"
+      + (f" {'CPU ns':>8s}" if cpu else ""))
 for scene in scenes:
     ns = {}
     for r in range(cpu):
@@ -179,13 +183,14 @@ for scene in scenes:
         (hi, hi_fns, hi_rays), (lo, lo_fns, lo_rays) = cachegrind(b, scene, spp), cachegrind(b, scene, low)
         rays = more_rays(scene, hi_rays, lo_rays)
         per = lambda *keys: sum(hi[k] - lo[k] for k in keys) / rays
-        row = f"{scene:13s} {b[0][-30:]:30s} {per('Ir'):12.1f} {per('D1mr', 'D1mw'):10.2f} {per('DLmr', 'DLmw'):9.3f}"
+        row = (f"{scene:13s} {b[0][-30:]:30s} {per('Ir'):12.1f} {per('D1mr', 'D1mw'):10.2f} {per('DLmr', 'DLmw'):9.3f}"
+               f" {per('Bcm'):11.2f}")
         if cpu:
             row += f" {statistics.median(ns[b[0]]):8.1f}"
         print(row)
         if split and b[3] is None:
-            more = {f: [h - l for h, l in zip(c, lo_fns.get(f, [0, 0]))] for f, c in hi_fns.items()}
-            for mangled, (ir, l2) in sorted(more.items(), key=lambda fc: -fc[1][0])[:split]:
+            more = {f: [h - l for h, l in zip(c, lo_fns.get(f, [0, 0, 0]))] for f, c in hi_fns.items()}
+            for mangled, (ir, l2, bcm) in sorted(more.items(), key=lambda fc: -fc[1][0])[:split]:
                 label = function_label(b[1], mangled)[-44:]
-                print(f"{'':13s}   {label:44s} {ir / rays:12.1f} {'':10s} {l2 / rays:9.3f}")
+                print(f"{'':13s}   {label:44s} {ir / rays:12.1f} {'':10s} {l2 / rays:9.3f} {bcm / rays:11.2f}")
 PY
