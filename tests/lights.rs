@@ -580,8 +580,9 @@ fn the_occluder_s_bulk_path_matches_the_per_sample_path() {
     // the patterns' quadrant order, a packet of sixteen spanning the quadrants of a set of 16
     // and holding one quadrant of a set of 64, a packet of eight spanning two quadrants of a
     // set of 16 and holding half of one of a set of 64); 16 samples of a set of 64 (a
-    // progressive frame's run) fill one sixteen-lane packet, traced in sample order, or two
-    // eight-lane packets sorted into quadrants. Frames of four samples
+    // progressive frame's run) fill one sixteen-lane packet or two eight-lane ones, and 25
+    // samples two sixteen-lane packets or four eight-lane ones, the last partial, all traced in
+    // sample order. Frames of four samples
     // or fewer light the shared hits of a row of pixels together (`Tracer::shade_row_sums`,
     // with AOVs `Tracer::shade_row_samples`): a row's runs pooled, the occluder's rays from
     // neighbouring pixels in shared packets.
@@ -589,6 +590,7 @@ fn the_occluder_s_bulk_path_matches_the_per_sample_path() {
         (SamplerKind::CorrelatedMultiJittered, 16, 4),
         (SamplerKind::MultiJittered, 9, 3),
         (SamplerKind::MultiJittered, 37, 37),
+        (SamplerKind::MultiJittered, 25, 25),
         (SamplerKind::CorrelatedMultiJittered, 16, 37),
         (SamplerKind::CorrelatedMultiJittered, 24, 48),
         (SamplerKind::CorrelatedMultiJittered, 16, 32),
