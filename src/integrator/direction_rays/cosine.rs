@@ -4,7 +4,7 @@
 use glam::Vec3A;
 
 use super::{
-    DirectionRays, QuadrantPasses, RunDirections, RunOut, clear_and_floor,
+    DirectionRays, QuadrantPasses, RunDirections, RunOut, clear_and_floor, first_lanes,
     lanes::{PassLanes, add_clear_or_floor, along, occluded_lanes, spawned_lanes, to_world},
     mark_blocked, quadrant_lanes, quadrant_starts, scatter_by_quadrant,
 };
@@ -115,7 +115,7 @@ impl DirectionRays {
                 // traced as it comes, as answers do not depend on the lanes' order.
                 for g in 0..groups {
                     let at = g * w;
-                    let live = (1u32 << (n - at).min(w)) - 1;
+                    let live = first_lanes(n - at, w);
                     let lanes = spawned_lanes(
                         to_world(frame, local_group::<L>(isa, directions, [xs, ys, dx, dy, dz], at)),
                         spawn,
@@ -143,7 +143,7 @@ impl DirectionRays {
                     for (column, lanes) in [&mut *dx, &mut *dy, &mut *dz].into_iter().zip(d) {
                         lanes.store(&mut column[at..]);
                     }
-                    let valid = (1u32 << (n - at).min(w)) - 1;
+                    let valid = first_lanes(n - at, w);
                     let zero = L::splat(isa, 0.0);
                     let negative = [L::bits(along(&d, tu).lt(zero)), L::bits(along(&d, tv).lt(zero))];
                     quadrant_lanes(valid, negative)
@@ -164,7 +164,7 @@ impl DirectionRays {
             // Packets of `L::WIDTH` consecutive rays, as `RayOrder::Grouped` cuts them, each
             // query timed (when timing) as `DirectionRays::trace` times the whole call.
             for p in (0..traced).step_by(w) {
-                let live = (1u32 << (traced - p).min(w)) - 1;
+                let live = first_lanes(traced - p, w);
                 let (hit, took) = {
                     let [x, y, z] = &self.ray_dirs;
                     let d =

@@ -3,7 +3,7 @@
 
 use glam::Vec3A;
 
-use super::{DirectionRays, QuadrantPasses, RunOut, quadrant_lanes, quadrant_starts};
+use super::{DirectionRays, QuadrantPasses, RunOut, first_lanes, quadrant_lanes, quadrant_starts};
 #[cfg(target_arch = "x86_64")]
 use crate::{
     geometry::{
@@ -85,7 +85,7 @@ impl DirectionRays {
                 let differs = L::bits(c[0].ne(L::splat(isa, floor.x)))
                     | L::bits(c[1].ne(L::splat(isa, floor.y)))
                     | L::bits(c[2].ne(L::splat(isa, floor.z)));
-                let valid = (1u32 << (n - g * width).min(width)) - 1;
+                let valid = first_lanes(n - g * width, width);
                 let negative = [L::bits(along(&[x, y, z], u).lt(zero)), L::bits(along(&[x, y, z], v).lt(zero))];
                 quadrant_lanes(L::bits(w.gt(zero)) & differs & valid, negative)
             };

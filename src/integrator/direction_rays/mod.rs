@@ -105,6 +105,14 @@ fn mark_blocked(dark: &mut [u32], ray_samples: &[u32], first: usize, hit: u32, w
     }
 }
 
+/// The lanes of a group of `width` that hold one of the `left` items from its first on: all of
+/// them, or the first `left` in the run's last, partial group.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn first_lanes(left: usize, width: usize) -> u32 {
+    (1u32 << left.min(width)) - 1
+}
+
 /// [`QuadrantLanes`] from the lanes that need a ray and those negative along each tangent.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]

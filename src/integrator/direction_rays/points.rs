@@ -5,7 +5,7 @@
 use glam::{Vec2, Vec3A};
 
 use super::{
-    CosinePoint, DirectionRays, clear_and_floor,
+    CosinePoint, DirectionRays, clear_and_floor, first_lanes,
     lanes::{PassLanes, add_group, occluded_lanes},
     mark_blocked, quadrant_lanes, quadrant_starts, scatter_by_quadrant,
 };
@@ -170,7 +170,7 @@ impl DirectionRays {
                     let push = c(OFFSET + a).select(behind, c(OFFSET + a).neg());
                     c(POINT + a).add(push).step_away(push).store(&mut column[at..]);
                 }
-                let valid = ((1u32 << (n - at).min(w)) - 1) & points.lit[g];
+                let valid = first_lanes(n - at, w) & points.lit[g];
                 let negative = [L::bits(local[0].lt(zero)), L::bits(local[1].lt(zero))];
                 let masks = quadrant_lanes(valid, negative);
                 for (count, lanes) in count.iter_mut().zip(masks) {
@@ -195,7 +195,7 @@ impl DirectionRays {
             stack.clear();
             let one = L::splat(isa, 1.0);
             for p in (0..traced).step_by(w) {
-                let live = (1u32 << (traced - p).min(w)) - 1;
+                let live = first_lanes(traced - p, w);
                 let (hit, took) = {
                     // Written out, not by `map` (see `cosine::local_group`).
                     let ([dx, dy, dz], [ox, oy, oz]) = (&self.ray_dirs, &points.ray_origins);
