@@ -230,8 +230,8 @@ impl DirectionRays {
         let (clear, floor) = clear_and_floor(terms, 1.0);
         let tracing = clear.cmpne(floor).any();
         let (mut traced, mut cycles, mut dark) = (0, 0, 0);
-        let all = (1u32 << L::WIDTH) - 1;
-        // A table sorted by azimuth pads its last packet (summed runs only).
+        // A table sorted by azimuth pads its last packet (summed runs only); a quadrant table's
+        // packets are full.
         let sorted = table.order() == TableOrder::Sorted;
         debug_assert!(!sorted || matches!(out, RunOut::Sum(..)), "a sorted table gives sums only");
         stack.clear();
@@ -240,10 +240,7 @@ impl DirectionRays {
             let mut blocked = [0u32; 16];
             if tracing {
                 for (packet, local) in table.pattern(p).chunks_exact(3 * L::WIDTH).enumerate() {
-                    let live = match n - packet * L::WIDTH {
-                        left if sorted && left < L::WIDTH => (1u32 << left) - 1,
-                        _ => all,
-                    };
+                    let live = first_lanes(n - packet * L::WIDTH, L::WIDTH);
                     let (hit, took) = {
                         let local = [0, 1, 2].map(|axis| L::load(isa, &local[axis * L::WIDTH..]));
                         let lanes = spawned_lanes(to_world(frame, local), spawn, terms.max_distance);

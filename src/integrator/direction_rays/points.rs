@@ -284,7 +284,7 @@ fn point_source_lanes<L: PassLanes + BitLanes>(
         let dist2 = dot3(&to_light, &to_light);
         let cos = dot3(&normal, &to_light);
         let dark = L::or(cos.le(zero), dist2.le(zero));
-        let lit = L::bits(L::andnot(dark, L::mask(isa, points.lit[g]))) & ((1u32 << sums.len()) - 1);
+        let lit = L::bits(L::andnot(dark, L::mask(isa, points.lit[g]))) & first_lanes(sums.len(), w);
         let cos = cos.div(dist2.sqrt());
         let scale = if source.falloff { cos.div(dist2) } else { cos };
         let light = intensity.map(|i| i.mul(scale));
