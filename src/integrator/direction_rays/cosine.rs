@@ -230,10 +230,12 @@ impl DirectionRays {
         let (clear, floor) = clear_and_floor(terms, 1.0);
         let tracing = clear.cmpne(floor).any();
         let (mut traced, mut cycles, mut dark) = (0, 0, 0);
-        // A table sorted by azimuth pads its last packet (summed runs only); a quadrant table's
-        // packets are full.
-        let sorted = table.order() == TableOrder::Sorted;
-        debug_assert!(!sorted || matches!(out, RunOut::Sum(..)), "a sorted table gives sums only");
+        // A table sorted by azimuth pads its last packet, which `first_lanes` leaves out (summed
+        // runs only); a quadrant table's packets are full.
+        debug_assert!(
+            table.order() != TableOrder::Sorted || matches!(out, RunOut::Sum(..)),
+            "a sorted table gives sums only"
+        );
         stack.clear();
         for (pass, p) in passes.enumerate() {
             // Bit t % 16 of entry t / 16: slot t is blocked.
