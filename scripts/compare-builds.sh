@@ -39,7 +39,10 @@ import json, os, statistics, subprocess, sys, tempfile
 scenes_dir, spp, threads, rounds, a, b, *scenes = sys.argv[1:]
 scenes = scenes or ["sphere_plane", "cornell", "many_spheres", "dragon", "sponza"]
 
-copies = tempfile.mkdtemp()
+# Removed, with the copies and what the runs wrote, when the script ends.
+scratch = tempfile.TemporaryDirectory()
+copies = os.path.join(scratch.name, "builds")
+os.mkdir(copies)
 
 def build(spec, name):
     *env, binary = spec.split(",")
@@ -55,7 +58,8 @@ builds = {"A": build(a, "A"), "B": build(b, "B")}
 for s in scenes:
     if not os.path.isfile(f"{scenes_dir}/{s}.json"):
         sys.exit(f"compare-builds: no scene {s} in {scenes_dir}")
-out = tempfile.mkdtemp()
+out = os.path.join(scratch.name, "runs")
+os.mkdir(out)
 keys = ["ao_kernel_mrays_per_s", "ao_query_mrays_per_s", "ao_mrays_per_s", "seconds"]
 runs = {}
 for r in range(int(rounds)):

@@ -34,6 +34,7 @@ done
 [ -d "$peers_src" ] || { echo "compare-kernels: $peers_src not found (../shared must sit beside the repo)" >&2; exit 1; }
 . "$root/scripts/peers-venv.sh"
 out="$(mktemp -d)"
+trap 'rm -rf "$out"' EXIT
 if [ "$embree3" = 1 ]; then
     mitsuba=$(ls -d "$work"/.venv/lib/python3*/site-packages/mitsuba 2>/dev/null | head -1)
     [ -f "$mitsuba/libembree3.so" ] || { echo "compare-kernels: no libembree3.so in $work/.venv's mitsuba" >&2; exit 1; }

@@ -65,7 +65,9 @@ def paths(scene):
         variants["glTF"] = glb + ["--spp", spp]
     return variants
 
-out = tempfile.mkdtemp()
+# Removed, with what the runs wrote there, when the script ends.
+scratch = tempfile.TemporaryDirectory()
+out = scratch.name
 runs = {}
 for r in range(int(rounds)):
     for s in scenes:

@@ -48,6 +48,7 @@ done
 
 (cd "$root" && cargo build --release -q)
 out="$(mktemp -d)"
+trap 'rm -rf "$out"' EXIT
 . "$root/scripts/fresh-copy.sh"
 hemi="$(fresh_copy "$root/target/release/hemi" "$out")"
 json() { python3 -c "import json,sys; d=json.loads(sys.stdin.read().strip().splitlines()[-1]); print($1)"; }

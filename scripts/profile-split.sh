@@ -49,7 +49,9 @@ if not (os.path.isfile(binary) and os.access(binary, os.X_OK)):
 for scene in scenes:
     if not os.path.isfile(f"{scenes_dir}/{scene}.json"):
         sys.exit(f"profile-split: no peer scene '{scene}' in {scenes_dir}")
-out = tempfile.mkdtemp()
+# Removed, with what the runs wrote there, when the script ends.
+scratch = tempfile.TemporaryDirectory()
+out = scratch.name
 
 # Where the binary's code lies in its file: a sample's address, less the mapping's start, plus
 # this, is the address addr2line knows.

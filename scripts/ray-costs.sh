@@ -71,7 +71,9 @@ for a in args:
 if not builds:
     sys.exit("ray-costs: want at least one build (see --help)")
 scenes = scenes or ["many_spheres", "dragon"]
-out = tempfile.mkdtemp()
+# Removed, with what the runs wrote there, when the script ends.
+scratch = tempfile.TemporaryDirectory()
+out = scratch.name
 
 @functools.cache
 def native_bench(scene, avx2, wh):
