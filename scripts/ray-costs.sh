@@ -1,15 +1,16 @@
 #!/usr/bin/env bash
 # What one ambient-occlusion ray costs in each of some hemi builds and in native Embree 3,
 # measured so that a shared, busy machine does not move the figures: cachegrind's instructions, L1
-# data misses, misses of a simulated 1 MiB 8-way L2 (Zen 4's) and mispredicted conditional
-# branches of its simple branch predictor, exact and repeatable; and with
+# data misses, misses of a simulated last level (Zen 4's 1 MiB 8-way L2; --llc MIB simulates a
+# 16-way L3 of that size instead, whose misses go to memory) and mispredicted conditional branches
+# of its simple branch predictor, exact and repeatable; and with
 # --cpu N, CPU time per ray (task-clock of one thread, median of N alternating rounds), which
 # other processes' load moves far less than wall time. Each figure is the difference between a
 # render at --spp and one at a quarter of it (loading, the build, camera rays and set-up cancel)
 # over the difference in AO rays, on one thread. Under valgrind the CPU shows no AVX-512, so its
 # counts are of the AVX2 kernels (eight-ray packets).
 #
-#   scripts/ray-costs.sh [--spp N] [--size WxH] [--cpu ROUNDS] [--split N] BUILD [BUILD ...] [SCENE ...]
+#   scripts/ray-costs.sh [--spp N] [--size WxH] [--llc MIB] [--cpu ROUNDS] [--split N] BUILD [BUILD ...] [SCENE ...]
 #
 # A BUILD is a hemi binary, optionally preceded by comma-separated environment settings
 # ('HEMI_NO_AVX512=1,target/release/hemi'), or 'native': native Embree 3's bench
@@ -18,10 +19,10 @@
 # under cachegrind (valgrind runs no AVX-512) and where HEMI_NO_AVX512=1 precedes it. Anything
 # else is a peer-scene name. Defaults: 64 spp, 128x128 for cachegrind (CPU time at the scene's own
 # size), the scenes many_spheres and dragon. --split N also lists, under each hemi build's row,
-# the N functions with the most instructions per AO ray, their L2 misses and mispredicts, each
-# kernel named by the kernel it compiles (SceneLanes: the top level's packets; InstanceLanes:
-# packets within an instance; PacketsBlock: a lone ray's leaf; OnTree: a lone ray entering a
-# BLAS). Needs valgrind, binutils, and perf for --cpu.
+# the N functions with the most instructions per AO ray, their last-level misses and
+# mispredicts, each kernel named by the kernel it compiles (SceneLanes: the top level's packets;
+# InstanceLanes: packets within an instance; PacketsBlock: a lone ray's leaf; OnTree: a lone ray
+# entering a BLAS). Needs valgrind, binutils, and perf for --cpu.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 scenes_dir="$root/../shared/peers/scenes"
@@ -29,6 +30,7 @@ spp=64
 size=128x128
 cpu=0
 split=0
+llc=1
 args=()
 while [ $# -gt 0 ]; do
     case "$1" in
@@ -36,7 +38,8 @@ while [ $# -gt 0 ]; do
         --size) size="$2"; shift 2 ;;
         --cpu) cpu="$2"; shift 2 ;;
         --split) split="$2"; shift 2 ;;
-        -h|--help) sed -n '2,24p' "$0"; exit 0 ;;
+        --llc) llc="$2"; shift 2 ;;
+        -h|--help) sed -n '2,25p' "$0"; exit 0 ;;
         *) args+=("$1"); shift ;;
     esac
 done
@@ -44,17 +47,21 @@ done
 [[ "$cpu" =~ ^[0-9]+$ ]] || { echo "ray-costs: --cpu wants a whole number of rounds" >&2; exit 2; }
 [[ "$split" =~ ^[0-9]+$ ]] || { echo "ray-costs: --split wants a whole number of functions" >&2; exit 2; }
 [[ "$size" =~ ^[1-9][0-9]*x[1-9][0-9]*$ ]] || { echo "ray-costs: --size wants WxH" >&2; exit 2; }
+[[ "$llc" =~ ^(1|2|4|8|16|32|64|128)$ ]] || { echo "ray-costs: --llc wants MiB, a power of two from 1 to 128" >&2; exit 2; }
 [ ${#args[@]} -ge 1 ] || { echo "ray-costs: want at least one build (see --help)" >&2; exit 2; }
 command -v valgrind >/dev/null || { echo "ray-costs: valgrind not found" >&2; exit 1; }
 [ "$cpu" = 0 ] || command -v perf >/dev/null || { echo "ray-costs: perf not found (needed for --cpu)" >&2; exit 1; }
 [ -d "$scenes_dir" ] || { echo "ray-costs: $scenes_dir not found (../shared must sit beside the repo)" >&2; exit 1; }
 
-python3 - "$root" "$spp" "$size" "$cpu" "$split" "${args[@]}" <<'PY'
+python3 - "$root" "$spp" "$size" "$cpu" "$split" "$llc" "${args[@]}" <<'PY'
 import collections, functools, json, os, re, statistics, subprocess, sys, tempfile
 
-root, spp, size, cpu, split, *args = sys.argv[1:]
+root, spp, size, cpu, split, llc, *args = sys.argv[1:]
 scenes_dir = f"{root}/../shared/peers/scenes"
-spp, cpu, split = int(spp), int(cpu), int(split)
+spp, cpu, split, llc = int(spp), int(cpu), int(split), int(llc)
+# The simulated last level: Zen 4's L2 (8-way) by default, else an L3 (16-way).
+last_level = f"{llc << 20},{8 if llc == 1 else 16},64"
+missed = "L2 misses" if llc == 1 else "LLC misses"
 low = spp // 4
 builds, scenes = [], []
 for a in args:
@@ -114,7 +121,7 @@ def cachegrind(build, scene, samples):
     by function (mangled names, which tell apart the copies of one generic function), and its AO
     rays."""
     data = f"{out}/cachegrind.out"
-    prefix = ["valgrind", "--tool=cachegrind", "--cache-sim=yes", "--D1=32768,8,64", "--LL=1048576,8,64",
+    prefix = ["valgrind", "--tool=cachegrind", "--cache-sim=yes", "--D1=32768,8,64", f"--LL={last_level}",
               "--branch-sim=yes", "--demangle=no", f"--cachegrind-out-file={data}"]
     rays = render(build, scene, samples, prefix, ["--size", size], size)
     events = summary = function = None
@@ -171,9 +178,9 @@ def more_rays(scene, hi, lo):
         sys.exit(f"ray-costs: {scene} traces no more AO rays at {spp} spp than at {low}")
     return hi - lo
 
-print(f"per AO ray, {spp} spp less {low} spp, one thread; cachegrind at {size} (AVX2 kernels),"
+print(f"per AO ray, {spp} spp less {low} spp, one thread; cachegrind at {size} (AVX2 kernels, {llc} MiB last level),"
       + (f" CPU time at the scene's size, median of {cpu} rounds" if cpu else ""))
-print(f"{'scene':13s} {'build':30s} {'instructions':>12s} {'L1d misses':>10s} {'L2 misses':>9s} {'mispredicts':>11s}"
+print(f"{'scene':13s} {'build':30s} {'instructions':>12s} {'L1d misses':>10s} {missed:>9s} {'mispredicts':>11s}"
       + (f" {'CPU ns':>8s}" if cpu else ""))
 for scene in scenes:
     ns = {}
