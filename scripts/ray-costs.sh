@@ -61,7 +61,7 @@ scenes_dir = f"{root}/../shared/peers/scenes"
 spp, cpu, split, llc = int(spp), int(cpu), int(split), int(llc)
 # The simulated last level: Zen 4's L2 (8-way) by default, else an L3 (16-way).
 last_level = f"{llc << 20},{8 if llc == 1 else 16},64"
-missed = "L2 misses" if llc == 1 else "LLC misses"
+missed = "L2 misses" if llc == 1 else "L3 misses"
 low = spp // 4
 builds, scenes = [], []
 for a in args:
