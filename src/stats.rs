@@ -8,6 +8,7 @@ use crate::{
     geometry::{
         TraversalCounts,
         accel::{AlphaCounts, BvhWork},
+        wide_bvh::SahCost,
     },
     light::Term,
 };
@@ -241,6 +242,9 @@ pub struct FrameStats {
     pub bvh_bytes: usize,
     /// Triangles the BVH stores (each shared mesh once).
     pub bvh_triangles: usize,
+    /// The largest BLAS's primitive slots and [`SahCost`] where the BVH was built or refit this
+    /// frame.
+    pub bvh_sah: Option<(usize, SahCost)>,
     /// Bytes of the accumulation, frame and image buffers.
     pub buffer_bytes: usize,
     /// Samples rejected because they were NaN or infinite (should stay 0).
@@ -365,6 +369,9 @@ impl FrameStats {
                 "bytes": self.bvh_bytes,
                 "triangles": self.bvh_triangles,
                 "bytes_per_triangle": self.bvh_bytes_per_triangle(),
+                "largest_blas": self.bvh_sah.map(|(slots, sah)| serde_json::json!({
+                    "prims": slots, "sah_inner": sah.inner, "sah_leaves": sah.leaves, "sah": sah.total(),
+                })),
             },
             "buffer_bytes": self.buffer_bytes,
             "nonfinite_samples": self.nonfinite_samples,
@@ -427,6 +434,15 @@ impl FrameStats {
             if self.bvh_built { " (built)" } else { "" },
             self.buffer_bytes as f64 / (1 << 20) as f64,
         );
+        if let Some((slots, sah)) = self.bvh_sah {
+            let _ = writeln!(
+                s,
+                "  largest BLAS: {slots} prims, SAH {:.3} (inner nodes {:.3}, leaves {:.3})",
+                sah.total(),
+                sah.inner,
+                sah.leaves
+            );
+        }
         if let Some(line) = self.peak_rss_line() {
             let _ = writeln!(s, "  {line}");
         }

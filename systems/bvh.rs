@@ -214,6 +214,7 @@ pub fn update_bvh(
         *geometry = built;
         stats.bvh_built = work.any();
         stats.bvh_work = work;
+        stats.bvh_sah = geometry.largest_blas_sah();
         let alpha = match geometry.alpha_mesh_count() {
             0 => String::new(),
             n => format!(" and {n} alpha-tested meshes apart"),

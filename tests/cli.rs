@@ -77,6 +77,11 @@ fn stats_json_holds_the_ao_rate_of_the_trace_the_ao_kernel_and_its_queries() {
     let (ao_ms, queries_ms) = (split["ao_ms"].as_f64().unwrap(), split["ao_queries_ms"].as_f64().unwrap());
     assert!(ao_ms > 0.0 && queries_ms > 0.0 && queries_ms < ao_ms, "{frame}");
     assert!(frame["ao_query_mrays_per_s"].as_f64().unwrap() > frame["ao_kernel_mrays_per_s"].as_f64().unwrap());
+    // The frame built the BVH: its largest tree's SAH cost, whose root alone counts 1.
+    let blas = &frame["bvh"]["largest_blas"];
+    let (inner, leaves) = (blas["sah_inner"].as_f64().unwrap(), blas["sah_leaves"].as_f64().unwrap());
+    assert!(inner >= 1.0 && leaves > 0.0 && blas["prims"].as_u64().unwrap() > 0, "{blas}");
+    assert_eq!(blas["sah"].as_f64().unwrap(), inner + leaves);
 }
 
 /// The AVX2 copies (eight-lane packets, the AVX2 loops of CMJ and the cosine directions) and

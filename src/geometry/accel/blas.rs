@@ -26,7 +26,7 @@ use crate::geometry::{
     ray::{Ray, Shear},
     shapes::Triangle,
     tri4::{RayTri4, Tri4},
-    wide_bvh::{NodeTest, WideBvh},
+    wide_bvh::{NodeTest, SahCost, WideBvh},
 };
 use crate::simd::{Kernel, Lanes, prefetch};
 
@@ -258,6 +258,12 @@ impl Blas {
     /// leaves once per leaf).
     pub fn slot_count(&self) -> usize {
         self.slots
+    }
+
+    /// The wide tree's [`SahCost`]: a triangle leaf tests its packets of four, any other leaf
+    /// each of its primitives (`None` without primitives).
+    pub fn sah_cost(&self) -> Option<SahCost> {
+        self.tree.sah_cost(f64::from)
     }
 
     /// Each primitive slot and its primitive, in slot order.

@@ -24,7 +24,7 @@ use crate::geometry::{
     hit::SurfaceHit,
     ray::Ray,
     shapes::{PlanePrim, SpherePrim, Triangle},
-    wide_bvh::{NodeTest, WideBvh},
+    wide_bvh::{NodeTest, SahCost, WideBvh},
 };
 use crate::material::PlacedSurface;
 
@@ -201,6 +201,13 @@ impl SceneGeometry {
     /// splits put in several leaves once per leaf).
     pub fn prim_count(&self) -> usize {
         self.blases.iter().map(|b| b.slot_count()).sum()
+    }
+
+    /// The BLAS with the most primitive slots, by those slots, and its [`SahCost`] (`None`
+    /// without one that has area).
+    pub fn largest_blas_sah(&self) -> Option<(usize, SahCost)> {
+        let largest = self.blases.iter().max_by_key(|b| b.slot_count())?;
+        largest.sah_cost().map(|cost| (largest.slot_count(), cost))
     }
 
     /// The bottom-level BVHs.

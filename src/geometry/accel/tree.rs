@@ -5,7 +5,7 @@ use obvhs::bvh2::node::Bvh2Node;
 
 use crate::geometry::{
     ray::Ray,
-    wide_bvh::{Bvh4, NodeTest, WideBvh},
+    wide_bvh::{Bvh4, NodeTest, SahCost, WideBvh},
 };
 use crate::simd::Plain;
 #[cfg(target_arch = "x86_64")]
@@ -51,6 +51,14 @@ impl Tree {
             Tree::Four(t) => t.memory_bytes(),
             #[cfg(target_arch = "x86_64")]
             Tree::Eight(t, _) => t.memory_bytes(),
+        }
+    }
+
+    pub(super) fn sah_cost(&self, tests: impl Fn(u32) -> f64) -> Option<SahCost> {
+        match self {
+            Tree::Four(t) => t.sah_cost(tests),
+            #[cfg(target_arch = "x86_64")]
+            Tree::Eight(t, _) => t.sah_cost(tests),
         }
     }
 

@@ -511,3 +511,35 @@ fn rounded_distances_tie_only_within_rounding() {
     hits.offer(0, 5.0, 7);
     assert_eq!((hits.tied, hits.best[0]), (0b010, Some(7)));
 }
+
+#[test]
+fn the_sah_cost_weighs_each_box_by_its_area_over_the_root_box() {
+    // Two leaves side by side (half areas 3 and 3) under a root of half area 7, with 4 and 8
+    // primitives: one test and two.
+    let bvh2 = vec![
+        Bvh2Node::new(Aabb::new(Vec3A::ZERO, Vec3A::new(3.0, 1.0, 1.0)), 0, 1),
+        Bvh2Node::new(Aabb::new(Vec3A::ZERO, Vec3A::ONE), 4, 0),
+        Bvh2Node::new(Aabb::new(Vec3A::new(2.0, 0.0, 0.0), Vec3A::new(3.0, 1.0, 1.0)), 8, 4),
+    ];
+    let packets = |count: u32| f64::from(count.div_ceil(4));
+    let cost = Bvh4::from_bvh2(&bvh2).sah_cost(packets).expect("a root with area");
+    assert_eq!(cost.inner, 1.0);
+    assert!((cost.leaves - 9.0 / 7.0).abs() < 1e-12, "{cost:?}");
+    assert!(Bvh4::default().sah_cost(packets).is_none());
+
+    // A deep tree at either width: its nodes' boxes, and the binary tree's leaves (each of
+    // which stays a leaf), over the root's box.
+    let (bvh2, eight) = packet_test_scene(0.0, 1.0);
+    let root = f64::from(bvh2[0].aabb().half_area());
+    let leaves: f64 =
+        bvh2.iter().filter(|n| n.prim_count > 0).map(|n| f64::from(n.aabb().half_area() * n.prim_count as f32)).sum();
+    let four = Bvh4::from_bvh2(&bvh2);
+    let widths = [(four.sah_cost(f64::from), f64::from(node_area(&four)))];
+    let widths = widths.into_iter().chain(eight.map(|t| (t.sah_cost(f64::from), f64::from(node_area(&t)))));
+    for (cost, inner) in widths {
+        let cost = cost.expect("a root with area");
+        assert!((cost.inner - inner / root).abs() < 1e-5 * cost.inner, "{cost:?} against {}", inner / root);
+        assert!((cost.leaves - leaves / root).abs() < 1e-5 * cost.leaves, "{cost:?} against {}", leaves / root);
+        assert!(cost.inner > 1.0 && (cost.total() - cost.inner - cost.leaves).abs() < 1e-12);
+    }
+}
