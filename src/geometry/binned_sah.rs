@@ -4,7 +4,7 @@
 //! primitives) and the boundary of lowest surface-area cost is taken. The cost counts a leaf's triangles by the
 //! packets of four they are tested in (a leaf of five costs as much as one of eight), so leaves
 //! come out as full packets and the wide tree needs fewer nodes than obvhs's PLOC build with
-//! leaf collapsing gives at the same SAH cost (figures in docs/benchmarks.md).
+//! leaf collapsing gives at the same SAH cost.
 //!
 //! Subtrees of 8192 primitives or more are built in parallel, and the passes over nodes of
 //! 32768 or more in parallel chunks; the result does not depend on the thread count. Children come after their parents in the node array, the two
