@@ -1,6 +1,6 @@
 //! Bottom-level BVHs: one per unique mesh, in its own frame.
 
-use std::time::Duration;
+use std::{sync::OnceLock, time::Duration};
 
 use glam::{Vec3, Vec3A};
 use obvhs::{
@@ -80,6 +80,9 @@ pub struct Blas {
     /// For a world-space bake of textured meshes, each slot's triangle index in its mesh
     /// (`None` elsewhere): read once per camera hit, never during traversal.
     pub(super) source_triangles: Option<Vec<u32>>,
+    /// The wide tree's [`SahCost`], worked out the first time [`Blas::sah_cost`] is asked for
+    /// (a frame that only moves instances asks again) and again after a refit.
+    sah: OnceLock<Option<SahCost>>,
 }
 
 impl Blas {
@@ -132,6 +135,7 @@ impl Blas {
             degenerate_triangles: 0,
             depth,
             source_triangles: None,
+            sah: OnceLock::new(),
         };
         let mut bvh = bvh;
         if spatial_splits {
@@ -237,6 +241,7 @@ impl Blas {
         self.tree = Tree::from_bvh2(&bvh.nodes);
         self.objects = self.pack(&bvh.primitive_indices, triangle);
         self.refit_tree = Some(bvh);
+        self.sah = OnceLock::new();
     }
 
     /// Bounds of everything in this BLAS.
@@ -263,7 +268,7 @@ impl Blas {
     /// The wide tree's [`SahCost`]: a triangle leaf tests its packets of four, any other leaf
     /// each of its primitives (`None` without primitives).
     pub fn sah_cost(&self) -> Option<SahCost> {
-        self.tree.sah_cost(f64::from)
+        *self.sah.get_or_init(|| self.tree.sah_cost(f64::from))
     }
 
     /// Each primitive slot and its primitive, in slot order.
