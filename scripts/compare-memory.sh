@@ -67,7 +67,7 @@ median() { tr ' ' '\n' | grep . | sort -n | awk '{v[NR]=$1} END {print (NR % 2) 
 echo "| scene (triangles) | hemi peak RSS (MiB) | native Embree 3 (MiB) | hemi ÷ Embree |"
 echo "|---|---|---|---|"
 for s in "${scenes[@]}"; do
-    tris=$(od -An -t u4 -j 16 -N 4 "$native/out/$s.aoscene" | tr -d ' ')
+    tris=$(native_triangles "$native/out/$s.aoscene")
     h=$(echo "${hemi_kib[$s]}" | median)
     n=$(echo "${native_kib[$s]}" | median)
     awk -v s="$s" -v t="$tris" -v h="$h" -v n="$n" \

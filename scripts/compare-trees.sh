@@ -54,7 +54,7 @@ echo "|---|---|---|---|---|---|---|"
 for s in "${scenes[@]}"; do
     [ -f "$peers_src/scenes/$s.json" ] || { echo "compare-trees: no scene $s in $peers_src/scenes" >&2; exit 2; }
     scene="$(native_scene "$s")"
-    tris=$(od -An -t u4 -j 16 -N 4 "$scene" | tr -d ' ')
+    tris=$(native_triangles "$scene")
     for quality in medium high; do
         "$verbose_bench" "$scene" --spp 1 --repeat 1 --quality "$quality" --verbose >"$tmp/embree_$quality" 2>&1
     done

@@ -4,6 +4,7 @@
 # for its scene export, installed with apt-get when missing and run as root), and defines
 #   native_scene NAME [WIDTH HEIGHT] -> prints the path of peer scene NAME's .aoscene, at its
 #                          own size or the one given (exported once)
+#   native_triangles FILE -> prints the triangle count in an .aoscene file's header
 #   native_best NAME SPP THREADS [ARGS...] -> runs the bench in --stream, --packet 8 and
 #                          --packet 16 and prints the JSON line of the mode with the best ao_mrays_s
 # With HEMI_NO_AVX512=1, as hemi then runs its AVX2 kernels, the bench is an AVX2 one: its copy
@@ -49,6 +50,9 @@ native_scene() {
             ${2:+--width "$2" --height "$3"} -o "$scene" >/dev/null)
     fi
     echo "$scene"
+}
+native_triangles() {
+    od -An -t u4 -j 16 -N 4 "$1" | tr -d ' '
 }
 native_best() {
     local name="$1" spp="$2" threads="$3"
